@@ -1,0 +1,1 @@
+//! Tetrahedral meshes: the in-memory form, readers, validation and surface extraction.
