@@ -1,1 +1,24 @@
-//! placeholder
+//! `lop-ipc`: the shared-memory contract between `lopd`'s processes and any renderer.
+//!
+//! Everything that crosses a process boundary is defined here and nowhere else:
+//! - [`types`]: `#[repr(C)]`, heap-free payloads with language-neutral type names and a
+//!   [`CONTRACT_VERSION`] field, so a C, C++ or Python reader can map them without our code;
+//! - [`services`]: the service names under a configurable prefix, the quality of service each
+//!   service is created with, and thin helpers that create (daemon side) or open (client side)
+//!   them;
+//! - [`clock`]: the one clock every timestamp in a payload uses (`CLOCK_MONOTONIC`, ns), so
+//!   latencies can be computed across processes.
+//!
+//! The rules a client must follow (attach read-only, never the blackboard, retry `open`) are in
+//! the docs of [`services`].
+
+pub mod clock;
+pub mod services;
+pub mod types;
+
+pub use services::{ServiceNames, SERVICE_PREFIX_DEFAULT};
+pub use types::*;
+
+/// Version of the payload layouts. Bumped whenever a type in [`types`] changes shape or meaning;
+/// every payload carries it so a reader can refuse data it does not understand.
+pub const CONTRACT_VERSION: u32 = 1;

@@ -1,0 +1,139 @@
+//! Guards the wire layout of every payload: a renderer in C, C++ or Python maps these bytes by
+//! offset, so any change here must bump `CONTRACT_VERSION` and update `docs/ipc.md`.
+//! The numbers below are the contract; they were derived by hand from the `#[repr(C)]` rules
+//! (every padding byte is an explicit `_pad` field, so there is no implicit padding anywhere).
+
+use std::mem::{align_of, offset_of, size_of};
+
+use iceoryx2::prelude::ZeroCopySend;
+use lop_ipc::*;
+
+#[test]
+fn contract_version_is_one() {
+    assert_eq!(CONTRACT_VERSION, 1);
+}
+
+#[test]
+fn tool_state_layout() {
+    assert_eq!(size_of::<ToolState>(), 152);
+    assert_eq!(align_of::<ToolState>(), 8);
+    assert_eq!(offset_of!(ToolState, contract_version), 0);
+    assert_eq!(offset_of!(ToolState, flags), 4);
+    assert_eq!(offset_of!(ToolState, sequence), 8);
+    assert_eq!(offset_of!(ToolState, stamp_ns), 16);
+    assert_eq!(offset_of!(ToolState, device_position), 24);
+    assert_eq!(offset_of!(ToolState, proxy_position), 48);
+    assert_eq!(offset_of!(ToolState, force), 72);
+    assert_eq!(offset_of!(ToolState, tool_radius), 96);
+    assert_eq!(offset_of!(ToolState, contact_barycentric), 104);
+    assert_eq!(offset_of!(ToolState, buttons), 128);
+    assert_eq!(offset_of!(ToolState, contact_body), 132);
+    assert_eq!(offset_of!(ToolState, contact_triangle), 136);
+    assert_eq!(offset_of!(ToolState, _pad), 140);
+    assert_eq!(offset_of!(ToolState, topology_id), 144);
+}
+
+#[test]
+fn frame_layout() {
+    assert_eq!(size_of::<BodyFrame>(), 48);
+    assert_eq!(align_of::<BodyFrame>(), 4);
+    assert_eq!(offset_of!(BodyFrame, aabb_min), 0);
+    assert_eq!(offset_of!(BodyFrame, aabb_max), 12);
+    assert_eq!(offset_of!(BodyFrame, kinetic_energy), 24);
+    assert_eq!(offset_of!(BodyFrame, max_speed), 28);
+    assert_eq!(offset_of!(BodyFrame, step_ns), 32);
+    assert_eq!(offset_of!(BodyFrame, resets), 36);
+    assert_eq!(offset_of!(BodyFrame, model), 40);
+    assert_eq!(offset_of!(BodyFrame, state), 41);
+    assert_eq!(offset_of!(BodyFrame, _pad2), 44);
+
+    assert_eq!(size_of::<FrameHeader>(), 72 + 48 * MAX_BODIES);
+    assert_eq!(align_of::<FrameHeader>(), 8);
+    assert_eq!(offset_of!(FrameHeader, contract_version), 0);
+    assert_eq!(offset_of!(FrameHeader, body_count), 4);
+    assert_eq!(offset_of!(FrameHeader, topology_id), 8);
+    assert_eq!(offset_of!(FrameHeader, sequence), 16);
+    assert_eq!(offset_of!(FrameHeader, sim_time), 24);
+    assert_eq!(offset_of!(FrameHeader, publish_ns), 32);
+    assert_eq!(offset_of!(FrameHeader, tool_stamp_ns), 40);
+    assert_eq!(offset_of!(FrameHeader, tool_read_ns), 48);
+    assert_eq!(offset_of!(FrameHeader, step_ns), 56);
+    assert_eq!(offset_of!(FrameHeader, node_count), 64);
+    assert_eq!(offset_of!(FrameHeader, bodies), 72);
+
+    assert_eq!(size_of::<NodeSample>(), 16);
+    assert_eq!(align_of::<NodeSample>(), 4);
+    assert_eq!(offset_of!(NodeSample, temperature), 12);
+}
+
+#[test]
+fn topology_layout() {
+    assert_eq!(size_of::<BodyTopology>(), 72);
+    assert_eq!(align_of::<BodyTopology>(), 4);
+    assert_eq!(offset_of!(BodyTopology, name), 0);
+    assert_eq!(offset_of!(BodyTopology, node_offset), 32);
+    assert_eq!(offset_of!(BodyTopology, node_count), 36);
+    assert_eq!(offset_of!(BodyTopology, triangle_offset), 40);
+    assert_eq!(offset_of!(BodyTopology, triangle_count), 44);
+    assert_eq!(offset_of!(BodyTopology, tet_offset), 48);
+    assert_eq!(offset_of!(BodyTopology, tet_count), 52);
+    assert_eq!(offset_of!(BodyTopology, color), 56);
+    assert_eq!(offset_of!(BodyTopology, importance), 68);
+
+    assert_eq!(size_of::<TopologyHeader>(), 32 + 72 * MAX_BODIES);
+    assert_eq!(offset_of!(TopologyHeader, topology_id), 8);
+    assert_eq!(offset_of!(TopologyHeader, node_count), 16);
+    assert_eq!(offset_of!(TopologyHeader, triangle_count), 20);
+    assert_eq!(offset_of!(TopologyHeader, tet_count), 24);
+    assert_eq!(offset_of!(TopologyHeader, bodies), 32);
+}
+
+#[test]
+fn telemetry_layout() {
+    assert_eq!(size_of::<Percentiles>(), 40);
+    assert_eq!(size_of::<HapticTelemetry>(), 64 + 6 * 40 + 8);
+    assert_eq!(align_of::<HapticTelemetry>(), 8);
+    assert_eq!(offset_of!(HapticTelemetry, stamp_ns), 8);
+    assert_eq!(offset_of!(HapticTelemetry, ticks), 16);
+    assert_eq!(offset_of!(HapticTelemetry, overruns), 24);
+    assert_eq!(offset_of!(HapticTelemetry, stale_ticks), 32);
+    assert_eq!(offset_of!(HapticTelemetry, device_faults), 40);
+    assert_eq!(offset_of!(HapticTelemetry, rate_hz), 48);
+    assert_eq!(offset_of!(HapticTelemetry, force_norm), 56);
+    assert_eq!(offset_of!(HapticTelemetry, window_jitter), 64);
+    assert_eq!(offset_of!(HapticTelemetry, total_frame_age), 64 + 5 * 40);
+    assert_eq!(offset_of!(HapticTelemetry, pinned_core), 304);
+}
+
+#[test]
+fn type_names_are_language_neutral() {
+    // SAFETY: type_name only returns a static string.
+    unsafe {
+        assert_eq!(ToolState::type_name(), "lop::ToolState");
+        assert_eq!(FrameHeader::type_name(), "lop::FrameHeader");
+        assert_eq!(NodeSample::type_name(), "lop::NodeSample");
+        assert_eq!(TopologyHeader::type_name(), "lop::TopologyHeader");
+        assert_eq!(HapticTelemetry::type_name(), "lop::HapticTelemetry");
+    }
+}
+
+#[test]
+fn body_names_round_trip_and_truncate_at_char_boundary() {
+    let mut b = BodyTopology::default();
+    b.set_name("liver");
+    assert_eq!(b.name_str(), "liver");
+    let long = "é".repeat(20); // 40 bytes
+    b.set_name(&long);
+    assert_eq!(b.name_str(), "é".repeat(16));
+}
+
+#[test]
+fn prefixes_are_checked() {
+    assert!(ServiceNames::new("lop").is_ok());
+    assert!(ServiceNames::new("rig-2/test_x").is_ok());
+    for bad in ["", "/lop", "lop/", "lo p", "lop!"] {
+        assert!(ServiceNames::new(bad).is_err(), "{bad:?}");
+    }
+    let n = ServiceNames::new("t1").unwrap();
+    assert_eq!(n.frame, "t1/scene/frame");
+}
