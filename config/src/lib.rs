@@ -1,1 +1,224 @@
-//! placeholder
+//! Configuration of `lopd`: the scene files and the daemon configuration, read from TOML,
+//! validated, and turned into plain typed structs.
+//!
+//! Loading has two stages. First the TOML is deserialized into raw structs that reject unknown
+//! keys; then every value is range-checked (NaN and infinities fail every check) and resolved
+//! (relative paths, defaults). Any failure is a [`ConfigError`] whose message names the file, the
+//! line and column where known, the key path (`body[2].fem.young`), the body's name and the
+//! offending value, e.g.
+//!
+//! ```text
+//! config/scenes/organs.toml:115:9: body[2].fem.young = -5.0 (body "stomach"): Young's modulus (Pa) must be a finite number > 0
+//! ```
+//!
+//! Nothing in this crate panics on any input.
+//!
+//! # Finding a scene
+//!
+//! [`resolve_scene`] takes a name or a path. A name (no `/`, no `.toml` suffix) is looked up as
+//! `NAME.toml` in, in order: each directory of `$LOP_SCENE_DIR` (`:`-separated), this crate's
+//! `scenes/` folder, `/usr/share/lop/scenes`. Shipped scenes: `beam` (thesis ch. 3),
+//! `cylinders` (§6.1) and `organs` (§6.2). Mock-device scripts resolve the same way through
+//! [`resolve_script`] (`$LOP_SCRIPT_DIR`, this crate's `scripts/`, `/usr/share/lop/scripts`).
+//!
+//! # Scene files
+//!
+//! Units are SI throughout (m, kg, s, N, Pa, W); the scene frame is right-handed with y up.
+//! Every table and key is listed below; any other key is an error. A key with a default may be
+//! left out; a table whose keys all have defaults may be left out.
+//!
+//! ```toml
+//! [scene]
+//! name = "organs"
+//! description = "Liver, spleen, stomach and pancreas (thesis §6.2)"
+//! gravity = [0.0, 0.0, 0.0]
+//!
+//! [tool]
+//! radius = 0.003
+//! force_law = "linear"
+//! stiffness = 300.0
+//! damping = 0.0
+//! max_force = 3.0
+//! heat_power = 20.0
+//!
+//! [workspace]
+//! scale = 2.0
+//! rotate_deg = [0.0, 0.0, 0.0]
+//! offset = [-0.018, 0.048, -0.005]
+//!
+//! [rates]
+//! haptic_hz = 1000.0
+//! deform_max_hz = 1000.0
+//! publish_hz = 250.0
+//!
+//! [device]
+//! mock_script = "../scripts/organs-poke.toml"
+//!
+//! [[body]]
+//! name = "liver"
+//! mesh = "../../assets/meshes/liver"
+//! importance = "important"
+//!
+//! [body.fem]
+//! young = 140.0
+//! poisson = 0.023
+//! density = 10.0
+//! damping = 10.0
+//! dt = 0.01
+//!
+//! [body.msd]
+//! stiffness = 2.7
+//! density = 10.0
+//! damping = 4e-4
+//! dt = 0.01
+//! integrator = "implicit-euler"
+//!
+//! [body.gc]
+//! stiffness = 50.0
+//! density = 20.0
+//! damping = 0.3
+//! dt = 0.02
+//! ```
+//!
+//! ## `[scene]` (optional)
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `name` | string | file name without `.toml` | shown by viewers and logs; non-empty |
+//! | `description` | string | `""` | free text |
+//! | `gravity` | `[x, y, z]` | `[0, 0, 0]` | m/s²; y is up, so Earth is `[0, -9.81, 0]`. Off by default: an organ without fixed nodes would fall away |
+//!
+//! ## `[tool]` (optional)
+//! The tool tip is a sphere driven by the device and rendered as a god-object: it stays on the
+//! tissue surface while the device penetrates, and the force pushes the device back out.
+//!
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `radius` | float | `0.003` | tip radius, m (> 0) |
+//! | `force_law` | `"linear"` \| `"quadratic"` | `"linear"` | `linear`: `F = k d N`; `quadratic`: thesis eq. 5.2, `F = k d² N` (`d` penetration depth, `N` surface normal) |
+//! | `stiffness` | float | `300` | `k`: N/m for `linear`, N/m² for `quadratic` (> 0) |
+//! | `damping` | float | `0` | N·s/m on the penetration speed (>= 0) |
+//! | `max_force` | float | `3.0` | N, force clamp for this scene (> 0); the daemon clamps to the smallest of this, `haptic.max_force_n` and the device's limit |
+//! | `heat_power` | float | `20` | W delivered by the cautery button (>= 0) |
+//!
+//! Stiffness felt at the stylus is `stiffness × workspace.scale`. A Phantom Omni renders about
+//! 0.7 N/mm stably; the shipped scenes use 300 N/m at scale ≤ 2, i.e. ≤ 0.6 N/mm.
+//!
+//! ## `[workspace]` (optional)
+//! Maps device positions (mm, device frame) into the scene (m):
+//! `scene = R(rotate_deg) · (device_mm · 0.001 · scale) + offset`. Forces are only rotated back,
+//! never scaled. See [`WorkspaceMap`].
+//!
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `scale` | float | `1.0` | scene metres per device metre (> 0) |
+//! | `rotate_deg` | `[x, y, z]` | `[0, 0, 0]` | degrees: about x, then y, then z, fixed axes (`R = Rz·Ry·Rx`, see [`rotation_xyz_deg`]) |
+//! | `offset` | `[x, y, z]` | `[0, 0, 0]` | m: where the device origin lands in the scene |
+//!
+//! ## `[rates]` (optional)
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `haptic_hz` | float | `1000` | haptic loop rate, Hz (100..=10000) |
+//! | `deform_max_hz` | float | `1000` | upper bound on deformation steps per second (> 0) |
+//! | `publish_hz` | float | `250` | upper bound on frames published per second (> 0) |
+//!
+//! ## `[device]` (optional)
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `mock_script` | path | none | script the mock device plays when none is given on the command line; relative to the scene file. Checked by the mock driver when used, so the scene still loads on a rig with a real device |
+//!
+//! ## `[[body]]` (one or more)
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `name` | string | required | unique within the scene, non-empty |
+//! | `mesh` | path | required | relative to the scene file. A TetGen base path (`liver` for `liver.node`, `liver.ele`, optional `liver.face` and `liver.bnd` with the fixed nodes) or a mesh file (`.msh`, `.vtk`). Must exist: `PATH` or `PATH.node` |
+//! | `importance` | `"important"` \| `"normal"` | `"normal"` | which precise model the body gets when touched: FEM if important, mass-spring otherwise (thesis §4.4) |
+//! | `model` | `"auto"` \| `"gc"` \| `"msd"` \| `"fem"` | `"auto"` | `auto`: the LoP controller decides (GC at rest, precise model when touched, back to GC once settled); anything else pins the body to that model |
+//! | `scale` | float | `1.0` | uniform scale of the mesh nodes (> 0), applied first |
+//! | `rotate_deg` | `[x, y, z]` | `[0, 0, 0]` | rotation after scaling, same convention as the workspace |
+//! | `translate` | `[x, y, z]` | `[0, 0, 0]` | m, applied last: `p' = R·(scale·p) + translate` |
+//! | `fixed_nodes` | array of integers | `[]` | 0-based node indices held fixed, in addition to the `.bnd` file |
+//! | `color` | `[r, g, b]` | by body index | sRGB, each in 0..=1, for viewers |
+//!
+//! A body needs the parameter tables of every model it can run:
+//! - `[body.fem]` if `importance = "important"` or `model = "fem"`;
+//! - `[body.msd]` unless `model = "fem"`: mass-spring is every body's fallback;
+//! - `[body.gc]` if `model = "gc"`; optional otherwise.
+//!
+//! ### `[body.fem]`: linear tetrahedral FEM (thesis §4.2)
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `young` | float | required | Young's modulus E, Pa (> 0) |
+//! | `poisson` | float | required | Poisson's ratio ν, 0 <= ν < 0.5 |
+//! | `density` | float | required | kg/m³ (> 0); masses are lumped per node |
+//! | `damping` | float | required | α of the damping matrix `D = α M`, 1/s (>= 0) |
+//! | `dt` | float | required | time step, s (0 < dt <= 1) |
+//! | `mode` | `"corotational"` \| `"linear"` | `"corotational"` | `linear` is the thesis' formulation and inflates under large rotations; `corotational` warps the stiffness by each element's rotation |
+//!
+//! ### `[body.msd]`: mass-spring-damper (thesis §4.1, eq. 4.2)
+//! Springs on the mesh edges.
+//!
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `stiffness` | float | required | spring constant, N/m (> 0) |
+//! | `density` | float | one of these two | kg/m³ (> 0): node masses lumped from tetrahedron volumes |
+//! | `node_mass` | float | one of these two | kg (> 0): the same mass for every node |
+//! | `damping` | float | required | γ of eq. 4.2, N·s/m per node (>= 0) |
+//! | `dt` | float | required | time step, s (0 < dt <= 1) |
+//! | `integrator` | string | `"symplectic-euler"` | `"explicit-euler"`, `"symplectic-euler"`, `"verlet"`, `"rk4"` or `"implicit-euler"`; explicit ones are stable only below a limit: symplectic Euler and Verlet need `dt < 2/ω_max`, which `dt < min over nodes of 2·sqrt(m / (2 Σk))` guarantees (Σk: stiffness of the node's springs); implicit Euler is stable at any `dt` |
+//!
+//! ### `[body.gc]`: Green-coordinates cage (thesis §4.3; Tables 6.1, 6.2)
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `stiffness` | float | required | N/m (> 0) |
+//! | `density` | float | required | kg/m³ (> 0) |
+//! | `damping` | float | required | N·s/m per node (>= 0) |
+//! | `dt` | float | required | time step, s (0 < dt <= 1) |
+//!
+//! # Daemon configuration
+//!
+//! `lopd --config PATH` reads a [`DaemonConfig`]. Every key has a default; an empty file is valid.
+//!
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `status_interval_ms` | integer | `500` | status report interval, ms (> 0) |
+//! | `haptic.core` | integer | last core | CPU the real-time thread is pinned to |
+//! | `haptic.rt_priority` | integer | `80` | `SCHED_FIFO` priority, 1..=99 |
+//! | `haptic.lock_memory` | bool | `true` | `mlockall` the haptic process |
+//! | `haptic.stale_frame_ms` | float | `100` | a scene frame older than this ramps the force to zero (> 0) |
+//! | `haptic.ramp_ms` | float | `5` | ramp-down time to zero force, 0..=100 ms |
+//! | `haptic.max_force_n` | float | `3.0` | global force clamp, N (> 0) |
+//! | `haptic.spin_us` | float | `50` | busy-wait before each deadline, 0..=1000 µs |
+//! | `haptic.max_force_step_n` | float | `0.05` | largest force change per tick except at contact onset, N (> 0, <= `max_force_n`) |
+//! | `deform.core` | integer | not pinned | CPU the deformation thread is pinned to |
+//!
+//! ```toml
+//! status_interval_ms = 500
+//! [haptic]
+//! core = 1
+//! rt_priority = 80
+//! [deform]
+//! core = 0
+//! ```
+
+mod check;
+mod daemon;
+mod error;
+mod raw;
+mod resolve;
+mod scene;
+mod source;
+mod workspace;
+
+pub use daemon::{
+    load_daemon_config, parse_daemon_config, DaemonConfig, DeformConfig, HapticConfig,
+};
+pub use error::{ConfigError, Location};
+pub use resolve::{
+    list_scenes, list_scenes_in, list_scripts, resolve_scene, resolve_scene_in, resolve_script,
+    scene_dirs, script_dirs,
+};
+pub use scene::{
+    load_scene, parse_scene, BodySpec, DeviceDefaults, FemMode, FemParams, ForceLaw, GcParams,
+    Importance, Integrator, MassSpec, ModelPin, MsdParams, Rates, Scene, ToolSpec,
+};
+pub use workspace::{mat_t_vec, mat_vec, rotation_xyz_deg, Mat3, WorkspaceMap, WorkspaceTransform};

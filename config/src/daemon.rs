@@ -1,0 +1,170 @@
+//! The daemon configuration (`lopd --config PATH`).
+
+use std::path::Path;
+
+use crate::check::{fmt_f64, Check};
+use crate::error::ConfigError;
+use crate::raw::RawDaemon;
+use crate::source::{KeyPath, Source};
+
+/// Daemon settings. Every key has a default, so an empty file is a valid configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DaemonConfig {
+    /// The real-time haptic loop.
+    pub haptic: HapticConfig,
+    /// The deformation process.
+    pub deform: DeformConfig,
+    /// Interval of the status line / status publication, ms (> 0). Default 500.
+    pub status_interval_ms: u64,
+}
+
+impl Default for DaemonConfig {
+    fn default() -> Self {
+        DaemonConfig {
+            haptic: HapticConfig::default(),
+            deform: DeformConfig::default(),
+            status_interval_ms: 500,
+        }
+    }
+}
+
+/// Settings of the real-time haptic thread.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HapticConfig {
+    /// CPU to pin the RT thread to; `None`: the last core.
+    pub core: Option<usize>,
+    /// `SCHED_FIFO` priority, 1..=99. Default 80.
+    pub rt_priority: u8,
+    /// `mlockall` the process. Default true.
+    pub lock_memory: bool,
+    /// A frame older than this (ms) ramps the force to zero. Default 100.
+    pub stale_frame_ms: f64,
+    /// Ramp-down time to zero force, ms (0..=100). Default 5.
+    pub ramp_ms: f64,
+    /// Global force clamp, N. The effective clamp is `min(this, tool.max_force, device limit)`.
+    /// Default 3.0.
+    pub max_force_n: f64,
+    /// Busy-wait before each deadline, µs (0..=1000). Default 50.
+    pub spin_us: f64,
+    /// Largest force change per tick, N (except at contact onset). Default 0.05.
+    pub max_force_step_n: f64,
+}
+
+impl Default for HapticConfig {
+    fn default() -> Self {
+        HapticConfig {
+            core: None,
+            rt_priority: 80,
+            lock_memory: true,
+            stale_frame_ms: 100.0,
+            ramp_ms: 5.0,
+            max_force_n: 3.0,
+            spin_us: 50.0,
+            max_force_step_n: 0.05,
+        }
+    }
+}
+
+/// Settings of the deformation process.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct DeformConfig {
+    /// CPU to pin the deformation thread to; `None`: not pinned.
+    pub core: Option<usize>,
+}
+
+/// Reads and validates a daemon configuration file.
+pub fn load_daemon_config(path: &Path) -> Result<DaemonConfig, ConfigError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+        file: path.to_path_buf(),
+        source,
+    })?;
+    parse_daemon_config(&text, path)
+}
+
+/// Parses and validates daemon configuration text; `path` is used only in messages.
+pub fn parse_daemon_config(text: &str, path: &Path) -> Result<DaemonConfig, ConfigError> {
+    let src = Source::parse(path, text)?;
+    let raw: RawDaemon = src.deserialize()?;
+    let c = Check {
+        src: &src,
+        body: None,
+    };
+    let d = DaemonConfig::default();
+    let dh = &d.haptic;
+    let h = raw.haptic;
+    let k = KeyPath::top("haptic");
+
+    let rt_priority = h.rt_priority.unwrap_or(dh.rt_priority);
+    if !(1..=99).contains(&rt_priority) {
+        return Err(c.invalid(
+            &k.key("rt_priority"),
+            rt_priority,
+            "SCHED_FIFO priority must be between 1 and 99",
+        ));
+    }
+    let status_interval_ms = raw.status_interval_ms.unwrap_or(d.status_interval_ms);
+    if status_interval_ms == 0 {
+        return Err(c.invalid(
+            &KeyPath::top("status_interval_ms"),
+            0,
+            "status_interval_ms must be > 0",
+        ));
+    }
+    let stale_frame_ms = c.positive(
+        &k.key("stale_frame_ms"),
+        h.stale_frame_ms.unwrap_or(dh.stale_frame_ms),
+        "stale_frame_ms",
+    )?;
+    // Safety invariant 2: a stale frame ramps the force to zero "within a few ticks".
+    let ramp_ms = c.within(
+        &k.key("ramp_ms"),
+        h.ramp_ms.unwrap_or(dh.ramp_ms),
+        0.0,
+        100.0,
+        "ramp_ms (ramp-down to zero force)",
+    )?;
+    let max_force_n = c.positive(
+        &k.key("max_force_n"),
+        h.max_force_n.unwrap_or(dh.max_force_n),
+        "max_force_n",
+    )?;
+    let spin_us = c.within(
+        &k.key("spin_us"),
+        h.spin_us.unwrap_or(dh.spin_us),
+        0.0,
+        1000.0,
+        "spin_us (busy-wait before the deadline, µs)",
+    )?;
+    let max_force_step_n = c.positive(
+        &k.key("max_force_step_n"),
+        h.max_force_step_n.unwrap_or(dh.max_force_step_n),
+        "max_force_step_n",
+    )?;
+    if max_force_step_n > max_force_n {
+        return Err(c.invalid(
+            &k.key("max_force_step_n"),
+            fmt_f64(max_force_step_n),
+            format!(
+                "max_force_step_n must not exceed max_force_n = {}",
+                fmt_f64(max_force_n)
+            ),
+        ));
+    }
+
+    Ok(DaemonConfig {
+        haptic: HapticConfig {
+            core: h.core.or(dh.core),
+            rt_priority,
+            lock_memory: h.lock_memory.unwrap_or(dh.lock_memory),
+            stale_frame_ms,
+            ramp_ms,
+            max_force_n,
+            spin_us,
+            max_force_step_n,
+        },
+        deform: DeformConfig {
+            core: raw.deform.core,
+        },
+        status_interval_ms,
+    })
+}

@@ -1,0 +1,141 @@
+//! Raw, unvalidated mirrors of the TOML files. Every struct denies unknown keys; every key that
+//! has a default is an `Option` so validation knows whether it was written.
+
+use serde::Deserialize;
+
+use crate::scene::{FemMode, ForceLaw, Importance, Integrator, ModelPin};
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawScene {
+    #[serde(default)]
+    pub scene: RawSceneMeta,
+    #[serde(default)]
+    pub tool: RawTool,
+    #[serde(default)]
+    pub workspace: RawWorkspace,
+    #[serde(default)]
+    pub rates: RawRates,
+    #[serde(default)]
+    pub device: RawDevice,
+    #[serde(default)]
+    pub body: Vec<RawBody>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawSceneMeta {
+    pub name: Option<String>,
+    pub description: Option<String>,
+    pub gravity: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawTool {
+    pub radius: Option<f64>,
+    pub force_law: Option<ForceLaw>,
+    pub stiffness: Option<f64>,
+    pub damping: Option<f64>,
+    pub max_force: Option<f64>,
+    pub heat_power: Option<f64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawWorkspace {
+    pub scale: Option<f64>,
+    pub rotate_deg: Option<[f64; 3]>,
+    pub offset: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawRates {
+    pub haptic_hz: Option<f64>,
+    pub deform_max_hz: Option<f64>,
+    pub publish_hz: Option<f64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawDevice {
+    pub mock_script: Option<String>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawBody {
+    pub name: String,
+    pub mesh: String,
+    pub importance: Option<Importance>,
+    pub model: Option<ModelPin>,
+    pub translate: Option<[f64; 3]>,
+    pub rotate_deg: Option<[f64; 3]>,
+    pub scale: Option<f64>,
+    pub fixed_nodes: Option<Vec<u32>>,
+    pub color: Option<[f32; 3]>,
+    pub fem: Option<RawFem>,
+    pub msd: Option<RawMsd>,
+    pub gc: Option<RawGc>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawFem {
+    pub young: f64,
+    pub poisson: f64,
+    pub density: f64,
+    pub damping: f64,
+    pub dt: f64,
+    pub mode: Option<FemMode>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawMsd {
+    pub stiffness: f64,
+    pub density: Option<f64>,
+    pub node_mass: Option<f64>,
+    pub damping: f64,
+    pub dt: f64,
+    pub integrator: Option<Integrator>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawGc {
+    pub stiffness: f64,
+    pub density: f64,
+    pub damping: f64,
+    pub dt: f64,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawDaemon {
+    #[serde(default)]
+    pub haptic: RawHaptic,
+    #[serde(default)]
+    pub deform: RawDeform,
+    pub status_interval_ms: Option<u64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawHaptic {
+    pub core: Option<usize>,
+    pub rt_priority: Option<u8>,
+    pub lock_memory: Option<bool>,
+    pub stale_frame_ms: Option<f64>,
+    pub ramp_ms: Option<f64>,
+    pub max_force_n: Option<f64>,
+    pub spin_us: Option<f64>,
+    pub max_force_step_n: Option<f64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawDeform {
+    pub core: Option<usize>,
+}

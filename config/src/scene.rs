@@ -1,0 +1,709 @@
+//! Validated scene types and stage two of loading: raw structs → [`Scene`].
+
+use std::collections::HashMap;
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::check::{fmt_f64, fmt_f64s, Check};
+use crate::error::ConfigError;
+use crate::raw::{
+    RawBody, RawDevice, RawFem, RawGc, RawMsd, RawRates, RawScene, RawTool, RawWorkspace,
+};
+use crate::source::{KeyPath, Source};
+use crate::workspace::{mat_vec, rotation_xyz_deg, WorkspaceMap};
+
+/// A validated scene: what `lopd` simulates and renders.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    /// `[scene] name`; the file stem when absent.
+    pub name: String,
+    /// `[scene] description`; empty when absent.
+    pub description: String,
+    /// The scene file (absolute).
+    pub path: PathBuf,
+    /// Gravity, m/s², y up.
+    pub gravity: [f64; 3],
+    /// The bodies, in file order (at least one).
+    pub bodies: Vec<BodySpec>,
+    /// The tool (god-object) and its force law.
+    pub tool: ToolSpec,
+    /// Device-to-scene workspace map.
+    pub workspace: WorkspaceMap,
+    /// Loop rates.
+    pub rates: Rates,
+    /// Device defaults for this scene.
+    pub device: DeviceDefaults,
+}
+
+impl Scene {
+    /// The body called `name`, if any.
+    pub fn body(&self, name: &str) -> Option<&BodySpec> {
+        self.bodies.iter().find(|b| b.name == name)
+    }
+}
+
+/// How much a body matters: decides its precise model when touched (thesis §4.4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Importance {
+    /// Switches to FEM when touched.
+    Important,
+    /// Switches to mass-spring when touched.
+    #[default]
+    Normal,
+}
+
+/// Pins a body to one model instead of letting the LoP controller choose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ModelPin {
+    /// The LoP controller decides: GC at rest, FEM or MSD (by importance) when touched.
+    #[default]
+    Auto,
+    /// Always Green coordinates.
+    Gc,
+    /// Always mass-spring-damper.
+    Msd,
+    /// Always FEM.
+    Fem,
+}
+
+/// Time integrator of the mass-spring model (thesis ch. 3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Integrator {
+    /// Forward Euler: cheapest, least stable.
+    ExplicitEuler,
+    /// Semi-implicit (symplectic) Euler: velocity first, then position.
+    #[default]
+    SymplecticEuler,
+    /// Position Verlet.
+    Verlet,
+    /// Classic fourth-order Runge-Kutta.
+    Rk4,
+    /// Backward Euler: unconditionally stable, numerically damped.
+    ImplicitEuler,
+}
+
+/// FEM formulation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FemMode {
+    /// Linear elasticity, as in the thesis; inflates under large rotations.
+    Linear,
+    /// Corotational (stiffness warping): rotation-invariant.
+    #[default]
+    Corotational,
+}
+
+/// Force law of the tool contact.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ForceLaw {
+    /// Thesis eq. 5.2: `F = k d² N`; `stiffness` in N/m².
+    Quadratic,
+    /// A spring: `F = k d N`; `stiffness` in N/m.
+    #[default]
+    Linear,
+}
+
+/// One deformable body.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodySpec {
+    /// Unique in the scene, non-empty.
+    pub name: String,
+    /// Mesh path, resolved against the scene file's directory: a TetGen base path (`.node`,
+    /// `.ele`, optional `.face` and `.bnd` beside it) or a mesh file.
+    pub mesh: PathBuf,
+    /// Which precise model the body gets when touched.
+    pub importance: Importance,
+    /// Model pin; `Auto` lets the LoP controller decide.
+    pub model: ModelPin,
+    /// Translation (m), applied after scale and rotation.
+    pub translate: [f64; 3],
+    /// Rotation, XYZ Euler degrees (see [`crate::rotation_xyz_deg`]).
+    pub rotate_deg: [f64; 3],
+    /// Uniform scale (> 0), applied first.
+    pub scale: f64,
+    /// Extra fixed nodes (0-based mesh node indices), in addition to the mesh's `.bnd` file.
+    pub fixed_nodes: Vec<u32>,
+    /// sRGB colour in 0..=1 for viewers.
+    pub color: [f32; 3],
+    /// FEM parameters (present if important or pinned to FEM).
+    pub fem: Option<FemParams>,
+    /// Mass-spring parameters (present unless pinned to FEM).
+    pub msd: Option<MsdParams>,
+    /// Green-coordinates cage parameters (present if pinned to GC).
+    pub gc: Option<GcParams>,
+}
+
+impl BodySpec {
+    /// Places a mesh node into the scene: `R(rotate_deg) · (scale · p) + translate`.
+    pub fn transform_point(&self, p: [f64; 3]) -> [f64; 3] {
+        let r = mat_vec(
+            &rotation_xyz_deg(self.rotate_deg),
+            [p[0] * self.scale, p[1] * self.scale, p[2] * self.scale],
+        );
+        [
+            r[0] + self.translate[0],
+            r[1] + self.translate[1],
+            r[2] + self.translate[2],
+        ]
+    }
+}
+
+/// Linear-tetrahedron FEM parameters (thesis §4.2).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FemParams {
+    /// Young's modulus, Pa (> 0).
+    pub young: f64,
+    /// Poisson's ratio, 0 <= ν < 0.5.
+    pub poisson: f64,
+    /// Density, kg/m³ (> 0).
+    pub density: f64,
+    /// Mass-proportional damping α, 1/s (>= 0): `D = α M`.
+    pub damping: f64,
+    /// Time step, s (0 < dt <= 1).
+    pub dt: f64,
+    /// Formulation.
+    pub mode: FemMode,
+}
+
+/// How node masses of a mass-spring body are given.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MassSpec {
+    /// Density, kg/m³: node masses lumped from tetrahedron volumes.
+    Density(f64),
+    /// The same mass for every node, kg.
+    NodeMass(f64),
+}
+
+/// Mass-spring-damper parameters (thesis §4.1, eq. 4.2).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MsdParams {
+    /// Spring stiffness, N/m (> 0).
+    pub stiffness: f64,
+    /// Node masses.
+    pub mass: MassSpec,
+    /// γ of eq. 4.2, N·s/m per node (>= 0).
+    pub damping: f64,
+    /// Time step, s (0 < dt <= 1).
+    pub dt: f64,
+    /// Time integrator.
+    pub integrator: Integrator,
+}
+
+/// Green-coordinates cage parameters (thesis §4.3, Tables 6.1 and 6.2).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GcParams {
+    /// Cage stiffness, N/m (> 0).
+    pub stiffness: f64,
+    /// Density, kg/m³ (> 0).
+    pub density: f64,
+    /// Damping, N·s/m per node (>= 0).
+    pub damping: f64,
+    /// Time step, s (0 < dt <= 1).
+    pub dt: f64,
+}
+
+/// The tool: a sphere driven by the device, rendered as a god-object.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToolSpec {
+    /// Tip radius, m (> 0).
+    pub radius: f64,
+    /// Force law.
+    pub force_law: ForceLaw,
+    /// N/m for the linear law, N/m² for the quadratic law (> 0).
+    pub stiffness: f64,
+    /// Damping on the penetration speed, N·s/m (>= 0).
+    pub damping: f64,
+    /// Force clamp for this scene, N (> 0).
+    pub max_force: f64,
+    /// Cautery heating power, W (>= 0).
+    pub heat_power: f64,
+}
+
+impl Default for ToolSpec {
+    fn default() -> Self {
+        ToolSpec {
+            radius: 0.003,
+            force_law: ForceLaw::Linear,
+            stiffness: 300.0,
+            damping: 0.0,
+            max_force: 3.0,
+            heat_power: 20.0,
+        }
+    }
+}
+
+impl ToolSpec {
+    /// Magnitude of the spring force at penetration depth `depth` (m), before damping and
+    /// clamping: `k d` or `k d²`. Zero for `depth <= 0` or NaN.
+    pub fn spring_force(&self, depth: f64) -> f64 {
+        if depth > 0.0 {
+            match self.force_law {
+                ForceLaw::Linear => self.stiffness * depth,
+                ForceLaw::Quadratic => self.stiffness * depth * depth,
+            }
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Loop rates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rates {
+    /// Haptic loop rate, Hz (100..=10000).
+    pub haptic_hz: f64,
+    /// Upper bound on deformation steps per second (> 0).
+    pub deform_max_hz: f64,
+    /// Upper bound on published frames per second (> 0).
+    pub publish_hz: f64,
+}
+
+impl Default for Rates {
+    fn default() -> Self {
+        Rates {
+            haptic_hz: 1000.0,
+            deform_max_hz: 1000.0,
+            publish_hz: 250.0,
+        }
+    }
+}
+
+/// Per-scene device defaults.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DeviceDefaults {
+    /// Mock-device script used when the daemon runs with the mock device and no script is given;
+    /// resolved against the scene file's directory. Its existence is checked by the driver that
+    /// reads it, not here, so a scene stays loadable on a rig with a real device.
+    pub mock_script: Option<PathBuf>,
+}
+
+/// Default viewer colours, by body index (sRGB).
+const PALETTE: [[f32; 3]; 6] = [
+    [0.55, 0.16, 0.13],
+    [0.36, 0.52, 0.78],
+    [0.42, 0.15, 0.35],
+    [0.93, 0.66, 0.60],
+    [0.90, 0.78, 0.52],
+    [0.40, 0.65, 0.40],
+];
+
+/// Reads and validates the scene file at `path`.
+pub fn load_scene(path: &Path) -> Result<Scene, ConfigError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+        file: path.to_path_buf(),
+        source,
+    })?;
+    parse_scene(&text, path)
+}
+
+/// Parses and validates scene text. `path` is used only in messages and to resolve relative
+/// paths (mesh files, mock script) against its directory; the mesh files must exist.
+pub fn parse_scene(text: &str, path: &Path) -> Result<Scene, ConfigError> {
+    let src = Source::parse(path, text)?;
+    let raw: RawScene = src.deserialize()?;
+    validate_scene(&src, raw)
+}
+
+fn validate_scene(src: &Source<'_>, raw: RawScene) -> Result<Scene, ConfigError> {
+    let abs = std::path::absolute(src.file).unwrap_or_else(|_| src.file.to_path_buf());
+    let dir = abs.parent().map(Path::to_path_buf).unwrap_or_default();
+    let c = Check { src, body: None };
+
+    let meta = KeyPath::top("scene");
+    let name = match raw.scene.name {
+        Some(n) => n,
+        None => src
+            .file
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .filter(|s| !s.trim().is_empty())
+            .unwrap_or_else(|| "unnamed".to_owned()),
+    };
+    check_name(&c, &meta.key("name"), &name, "scene name")?;
+    let gravity = c.finite3(
+        &meta.key("gravity"),
+        raw.scene.gravity.unwrap_or([0.0; 3]),
+        "gravity",
+    )?;
+
+    let tool = validate_tool(&c, raw.tool)?;
+    let workspace = validate_workspace(&c, raw.workspace)?;
+    let rates = validate_rates(&c, raw.rates)?;
+    let device = validate_device(&c, raw.device, &dir)?;
+
+    if raw.body.is_empty() {
+        return Err(c.invalid(
+            &KeyPath::top("body"),
+            "(none)",
+            "a scene needs at least one [[body]] table",
+        ));
+    }
+    let mut seen: HashMap<String, usize> = HashMap::new();
+    let mut bodies = Vec::with_capacity(raw.body.len());
+    for (i, rb) in raw.body.into_iter().enumerate() {
+        let key = KeyPath::top("body").index(i);
+        if let Some(first) = seen.get(&rb.name) {
+            let c = Check {
+                src,
+                body: Some(&rb.name),
+            };
+            return Err(c.invalid(
+                &key.key("name"),
+                format!("{:?}", rb.name),
+                format!("duplicate body name: body[{first}] already has it; names must be unique"),
+            ));
+        }
+        seen.insert(rb.name.clone(), i);
+        bodies.push(validate_body(src, &key, i, rb, &dir)?);
+    }
+
+    Ok(Scene {
+        name,
+        description: raw.scene.description.unwrap_or_default(),
+        path: abs,
+        gravity,
+        bodies,
+        tool,
+        workspace,
+        rates,
+        device,
+    })
+}
+
+/// Names: non-empty, not just whitespace, no control characters.
+fn check_name(c: &Check<'_, '_>, key: &KeyPath, name: &str, what: &str) -> Result<(), ConfigError> {
+    if name.trim().is_empty() {
+        return Err(c.invalid(
+            key,
+            format!("{name:?}"),
+            format!("{what} must not be empty"),
+        ));
+    }
+    if name.chars().any(char::is_control) {
+        return Err(c.invalid(
+            key,
+            format!("{name:?}"),
+            format!("{what} must not contain control characters"),
+        ));
+    }
+    Ok(())
+}
+
+fn validate_tool(c: &Check<'_, '_>, raw: RawTool) -> Result<ToolSpec, ConfigError> {
+    let k = KeyPath::top("tool");
+    let d = ToolSpec::default();
+    let force_law = raw.force_law.unwrap_or(d.force_law);
+    let unit = match force_law {
+        ForceLaw::Linear => "tool stiffness (N/m, linear law)",
+        ForceLaw::Quadratic => "tool stiffness (N/m², quadratic law)",
+    };
+    Ok(ToolSpec {
+        radius: c.positive(
+            &k.key("radius"),
+            raw.radius.unwrap_or(d.radius),
+            "tool radius (m)",
+        )?,
+        force_law,
+        stiffness: c.positive(
+            &k.key("stiffness"),
+            raw.stiffness.unwrap_or(d.stiffness),
+            unit,
+        )?,
+        damping: c.non_negative(
+            &k.key("damping"),
+            raw.damping.unwrap_or(d.damping),
+            "tool damping (N·s/m)",
+        )?,
+        max_force: c.positive(
+            &k.key("max_force"),
+            raw.max_force.unwrap_or(d.max_force),
+            "tool max_force (N)",
+        )?,
+        heat_power: c.non_negative(
+            &k.key("heat_power"),
+            raw.heat_power.unwrap_or(d.heat_power),
+            "tool heat_power (W)",
+        )?,
+    })
+}
+
+fn validate_workspace(c: &Check<'_, '_>, raw: RawWorkspace) -> Result<WorkspaceMap, ConfigError> {
+    let k = KeyPath::top("workspace");
+    let d = WorkspaceMap::default();
+    Ok(WorkspaceMap {
+        scale: c.positive(
+            &k.key("scale"),
+            raw.scale.unwrap_or(d.scale),
+            "workspace scale (scene m per device m)",
+        )?,
+        rotate_deg: c.finite3(
+            &k.key("rotate_deg"),
+            raw.rotate_deg.unwrap_or(d.rotate_deg),
+            "workspace rotate_deg",
+        )?,
+        offset: c.finite3(
+            &k.key("offset"),
+            raw.offset.unwrap_or(d.offset),
+            "workspace offset (m)",
+        )?,
+    })
+}
+
+fn validate_rates(c: &Check<'_, '_>, raw: RawRates) -> Result<Rates, ConfigError> {
+    let k = KeyPath::top("rates");
+    let d = Rates::default();
+    Ok(Rates {
+        haptic_hz: c.within(
+            &k.key("haptic_hz"),
+            raw.haptic_hz.unwrap_or(d.haptic_hz),
+            100.0,
+            10_000.0,
+            "haptic rate (Hz)",
+        )?,
+        deform_max_hz: c.positive(
+            &k.key("deform_max_hz"),
+            raw.deform_max_hz.unwrap_or(d.deform_max_hz),
+            "deform_max_hz (steps/s)",
+        )?,
+        publish_hz: c.positive(
+            &k.key("publish_hz"),
+            raw.publish_hz.unwrap_or(d.publish_hz),
+            "publish_hz (frames/s)",
+        )?,
+    })
+}
+
+fn validate_device(
+    c: &Check<'_, '_>,
+    raw: RawDevice,
+    dir: &Path,
+) -> Result<DeviceDefaults, ConfigError> {
+    let mock_script = match raw.mock_script {
+        None => None,
+        Some(s) if s.trim().is_empty() => {
+            return Err(c.invalid(
+                &KeyPath::top("device").key("mock_script"),
+                "\"\"",
+                "mock_script must be a path (relative to the scene file) or be left out",
+            ));
+        }
+        Some(s) => Some(dir.join(s)),
+    };
+    Ok(DeviceDefaults { mock_script })
+}
+
+fn validate_body(
+    src: &Source<'_>,
+    key: &KeyPath,
+    index: usize,
+    rb: RawBody,
+    dir: &Path,
+) -> Result<BodySpec, ConfigError> {
+    let c = Check {
+        src,
+        body: Some(&rb.name),
+    };
+    check_name(&c, &key.key("name"), &rb.name, "body name")?;
+    let importance = rb.importance.unwrap_or_default();
+    let model = rb.model.unwrap_or_default();
+
+    // Which parameter tables the body's possible models need.
+    if rb.fem.is_none() {
+        if model == ModelPin::Fem {
+            return Err(c.invalid(
+                &key.key("fem"),
+                "(missing)",
+                "model = \"fem\" needs a [body.fem] table",
+            ));
+        }
+        if importance == Importance::Important {
+            return Err(c.invalid(
+                &key.key("fem"),
+                "(missing)",
+                "importance = \"important\" needs a [body.fem] table: important bodies switch \
+                 to FEM when touched",
+            ));
+        }
+    }
+    if rb.msd.is_none() && model != ModelPin::Fem {
+        return Err(c.invalid(
+            &key.key("msd"),
+            "(missing)",
+            "every body needs a [body.msd] table unless model = \"fem\": mass-spring is the \
+             fallback model of every body",
+        ));
+    }
+    if rb.gc.is_none() && model == ModelPin::Gc {
+        return Err(c.invalid(
+            &key.key("gc"),
+            "(missing)",
+            "model = \"gc\" needs a [body.gc] table",
+        ));
+    }
+
+    let translate = c.finite3(
+        &key.key("translate"),
+        rb.translate.unwrap_or([0.0; 3]),
+        "translate (m)",
+    )?;
+    let rotate_deg = c.finite3(
+        &key.key("rotate_deg"),
+        rb.rotate_deg.unwrap_or([0.0; 3]),
+        "rotate_deg",
+    )?;
+    let scale = c.positive(&key.key("scale"), rb.scale.unwrap_or(1.0), "body scale")?;
+    let color = match rb.color {
+        None => PALETTE[index % PALETTE.len()],
+        Some(col) => {
+            if col.iter().all(|x| (0.0..=1.0).contains(x)) {
+                col
+            } else {
+                let as_f64 = col.map(f64::from);
+                return Err(c.invalid(
+                    &key.key("color"),
+                    fmt_f64s(&as_f64),
+                    "color must be three sRGB components in 0..=1",
+                ));
+            }
+        }
+    };
+    let fem = rb
+        .fem
+        .map(|f| validate_fem(&c, &key.key("fem"), f))
+        .transpose()?;
+    let msd = rb
+        .msd
+        .map(|m| validate_msd(&c, &key.key("msd"), m))
+        .transpose()?;
+    let gc = rb
+        .gc
+        .map(|g| validate_gc(&c, &key.key("gc"), g))
+        .transpose()?;
+    let mesh = resolve_mesh(&c, &key.key("mesh"), &rb.mesh, dir)?;
+
+    Ok(BodySpec {
+        name: rb.name.clone(),
+        mesh,
+        importance,
+        model,
+        translate,
+        rotate_deg,
+        scale,
+        fixed_nodes: rb.fixed_nodes.unwrap_or_default(),
+        color,
+        fem,
+        msd,
+        gc,
+    })
+}
+
+fn validate_fem(c: &Check<'_, '_>, k: &KeyPath, raw: RawFem) -> Result<FemParams, ConfigError> {
+    let poisson_key = k.key("poisson");
+    let poisson = raw.poisson;
+    if !(poisson.is_finite() && (0.0..0.5).contains(&poisson)) {
+        return Err(c.invalid(
+            &poisson_key,
+            fmt_f64(poisson),
+            "Poisson's ratio must be >= 0 and < 0.5 (0.5 is incompressible, which makes the \
+             Lamé λ = Eν/((1+ν)(1−2ν)) infinite)",
+        ));
+    }
+    Ok(FemParams {
+        young: c.positive(&k.key("young"), raw.young, "Young's modulus (Pa)")?,
+        poisson,
+        density: c.positive(&k.key("density"), raw.density, "density (kg/m³)")?,
+        damping: c.non_negative(
+            &k.key("damping"),
+            raw.damping,
+            "FEM damping α (1/s, D = αM)",
+        )?,
+        dt: c.time_step(&k.key("dt"), raw.dt)?,
+        mode: raw.mode.unwrap_or_default(),
+    })
+}
+
+fn validate_msd(c: &Check<'_, '_>, k: &KeyPath, raw: RawMsd) -> Result<MsdParams, ConfigError> {
+    let stiffness = c.positive(&k.key("stiffness"), raw.stiffness, "spring stiffness (N/m)")?;
+    let mass = match (raw.density, raw.node_mass) {
+        (Some(d), None) => {
+            MassSpec::Density(c.positive(&k.key("density"), d, "density (kg/m³)")?)
+        }
+        (None, Some(m)) => {
+            MassSpec::NodeMass(c.positive(&k.key("node_mass"), m, "node_mass (kg)")?)
+        }
+        (Some(d), Some(m)) => {
+            return Err(c.invalid(
+                k,
+                format!("{{ density = {}, node_mass = {} }}", fmt_f64(d), fmt_f64(m)),
+                "give exactly one of density (kg/m³) or node_mass (kg), not both",
+            ));
+        }
+        (None, None) => {
+            return Err(c.invalid(
+                k,
+                "(neither density nor node_mass)",
+                "give exactly one of density (kg/m³) or node_mass (kg)",
+            ));
+        }
+    };
+    Ok(MsdParams {
+        stiffness,
+        mass,
+        damping: c.non_negative(
+            &k.key("damping"),
+            raw.damping,
+            "MSD damping γ (N·s/m per node)",
+        )?,
+        dt: c.time_step(&k.key("dt"), raw.dt)?,
+        integrator: raw.integrator.unwrap_or_default(),
+    })
+}
+
+fn validate_gc(c: &Check<'_, '_>, k: &KeyPath, raw: RawGc) -> Result<GcParams, ConfigError> {
+    Ok(GcParams {
+        stiffness: c.positive(&k.key("stiffness"), raw.stiffness, "GC stiffness (N/m)")?,
+        density: c.positive(&k.key("density"), raw.density, "GC density (kg/m³)")?,
+        damping: c.non_negative(&k.key("damping"), raw.damping, "GC damping (N·s/m)")?,
+        dt: c.time_step(&k.key("dt"), raw.dt)?,
+    })
+}
+
+/// Resolves `given` against `dir` and checks that it names a mesh: either an existing file or a
+/// TetGen base path whose `.node` file exists.
+fn resolve_mesh(
+    c: &Check<'_, '_>,
+    key: &KeyPath,
+    given: &str,
+    dir: &Path,
+) -> Result<PathBuf, ConfigError> {
+    if given.trim().is_empty() {
+        return Err(c.invalid(
+            key,
+            "\"\"",
+            "mesh must be a path (relative to the scene file)",
+        ));
+    }
+    let path = dir.join(given);
+    if path.is_file() {
+        return Ok(path);
+    }
+    let mut node = OsString::from(path.as_os_str());
+    node.push(".node");
+    let node = PathBuf::from(node);
+    if node.is_file() {
+        return Ok(path);
+    }
+    Err(ConfigError::MeshNotFound {
+        at: Box::new(c.src.locate(key)),
+        key: key.to_string(),
+        body: c.body.map(str::to_owned),
+        given: given.to_owned(),
+        tried: vec![path, node],
+    })
+}

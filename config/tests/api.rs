@@ -1,0 +1,276 @@
+//! Daemon config, workspace map, name resolution and path handling.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{fixture_dir, good_with, scene_path, GOOD};
+use lop_config::{
+    list_scenes_in, load_daemon_config, load_scene, parse_daemon_config, parse_scene,
+    resolve_scene_in, ConfigError, DaemonConfig, FemMode, ForceLaw, Importance, ModelPin, Rates,
+    ToolSpec, WorkspaceMap,
+};
+
+fn daemon_err(text: &str, needles: &[&str]) {
+    let err = parse_daemon_config(text, Path::new("/etc/lop/lopd.toml")).unwrap_err();
+    let msg = err.to_string();
+    assert!(msg.contains("/etc/lop/lopd.toml"), "no file in: {msg}");
+    for needle in needles {
+        assert!(msg.contains(needle), "message lacks {needle:?}: {msg}");
+    }
+}
+
+#[test]
+fn empty_daemon_config_is_the_default() {
+    let cfg = parse_daemon_config("", Path::new("lopd.toml")).unwrap();
+    assert_eq!(cfg, DaemonConfig::default());
+    assert_eq!(cfg.status_interval_ms, 500);
+    assert_eq!(cfg.haptic.core, None);
+    assert_eq!(cfg.haptic.rt_priority, 80);
+    assert!(cfg.haptic.lock_memory);
+    assert_eq!(cfg.haptic.stale_frame_ms, 100.0);
+    assert_eq!(cfg.haptic.ramp_ms, 5.0);
+    assert_eq!(cfg.haptic.max_force_n, 3.0);
+    assert_eq!(cfg.haptic.spin_us, 50.0);
+    assert_eq!(cfg.haptic.max_force_step_n, 0.05);
+    assert_eq!(cfg.deform.core, None);
+}
+
+#[test]
+fn daemon_config_from_file() {
+    let path = fixture_dir().join("lopd.toml");
+    std::fs::write(
+        &path,
+        "status_interval_ms = 250\n[haptic]\ncore = 1\nrt_priority = 99\nlock_memory = false\n\
+         max_force_n = 2.5\n[deform]\ncore = 0\n",
+    )
+    .unwrap();
+    let cfg = load_daemon_config(&path).unwrap();
+    assert_eq!(cfg.status_interval_ms, 250);
+    assert_eq!(cfg.haptic.core, Some(1));
+    assert_eq!(cfg.haptic.rt_priority, 99);
+    assert!(!cfg.haptic.lock_memory);
+    assert_eq!(cfg.haptic.max_force_n, 2.5);
+    assert_eq!(cfg.haptic.ramp_ms, 5.0);
+    assert_eq!(cfg.deform.core, Some(0));
+}
+
+#[test]
+fn daemon_config_bad_priority() {
+    daemon_err(
+        "[haptic]\nrt_priority = 0\n",
+        &["haptic.rt_priority = 0", "1 and 99", ":2:"],
+    );
+    daemon_err(
+        "[haptic]\nrt_priority = 100\n",
+        &["haptic.rt_priority = 100", "1 and 99"],
+    );
+    daemon_err(
+        "[haptic]\nrt_priority = 300\n",
+        &["haptic.rt_priority", "300"],
+    );
+}
+
+#[test]
+fn daemon_config_other_errors() {
+    daemon_err(
+        "[haptic]\nmax_force = 2.0\n",
+        &["haptic", "max_force", "unknown field"],
+    );
+    daemon_err(
+        "[haptic]\nmax_force_n = nan\n",
+        &["haptic.max_force_n = nan"],
+    );
+    daemon_err("[haptic]\nramp_ms = 500.0\n", &["haptic.ramp_ms = 500.0"]);
+    daemon_err("[haptic]\ncore = -1\n", &["haptic.core", "-1"]);
+    daemon_err("status_interval_ms = 0\n", &["status_interval_ms = 0"]);
+    daemon_err("[haptic\n", &["line 1"]);
+}
+
+#[test]
+fn missing_files_name_the_path() {
+    let err = load_daemon_config(Path::new("/nonexistent/lopd.toml")).unwrap_err();
+    assert!(matches!(err, ConfigError::Read { .. }));
+    assert!(err.to_string().contains("/nonexistent/lopd.toml"));
+    let err = load_scene(Path::new("/nonexistent/scene.toml")).unwrap_err();
+    assert!(err.to_string().contains("/nonexistent/scene.toml"));
+}
+
+#[test]
+fn workspace_round_trip_with_rotation() {
+    let w = WorkspaceMap {
+        scale: 2.0,
+        rotate_deg: [30.0, -45.0, 100.0],
+        offset: [0.2, 0.1, -0.3],
+    };
+    let t = w.transform();
+    let points = [
+        [0.0, 0.0, 0.0],
+        [80.0, -60.0, 35.0],
+        [-120.5, 7.25, -88.0],
+        [1e-3, 250.0, -1e-6],
+    ];
+    for p in points {
+        let scene = w.device_to_scene(p);
+        let back = w.scene_to_device(scene);
+        for i in 0..3 {
+            assert!(
+                (back[i] - p[i]).abs() < 1e-12,
+                "{p:?} -> {scene:?} -> {back:?}"
+            );
+        }
+        assert_eq!(t.device_to_scene(p), scene);
+        // Lengths scale by 1e-3 * scale; directions only rotate.
+        let d = [scene[0] - 0.2, scene[1] - 0.1, scene[2] + 0.3];
+        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        assert!((norm(d) - norm(p) * 2e-3).abs() < 1e-15);
+        let dir = w.device_dir_to_scene(p);
+        let dir_back = w.scene_dir_to_device(dir);
+        for i in 0..3 {
+            assert!((dir_back[i] - p[i]).abs() < 1e-12);
+        }
+    }
+    // The device origin lands on the offset.
+    assert_eq!(w.device_to_scene([0.0; 3]), [0.2, 0.1, -0.3]);
+}
+
+#[test]
+fn defaults_apply_when_tables_are_absent() {
+    let scene = parse_scene(GOOD, &scene_path()).unwrap();
+    assert_eq!(scene.tool, ToolSpec::default());
+    assert_eq!(scene.tool.force_law, ForceLaw::Linear);
+    assert_eq!(scene.tool.heat_power, 20.0);
+    assert_eq!(scene.rates, Rates::default());
+    assert_eq!(scene.workspace, WorkspaceMap::default());
+    assert_eq!(scene.device.mock_script, None);
+    let a = &scene.bodies[0];
+    assert_eq!(a.importance, Importance::Important);
+    assert_eq!(a.model, ModelPin::Auto);
+    assert_eq!(a.scale, 1.0);
+    assert_eq!(a.translate, [0.0; 3]);
+    assert!(a.fixed_nodes.is_empty());
+    assert_eq!(a.fem.as_ref().unwrap().mode, FemMode::Corotational);
+    assert_eq!(scene.bodies[1].importance, Importance::Normal);
+    assert_ne!(scene.bodies[0].color, scene.bodies[1].color);
+    assert!(scene.bodies.iter().all(|b| b.gc.is_none()));
+}
+
+#[test]
+fn scene_name_defaults_to_file_stem() {
+    let text = good_with("name = \"t\"\n", "");
+    let scene = parse_scene(&text, &scene_path()).unwrap();
+    assert_eq!(scene.name, "test-scene");
+}
+
+#[test]
+fn relative_paths_resolve_against_the_scene_file() {
+    let text = format!("[device]\nmock_script = \"scripts/poke.toml\"\n{GOOD}");
+    let scene = parse_scene(&text, &scene_path()).unwrap();
+    let dir = fixture_dir();
+    assert_eq!(scene.bodies[0].mesh, dir.join("m"));
+    assert_eq!(
+        scene.device.mock_script.as_deref(),
+        Some(dir.join("scripts/poke.toml").as_path())
+    );
+    assert!(scene.path.is_absolute());
+    // A mesh given as a file that exists is taken as is.
+    let scene = parse_scene(
+        &good_with("mesh = \"m\"", "mesh = \"m.node\""),
+        &scene_path(),
+    )
+    .unwrap();
+    assert_eq!(scene.bodies[0].mesh, dir.join("m.node"));
+}
+
+#[test]
+fn body_transform_scales_rotates_then_translates() {
+    let text = good_with(
+        "mesh = \"m\"\n\n[body.msd]",
+        "mesh = \"m\"\nscale = 2.0\nrotate_deg = [0.0, 0.0, 90.0]\ntranslate = [1.0, 0.0, 0.0]\n\
+         fixed_nodes = [3, 1]\n\n[body.msd]",
+    );
+    let scene = parse_scene(&text, &scene_path()).unwrap();
+    let b = &scene.bodies[1];
+    assert_eq!(b.fixed_nodes, vec![3, 1]);
+    // (1,0,0) -> scale (2,0,0) -> 90° about z (0,2,0) -> translate (1,2,0).
+    assert_eq!(b.transform_point([1.0, 0.0, 0.0]), [1.0, 2.0, 0.0]);
+}
+
+#[test]
+fn tool_spring_force_laws() {
+    let lin = ToolSpec::default();
+    assert!((lin.spring_force(0.002) - 0.6).abs() < 1e-12);
+    assert_eq!(lin.spring_force(-1.0), 0.0);
+    assert_eq!(lin.spring_force(f64::NAN), 0.0);
+    let quad = ToolSpec {
+        force_law: ForceLaw::Quadratic,
+        stiffness: 1e4,
+        ..ToolSpec::default()
+    };
+    assert!((quad.spring_force(0.01) - 1.0).abs() < 1e-12);
+}
+
+fn temp_dirs() -> (PathBuf, PathBuf) {
+    let root = fixture_dir().join("resolve");
+    let first = root.join("first");
+    let second = root.join("second");
+    for d in [&first, &second] {
+        std::fs::create_dir_all(d).unwrap();
+    }
+    std::fs::write(first.join("alpha.toml"), "").unwrap();
+    std::fs::write(second.join("alpha.toml"), "").unwrap();
+    std::fs::write(second.join("beta.toml"), "").unwrap();
+    std::fs::write(second.join("notes.txt"), "").unwrap();
+    (first, second)
+}
+
+#[test]
+fn scene_names_resolve_in_directory_order() {
+    let (first, second) = temp_dirs();
+    let dirs = vec![first.clone(), second.clone(), PathBuf::from("/nonexistent")];
+    assert_eq!(
+        resolve_scene_in("alpha", &dirs).unwrap(),
+        first.join("alpha.toml")
+    );
+    assert_eq!(
+        resolve_scene_in("beta", &dirs).unwrap(),
+        second.join("beta.toml")
+    );
+    let names: Vec<String> = list_scenes_in(&dirs).into_iter().map(|(n, _)| n).collect();
+    assert_eq!(names, ["alpha", "beta"]);
+
+    let err = resolve_scene_in("gamma", &dirs).unwrap_err();
+    let msg = err.to_string();
+    for needle in [
+        "\"gamma\"",
+        "alpha, beta",
+        "/nonexistent",
+        first.to_str().unwrap(),
+    ] {
+        assert!(msg.contains(needle), "message lacks {needle:?}: {msg}");
+    }
+    assert!(resolve_scene_in("", &dirs).is_err());
+}
+
+#[test]
+fn paths_are_taken_as_paths() {
+    let (_, second) = temp_dirs();
+    let beta = second.join("beta.toml");
+    assert_eq!(resolve_scene_in(beta.to_str().unwrap(), &[]).unwrap(), beta);
+    let err = resolve_scene_in("no/such/scene.toml", std::slice::from_ref(&second)).unwrap_err();
+    assert!(matches!(err, ConfigError::NoSuchFile { .. }));
+    assert!(err.to_string().contains("no/such/scene.toml"));
+    // A ".toml" suffix makes it a path even without a slash.
+    assert!(resolve_scene_in("beta.toml", &[second]).is_err());
+}
+
+#[test]
+fn unknown_script_name_lists_directories() {
+    let err = lop_config::resolve_script("no-such-script-name").unwrap_err();
+    let msg = err.to_string();
+    assert!(
+        msg.starts_with("mock script \"no-such-script-name\" not found"),
+        "{msg}"
+    );
+    assert!(msg.contains("config/scripts"), "{msg}");
+}

@@ -1,0 +1,179 @@
+//! The shipped scenes load and validate (which also proves their mesh paths resolve), and carry
+//! the thesis' numbers.
+
+use lop_config::{
+    list_scenes, load_scene, parse_daemon_config, parse_scene, resolve_scene, FemMode, ForceLaw,
+    Importance, MassSpec, ModelPin, Scene,
+};
+
+fn shipped(name: &str) -> Scene {
+    let path = resolve_scene(name).unwrap_or_else(|e| panic!("{e}"));
+    load_scene(&path).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn assert_omni_safe_tool(scene: &Scene) {
+    let t = &scene.tool;
+    assert_eq!(t.radius, 0.003);
+    assert_eq!(t.force_law, ForceLaw::Linear);
+    assert_eq!(t.stiffness, 300.0);
+    assert_eq!(t.damping, 0.0);
+    assert_eq!(t.max_force, 3.0);
+    assert_eq!(t.heat_power, 20.0);
+    // Stiffness felt at the stylus stays under the Omni's ~0.7 N/mm.
+    assert!(t.stiffness * scene.workspace.scale <= 700.0);
+}
+
+fn assert_common(scene: &Scene, script: &str) {
+    assert_omni_safe_tool(scene);
+    assert_eq!(scene.rates.haptic_hz, 1000.0);
+    assert_eq!(scene.rates.deform_max_hz, 1000.0);
+    assert_eq!(scene.rates.publish_hz, 250.0);
+    let mock = scene.device.mock_script.as_ref().expect("mock script");
+    assert!(mock.ends_with(format!("scripts/{script}")), "{mock:?}");
+    assert!(!scene.description.is_empty());
+    for b in &scene.bodies {
+        assert!(
+            b.mesh.parent().unwrap().ends_with("assets/meshes"),
+            "{:?}",
+            b.mesh
+        );
+        assert!(b.msd.is_some() && b.model == ModelPin::Auto);
+    }
+}
+
+#[test]
+fn all_shipped_scenes_are_listed() {
+    let names: Vec<String> = list_scenes().into_iter().map(|(n, _)| n).collect();
+    for want in ["beam", "cylinders", "organs"] {
+        assert!(names.iter().any(|n| n == want), "{want} not in {names:?}");
+    }
+}
+
+#[test]
+fn beam() {
+    let s = shipped("beam");
+    assert_eq!(s.name, "beam");
+    assert_common(&s, "beam-poke.toml");
+    assert_eq!(s.gravity, [0.0, -9.81, 0.0]);
+    assert_eq!(s.workspace.scale, 2.0);
+    assert_eq!(s.workspace.offset, [0.2, 0.0, 0.0]);
+    assert_eq!(s.bodies.len(), 1);
+    let b = &s.bodies[0];
+    assert!(b.mesh.ends_with("beam"));
+    assert_eq!(b.importance, Importance::Important);
+    let msd = b.msd.as_ref().unwrap();
+    assert_eq!(msd.stiffness, 250.0);
+    assert_eq!(msd.mass, MassSpec::NodeMass(0.1));
+    assert_eq!(msd.damping, 0.01);
+    assert_eq!(msd.dt, 0.005);
+    let fem = b.fem.as_ref().unwrap();
+    assert_eq!(fem.mode, FemMode::Corotational);
+}
+
+#[test]
+fn cylinders_match_table_6_1() {
+    let s = shipped("cylinders");
+    assert_eq!(s.name, "cylinders");
+    assert_common(&s, "cylinders-poke.toml");
+    assert_eq!(s.gravity, [0.0, -9.81, 0.0]);
+    assert_eq!(s.workspace.scale, 1.0);
+    assert_eq!(s.workspace.offset, [0.0, 0.06, 0.0]);
+    let names: Vec<&str> = s.bodies.iter().map(|b| b.name.as_str()).collect();
+    assert_eq!(names, ["cylinder_a", "cylinder_b"]);
+    assert_eq!(s.bodies[0].importance, Importance::Important);
+    assert_eq!(s.bodies[1].importance, Importance::Normal);
+    assert_eq!(s.bodies[0].translate, [-0.031, 0.0, 0.0]);
+    assert_eq!(s.bodies[1].translate, [0.031, 0.0, 0.0]);
+    for b in &s.bodies {
+        assert!(b.mesh.ends_with("cylinder"));
+        let fem = b.fem.as_ref().unwrap();
+        assert_eq!(
+            (fem.young, fem.poisson, fem.density, fem.damping, fem.dt),
+            (600.0, 0.0023, 30.0, 1.0, 0.02)
+        );
+        let msd = b.msd.as_ref().unwrap();
+        assert_eq!(
+            (msd.stiffness, msd.mass, msd.damping, msd.dt),
+            (700.0, MassSpec::Density(120.0), 0.4, 0.02)
+        );
+        let gc = b.gc.as_ref().unwrap();
+        assert_eq!(
+            (gc.stiffness, gc.density, gc.damping, gc.dt),
+            (50.0, 20.0, 0.3, 0.02)
+        );
+    }
+}
+
+#[test]
+fn organs_match_table_6_2() {
+    let s = shipped("organs");
+    assert_eq!(s.name, "organs");
+    assert_common(&s, "organs-poke.toml");
+    assert_eq!(s.gravity, [0.0, 0.0, 0.0]);
+    assert_eq!(s.workspace.scale, 2.0);
+    let names: Vec<&str> = s.bodies.iter().map(|b| b.name.as_str()).collect();
+    assert_eq!(names, ["liver", "spleen", "stomach", "pancreas"]);
+    for b in &s.bodies {
+        assert!(b.mesh.ends_with(&b.name));
+        let want = if b.name == "liver" || b.name == "stomach" {
+            Importance::Important
+        } else {
+            Importance::Normal
+        };
+        assert_eq!(b.importance, want, "{}", b.name);
+        let fem = b.fem.as_ref().unwrap();
+        assert_eq!(
+            (fem.young, fem.poisson, fem.density, fem.damping, fem.dt),
+            (140.0, 0.023, 10.0, 10.0, 0.01)
+        );
+        let gc = b.gc.as_ref().unwrap();
+        assert_eq!(
+            (gc.stiffness, gc.density, gc.damping, gc.dt),
+            (50.0, 20.0, 0.3, 0.02)
+        );
+        assert_eq!(b.msd.as_ref().unwrap().mass, MassSpec::Density(10.0));
+    }
+}
+
+/// The ```toml blocks of the crate documentation (the user documentation of the file formats).
+fn doc_toml_blocks() -> Vec<String> {
+    let lib = include_str!("../src/lib.rs");
+    let mut blocks = Vec::new();
+    let mut current: Option<String> = None;
+    for line in lib.lines().filter_map(|l| l.strip_prefix("//!")) {
+        let line = line.strip_prefix(' ').unwrap_or(line);
+        match (&mut current, line.trim()) {
+            (None, "```toml") => current = Some(String::new()),
+            (Some(_), "```") => blocks.extend(current.take()),
+            (Some(block), _) => {
+                block.push_str(line);
+                block.push('\n');
+            }
+            (None, _) => {}
+        }
+    }
+    blocks
+}
+
+#[test]
+fn documentation_examples_are_valid() {
+    let blocks = doc_toml_blocks();
+    assert_eq!(blocks.len(), 2, "{blocks:#?}");
+    // The scene example, as if it were a file beside the shipped scenes.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/doc-example.toml");
+    let scene = parse_scene(&blocks[0], &path).unwrap_or_else(|e| panic!("{e}"));
+    let organs = shipped("organs");
+    assert_eq!(scene.tool, organs.tool);
+    assert_eq!(scene.workspace, organs.workspace);
+    assert_eq!(scene.rates, organs.rates);
+    assert_eq!(scene.device, organs.device);
+    let (doc_liver, liver) = (&scene.bodies[0], &organs.bodies[0]);
+    assert_eq!(
+        (&doc_liver.fem, &doc_liver.msd, &doc_liver.gc),
+        (&liver.fem, &liver.msd, &liver.gc)
+    );
+    // The daemon example.
+    let cfg = parse_daemon_config(&blocks[1], std::path::Path::new("lopd.toml"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(cfg.haptic.core, Some(1));
+}
