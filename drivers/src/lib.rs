@@ -1,1 +1,24 @@
-//! placeholder
+//! Haptic device drivers for lop.
+//!
+//! The haptic loop talks to every device through the [`HapticDevice`] trait: `start` (may
+//! allocate, may fail with [`DeviceOpenError`]), then `read` and `write_force` 1000×/s on the RT
+//! thread (no allocation, no locks, no formatting; errors are the `Copy` enum [`DeviceError`]),
+//! and `stop`, which writes zero force on every exit path.
+//!
+//! Drivers:
+//! - [`mock`]: plays a TOML script of waypoints and records the forces it receives; deterministic,
+//!   for tests, benchmarks and demos.
+//! - `replay`, `openhaptics`: named by [`DeviceSpec`], not implemented in this crate yet.
+//!
+//! Units and frame are the device's own (OpenHaptics): millimetres, newtons, +x right, +y up,
+//! +z toward the user.
+
+mod device;
+pub mod mock;
+mod spec;
+
+pub use device::{
+    DeviceError, DeviceLimits, DeviceOpenError, DeviceSample, HapticDevice, Pacing, BUTTON_GRAB,
+    BUTTON_HEAT,
+};
+pub use spec::{DeviceSpec, DeviceSpecError, DEVICE_SPEC_FORMS};

@@ -1,0 +1,71 @@
+//! `--device` values parse into a `DeviceSpec`, print back to the same text, and a bad value is
+//! refused with a message that quotes it and lists the accepted forms.
+
+use std::path::PathBuf;
+
+use lop_drivers::{DeviceSpec, DeviceSpecError};
+
+#[test]
+fn every_form_parses_and_round_trips() {
+    let cases = [
+        ("mock", DeviceSpec::Mock { script: None }),
+        (
+            "mock:beam-poke",
+            DeviceSpec::Mock {
+                script: Some("beam-poke".into()),
+            },
+        ),
+        (
+            "mock:/tmp/my script.toml",
+            DeviceSpec::Mock {
+                script: Some("/tmp/my script.toml".into()),
+            },
+        ),
+        (
+            "replay:runs/omni-1.csv",
+            DeviceSpec::Replay {
+                path: PathBuf::from("runs/omni-1.csv"),
+            },
+        ),
+        ("openhaptics", DeviceSpec::OpenHaptics { name: None }),
+        (
+            "openhaptics:Default Device",
+            DeviceSpec::OpenHaptics {
+                name: Some("Default Device".into()),
+            },
+        ),
+        (
+            "openhaptics:left:arm",
+            DeviceSpec::OpenHaptics {
+                name: Some("left:arm".into()),
+            },
+        ),
+    ];
+    for (text, spec) in cases {
+        let parsed: DeviceSpec = text.parse().unwrap();
+        assert_eq!(parsed, spec, "{text}");
+        assert_eq!(parsed.to_string(), text);
+        assert_eq!(parsed.to_string().parse::<DeviceSpec>().unwrap(), spec);
+    }
+}
+
+#[test]
+fn bad_values_are_quoted_and_the_forms_listed() {
+    for bad in [
+        "",
+        "Mock",
+        "phantom",
+        "replay",
+        "mock:",
+        "openhaptics:",
+        "replay:",
+    ] {
+        let error: DeviceSpecError = bad.parse::<DeviceSpec>().unwrap_err();
+        assert_eq!(error.value, bad);
+        let message = error.to_string();
+        assert!(message.contains(&format!("`{bad}`")), "{message}");
+        for form in ["mock:SCRIPT", "replay:PATH", "openhaptics:NAME"] {
+            assert!(message.contains(form), "{message}");
+        }
+    }
+}

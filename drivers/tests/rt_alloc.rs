@@ -1,0 +1,140 @@
+//! The mock's RT path allocates nothing: after construction and `start`, 10,000 `read` +
+//! `write_force` calls (including refused forces, a loop wrap and ring wrap-around) allocate
+//! zero bytes, proven by a counting global allocator.
+//!
+//! Only allocations made by the measuring thread while it measures are counted, so the test
+//! harness's own threads cannot disturb the count.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use lop_drivers::mock::{MockDevice, MockScript};
+use lop_drivers::HapticDevice;
+
+struct CountingAllocator;
+
+static ALLOCATED_BYTES: AtomicU64 = AtomicU64::new(0);
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+}
+
+fn count(bytes: usize) {
+    if COUNTING.with(Cell::get) {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        ALLOCATED_BYTES.fetch_add(bytes as u64, Ordering::Relaxed);
+    }
+}
+
+// SAFETY: forwards every call to the system allocator unchanged; counting has no side effect
+// on the allocation.
+unsafe impl GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        count(layout.size());
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        count(layout.size());
+        unsafe { System.alloc_zeroed(layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        count(new_size);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: CountingAllocator = CountingAllocator;
+
+/// Runs `f` with this thread's allocations counted; returns (allocations, bytes).
+fn measure(f: impl FnOnce()) -> (u64, u64) {
+    ALLOCATIONS.store(0, Ordering::Relaxed);
+    ALLOCATED_BYTES.store(0, Ordering::Relaxed);
+    COUNTING.with(|c| c.set(true));
+    f();
+    COUNTING.with(|c| c.set(false));
+    (
+        ALLOCATIONS.load(Ordering::Relaxed),
+        ALLOCATED_BYTES.load(Ordering::Relaxed),
+    )
+}
+
+const SCRIPT: &str = r#"
+end = "loop"
+[[waypoint]]
+t = 0.0
+position = [0.0, 40.0, 10.0]
+[[waypoint]]
+t = 1.0
+position = [0.0, 20.0, 10.0]
+buttons = ["grab"]
+[[waypoint]]
+t = 3.0
+position = [10.0, 20.0, 10.0]
+buttons = ["heat"]
+[[waypoint]]
+t = 4.0
+position = [0.0, 40.0, 10.0]
+
+[[fault]]
+from = 6.0
+until = 6.1
+error = "communication"
+"#;
+
+/// One self-paced run of `ticks` ticks, as the haptic loop would drive the device.
+fn run(device: &mut MockDevice, ticks: u64) {
+    let mut errors = 0u64;
+    for tick in 0..ticks {
+        let t = tick as f64 * 1e-3;
+        let force = match device.read(t) {
+            Ok(sample) if tick % 1000 == 999 => [f64::NAN, sample.position_mm[1], 0.0],
+            Ok(sample) => [0.0, (30.0 - sample.position_mm[1]).max(0.0) * 0.1, 0.0],
+            Err(_) => {
+                errors += 1;
+                [0.0; 3]
+            }
+        };
+        if device.write_force(force).is_err() {
+            errors += 1;
+        }
+    }
+    std::hint::black_box(errors);
+}
+
+#[test]
+fn ten_thousand_reads_and_writes_allocate_nothing() {
+    let script = MockScript::parse(SCRIPT, Path::new("rt-alloc.toml")).unwrap();
+    for capacity in [lop_drivers::mock::FORCE_RECORD_CAPACITY, 1000] {
+        let mut device =
+            MockDevice::with_record_capacity(script.clone(), MockDevice::omni_limits(), capacity);
+        device.start().unwrap();
+        run(&mut device, 100); // warm-up
+
+        let (allocations, bytes) = measure(|| run(&mut device, 10_000));
+        assert_eq!(
+            (allocations, bytes),
+            (0, 0),
+            "RT path allocated (ring capacity {capacity})"
+        );
+        let (allocations, _) = measure(|| device.stop());
+        assert_eq!(allocations, 0, "stop allocated");
+        assert!(
+            device.rejected_forces() > 0,
+            "refused forces were exercised"
+        );
+        assert_eq!(device.force_record().total_writes(), 10_100 + 1);
+    }
+    // The counter does count: a deliberate allocation is seen.
+    let (allocations, bytes) = measure(|| drop(std::hint::black_box(vec![0u8; 64])));
+    assert_eq!((allocations, bytes), (1, 64));
+}
