@@ -1,1 +1,353 @@
-fn main(){}
+//! `lopd`: command-line glue over the `lop_daemon` library. Errors end in `anyhow` here and map to
+//! exit codes: 0 success, 1 runtime failure, 2 bad input (arguments, config, scene, mesh).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Parser, Subcommand};
+use lop_config::{
+    load_daemon_config, load_scene, resolve_scene, resolve_script, DaemonConfig, Scene,
+};
+use lop_daemon::haptic::{self, HapticSettings, RtRequest};
+use lop_daemon::{deform, rt, signals, supervisor, MEMORY_LOCKED};
+use lop_drivers::mock::{MockDevice, MockScript};
+use lop_drivers::{DeviceSpec, HapticDevice};
+use lop_ipc::ServiceNames;
+
+#[derive(Parser)]
+#[command(
+    name = "lopd",
+    version,
+    about = "lop: real-time haptics for surgical soft-tissue simulation"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Start and supervise the haptic and deformation processes (the main job).
+    Run(RunArgs),
+    /// The 1 kHz haptic process alone (normally started by `lopd run`).
+    Haptic(HapticArgs),
+    /// The deformation process alone (normally started by `lopd run`).
+    Deform(CommonArgs),
+    /// Mesh tools.
+    Mesh {
+        #[command(subcommand)]
+        command: MeshCommand,
+    },
+    /// List the shipped scenes and mock scripts.
+    Scenes,
+}
+
+#[derive(Subcommand)]
+enum MeshCommand {
+    /// Print counts, bounds, volume and element quality of meshes, or the error that stops them
+    /// from loading.
+    Info {
+        /// TetGen base path (or .node/.ele), Gmsh .msh, or legacy VTK .vtk.
+        #[arg(required = true)]
+        paths: Vec<PathBuf>,
+    },
+}
+
+#[derive(Args, Clone)]
+struct CommonArgs {
+    /// Scene name (see `lopd scenes`) or path to a scene TOML.
+    #[arg(long, default_value = "organs")]
+    scene: String,
+    /// Service prefix, so several rigs or tests can share a machine.
+    #[arg(long, default_value = lop_ipc::SERVICE_PREFIX_DEFAULT)]
+    prefix: String,
+    /// Daemon configuration TOML.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Stop after this many seconds.
+    #[arg(long)]
+    duration: Option<f64>,
+}
+
+#[derive(Args, Clone)]
+struct HapticArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// mock[:SCRIPT] | replay:PATH | openhaptics[:NAME]
+    #[arg(long, default_value = "mock")]
+    device: String,
+    /// Write every force the device received as CSV at exit (mock device).
+    #[arg(long)]
+    force_log: Option<PathBuf>,
+}
+
+#[derive(Args, Clone)]
+struct RunArgs {
+    #[command(flatten)]
+    haptic: HapticArgs,
+    /// No live status line.
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// Bad input: exit code 2.
+#[derive(Debug)]
+struct BadInput(anyhow::Error);
+
+impl std::fmt::Display for BadInput {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{:#}", self.0)
+    }
+}
+impl std::error::Error for BadInput {}
+
+fn bad<T, E: Into<anyhow::Error>>(r: std::result::Result<T, E>) -> Result<T> {
+    r.map_err(|e| anyhow::Error::new(BadInput(e.into())))
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_env("LOP_LOG")
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .init();
+    signals::install();
+    let result = match cli.command {
+        Command::Run(a) => cmd_run(a),
+        Command::Haptic(a) => cmd_haptic(a).map(|()| 0),
+        Command::Deform(a) => cmd_deform(a).map(|()| 0),
+        Command::Mesh {
+            command: MeshCommand::Info { paths },
+        } => cmd_mesh_info(&paths),
+        Command::Scenes => cmd_scenes().map(|()| 0),
+    };
+    match result {
+        Ok(code) => ExitCode::from(code as u8),
+        Err(e) => {
+            eprintln!("lopd: error: {e:#}");
+            if e.downcast_ref::<BadInput>().is_some() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::from(1)
+            }
+        }
+    }
+}
+
+fn load_common(a: &CommonArgs) -> Result<(Scene, DaemonConfig, ServiceNames, Option<Duration>)> {
+    let path = bad(resolve_scene(&a.scene))?;
+    let scene = bad(load_scene(&path))?;
+    let config = match &a.config {
+        Some(p) => bad(load_daemon_config(p))?,
+        None => DaemonConfig::default(),
+    };
+    let names = bad(ServiceNames::new(&a.prefix))?;
+    let duration = match a.duration {
+        Some(s) if s.is_finite() && s > 0.0 => Some(Duration::from_secs_f64(s)),
+        Some(s) => bad(Err(anyhow::anyhow!(
+            "--duration {s}: must be a positive number of seconds"
+        )))?,
+        None => None,
+    };
+    Ok((scene, config, names, duration))
+}
+
+/// The opened device, concrete so device-specific extras (the mock's force record) stay
+/// reachable after the loop.
+enum Device {
+    Mock(MockDevice),
+}
+
+impl Device {
+    fn as_dyn(&mut self) -> &mut dyn HapticDevice {
+        match self {
+            Device::Mock(m) => m,
+        }
+    }
+    fn as_ref_dyn(&self) -> &dyn HapticDevice {
+        match self {
+            Device::Mock(m) => m,
+        }
+    }
+    fn mock(&self) -> Option<&MockDevice> {
+        match self {
+            Device::Mock(m) => Some(m),
+        }
+    }
+}
+
+fn open_device(spec: &DeviceSpec, scene: &Scene) -> Result<Device> {
+    match spec {
+        DeviceSpec::Mock { script } => {
+            let path = match script {
+                Some(s) => bad(resolve_script(s))?,
+                None => match &scene.device.mock_script {
+                    Some(p) => p.clone(),
+                    None => {
+                        let script = MockScript::stationary([0.0, 0.0, 0.0]);
+                        return Ok(Device::Mock(MockDevice::new(script, MockDevice::omni_limits())));
+                    }
+                },
+            };
+            let script = bad(MockScript::load(&path))?;
+            tracing::info!("mock device playing {}", path.display());
+            Ok(Device::Mock(MockDevice::new(script, MockDevice::omni_limits())))
+        }
+        DeviceSpec::Replay { path } => bad(Err(anyhow::anyhow!(
+            "--device replay:{}: session replay is not part of this build yet",
+            path.display()
+        ))),
+        DeviceSpec::OpenHaptics { .. } => bad(Err(anyhow::anyhow!(
+            "--device {spec}: the OpenHaptics driver is not part of this build yet; use --device mock"
+        ))),
+    }
+}
+
+fn cmd_run(a: RunArgs) -> Result<i32> {
+    // Validate everything up front so a typo fails here, not in a child.
+    let (scene, config, _names, duration) = load_common(&a.haptic.common)?;
+    let spec: DeviceSpec = bad(a.haptic.device.parse())?;
+    drop(open_device(&spec, &scene)?);
+    supervisor::run(supervisor::RunOptions {
+        scene: scene.path.clone(),
+        device: a.haptic.device.clone(),
+        duration,
+        prefix: a.haptic.common.prefix.clone(),
+        config: a.haptic.common.config.clone(),
+        force_log: a.haptic.force_log.clone(),
+        status_interval: Duration::from_millis(config.status_interval_ms),
+        status: !a.quiet,
+    })
+}
+
+fn cmd_haptic(a: HapticArgs) -> Result<()> {
+    let (scene, config, names, duration) = load_common(&a.common)?;
+    let spec: DeviceSpec = bad(a.device.parse())?;
+    let mut device = open_device(&spec, &scene)?;
+    device.as_dyn().start().context("starting the device")?;
+    if config.haptic.lock_memory {
+        match rt::lock_memory() {
+            Ok(()) => MEMORY_LOCKED.store(true, Ordering::Relaxed),
+            Err(e) => tracing::warn!("memory not locked: {e}"),
+        }
+    }
+    let settings = HapticSettings::new(&config, &scene, device.as_ref_dyn().limits());
+    let max_ticks = duration.map(|d| (d.as_secs_f64() * settings.rate_hz).round() as u64);
+    let rt_request = RtRequest {
+        core: config.haptic.core.or_else(rt::last_core),
+        priority: config.haptic.rt_priority,
+    };
+    tracing::info!(
+        "haptic loop: {} Hz on {}, force clamp {:.2} N, stale limit {} ms",
+        settings.rate_hz,
+        device.as_ref_dyn().name(),
+        settings.max_force,
+        settings.stale_ns / 1_000_000
+    );
+    let ((tool_tx, tool_rx), (tel_tx, tel_rx)) = haptic::rings();
+    let done = Arc::new(AtomicBool::new(false));
+    let publisher = {
+        let names = names.clone();
+        let done = done.clone();
+        std::thread::Builder::new()
+            .name("lop-tool-pub".into())
+            .spawn(move || haptic::run_publisher(&names, tool_rx, tel_rx, done))?
+    };
+    let rt_thread = {
+        let names = names.clone();
+        std::thread::Builder::new()
+            .name("lop-haptic-rt".into())
+            .stack_size(1 << 20)
+            .spawn(move || {
+                let r = haptic::run_loop(
+                    &names,
+                    settings,
+                    device.as_dyn(),
+                    &rt_request,
+                    &signals::STOP,
+                    max_ticks,
+                    tool_tx,
+                    tel_tx,
+                );
+                (r, device)
+            })?
+    };
+    let joined = rt_thread.join();
+    done.store(true, Ordering::Release);
+    let _ = publisher.join();
+    let (result, mut device) = match joined {
+        Ok(v) => v,
+        Err(_) => bail!("the haptic loop panicked; zero force was written by its guard"),
+    };
+    device.as_dyn().stop();
+    let summary = result?;
+    if let Some(path) = &a.force_log {
+        if let Some(mock) = device.mock() {
+            mock.write_force_csv(path)
+                .with_context(|| format!("writing {}", path.display()))?;
+        }
+    }
+    let last = device.mock().map(|m| m.last_force());
+    tracing::info!(
+        "haptic loop stopped after {} ticks, {} overruns{}{}",
+        summary.ticks,
+        summary.overruns,
+        match last {
+            Some(f) => format!("; last force written [{}, {}, {}] N", f[0], f[1], f[2]),
+            None => String::new(),
+        },
+        if summary.ring_drops > 0 {
+            format!("; {} tool states not published", summary.ring_drops)
+        } else {
+            String::new()
+        }
+    );
+    if let Some(e) = summary.fatal {
+        bail!("device error stopped the haptic loop: {e}");
+    }
+    Ok(())
+}
+
+fn cmd_deform(a: CommonArgs) -> Result<()> {
+    let (scene, config, names, duration) = load_common(&a)?;
+    deform::run(deform::DeformOptions {
+        scene,
+        names,
+        config,
+        duration,
+    })
+}
+
+fn cmd_mesh_info(paths: &[PathBuf]) -> Result<i32> {
+    let mut failed = 0;
+    for p in paths {
+        match lop_sim::mesh::read_mesh(p) {
+            Ok(mesh) => println!("{}\n{}", p.display(), mesh.info()),
+            Err(e) => {
+                eprintln!("{}: error: {e}", p.display());
+                failed += 1;
+            }
+        }
+    }
+    Ok(if failed > 0 { 2 } else { 0 })
+}
+
+fn cmd_scenes() -> Result<()> {
+    println!("scenes:");
+    for (name, path) in lop_config::list_scenes() {
+        println!("  {name:<12} {}", path.display());
+    }
+    println!("mock scripts (--device mock:NAME):");
+    for (name, path) in lop_config::list_scripts() {
+        println!("  {name:<18} {}", path.display());
+    }
+    Ok(())
+}

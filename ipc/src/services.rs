@@ -137,6 +137,8 @@ fn service_name(name: &str) -> Result<ServiceName, IpcError> {
 /// A node for one of lop's processes or clients. Signal handling is left to the caller (the
 /// daemon installs its own handlers so that every exit path writes zero force first).
 pub fn node(name: &str) -> Result<Node<ipc::Service>, IpcError> {
+    // iceoryx2 warns on stderr that no config file exists; lop uses the defaults on purpose.
+    set_log_level(LogLevel::Error);
     let node_name = NodeName::new(name).map_err(ice("invalid node name", name))?;
     NodeBuilder::new()
         .name(&node_name)

@@ -1,6 +1,11 @@
 //! `lop-sim`: the pure, deterministic physics of lop.
 //!
-//! Meshes and mesh I/O, deformation models, tool contact. No threads, no IPC, no clocks: the
-//! daemon adapts devices, shared memory and configuration to the types here.
+//! Meshes and mesh I/O ([`mesh`]), the mass-spring model ([`msd`]), tool-to-surface geometry
+//! ([`contact`]) and the scene that steps them ([`world`]). No threads, no IPC, no clocks: the
+//! daemon adapts devices, shared memory and configuration to the types here, and the same
+//! inputs always give the same outputs, bit for bit.
 
+pub mod contact;
 pub mod mesh;
+pub mod msd;
+pub mod world;

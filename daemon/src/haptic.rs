@@ -1,0 +1,628 @@
+//! `lopd haptic`: the hard-real-time 1 kHz loop that owns the device.
+//!
+//! Life of the process, copper-style: `new` (allocate everything: iceoryx2 ports, histograms,
+//! rings) → `start` (lock memory, pin, `SCHED_FIFO`, pre-fault the stack) → `tick` × N (no
+//! allocation, no lock, no formatting; the only syscalls are the deadline sleep and the device)
+//! → stop (zero force first, on every path, panics included).
+//!
+//! One tick: read device → validate (finite, inside the workspace) → take the newest frame →
+//! penalty force against the nearest surface point of the newest frame → safety (clamp, ramp to
+//! zero on stale or broken data, per-tick step limit) → write device → tool state to the
+//! blackboard (for `lopd deform`) and to a lock-free ring (drained by a normal thread that
+//! publishes `PREFIX/tool` for viewers) → timing into preallocated histograms.
+//!
+//! The god-object (a proxy constrained to the surface) replaces the plain penalty force in the
+//! tool-interaction work; the loop's shape stays.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use hdrhistogram::Histogram;
+use iceoryx2::port::writer::EntryHandleMut;
+use iceoryx2::prelude::*;
+use iceoryx2::sample::Sample;
+use lop_config::{DaemonConfig, Scene, WorkspaceTransform};
+use lop_drivers::{DeviceLimits, HapticDevice};
+use lop_ipc::services::{self, Role, ToolBoard};
+use lop_ipc::*;
+use lop_sim::contact::{closest_on_surface, Positions, SurfaceHit, ToolSphere};
+
+use crate::rt;
+use crate::safety::ForceSafety;
+use crate::scene::tool_sphere;
+
+/// Extra distance around a body's bounding box within which the tool is tested against it, m.
+const AABB_MARGIN: f64 = 0.005;
+/// Device samples farther than this outside the device's workspace are rejected as broken, mm.
+const WORKSPACE_SLACK_MM: f64 = 20.0;
+/// Tool states the ring to the publisher thread holds: 0.5 s at 1 kHz.
+const TOOL_RING: usize = 512;
+
+/// Everything the loop needs that is decided before it starts.
+#[derive(Debug, Clone)]
+pub struct HapticSettings {
+    /// Loop rate, Hz.
+    pub rate_hz: f64,
+    /// Frames older than this ramp the force to zero, ns.
+    pub stale_ns: u64,
+    /// Ticks from full force to zero when data goes bad.
+    pub ramp_ticks: u32,
+    /// Force clamp, N: min(daemon config, scene tool, device).
+    pub max_force: f64,
+    /// Largest force change per tick, N (except at contact onset).
+    pub max_step: f64,
+    /// Busy-wait before each deadline, ns.
+    pub spin_ns: u64,
+    /// Device → scene mapping.
+    pub workspace: WorkspaceTransform,
+    /// The tool tip (centre updated each tick).
+    pub tool: ToolSphere,
+    /// Device limits (workspace check).
+    pub limits: DeviceLimits,
+}
+
+impl HapticSettings {
+    /// Derives the settings from the daemon config, the scene and the device.
+    pub fn new(config: &DaemonConfig, scene: &Scene, limits: DeviceLimits) -> HapticSettings {
+        let rate = scene.rates.haptic_hz;
+        let h = &config.haptic;
+        HapticSettings {
+            rate_hz: rate,
+            stale_ns: (h.stale_frame_ms * 1e6) as u64,
+            ramp_ticks: ((h.ramp_ms * 1e-3 * rate).round() as u32).max(1),
+            max_force: h
+                .max_force_n
+                .min(scene.tool.max_force)
+                .min(limits.max_force_n),
+            max_step: h.max_force_step_n,
+            spin_ns: (h.spin_us * 1e3) as u64,
+            workspace: scene.workspace.transform(),
+            tool: tool_sphere(&scene.tool, [0.0; 3]),
+            limits,
+        }
+    }
+
+    /// Tick period, ns.
+    pub fn period_ns(&self) -> u64 {
+        (1e9 / self.rate_hz).round() as u64
+    }
+}
+
+/// A frame's nodes as positions for the contact query (f32 in shared memory, f64 maths).
+struct FrameNodes<'a>(&'a [NodeSample]);
+
+impl Positions for FrameNodes<'_> {
+    #[inline]
+    fn at(&self, i: usize) -> [f64; 3] {
+        let p = self.0[i].position;
+        [p[0] as f64, p[1] as f64, p[2] as f64]
+    }
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+}
+
+/// Preallocated latency histograms: one window (reset at each telemetry sample) and one total
+/// (reset once, after warm-up) per quantity.
+struct Stats {
+    window: [Histogram<u64>; 3],
+    total: [Histogram<u64>; 3],
+}
+
+const JITTER: usize = 0;
+const COMPUTE: usize = 1;
+const FRAME_AGE: usize = 2;
+
+impl Stats {
+    fn new() -> Result<Stats> {
+        let h = || Histogram::<u64>::new_with_bounds(1, 10_000_000_000, 2);
+        Ok(Stats {
+            window: [h()?, h()?, h()?],
+            total: [h()?, h()?, h()?],
+        })
+    }
+    #[inline]
+    fn record(&mut self, which: usize, v: u64) {
+        let v = v.max(1);
+        // saturating_record never allocates and never fails.
+        self.window[which].saturating_record(v);
+        self.total[which].saturating_record(v);
+    }
+}
+
+fn percentiles(h: &Histogram<u64>) -> Percentiles {
+    if h.is_empty() {
+        return Percentiles::default();
+    }
+    Percentiles {
+        count: h.len(),
+        p50: h.value_at_quantile(0.5),
+        p99: h.value_at_quantile(0.99),
+        p999: h.value_at_quantile(0.999),
+        max: h.max(),
+    }
+}
+
+/// The haptic loop's state. Built on the RT thread (iceoryx2 ports are not `Send`).
+pub struct HapticLoop {
+    settings: HapticSettings,
+    safety: ForceSafety,
+    _node: Node<ipc::Service>,
+    frames: services::FrameSubscriber,
+    topologies: services::TopologySubscriber,
+    _board: ToolBoard,
+    _writer: iceoryx2::port::writer::Writer<ipc::Service, u32>,
+    tool_entry: EntryHandleMut<ipc::Service, u32, ToolState>,
+    frame: Option<Sample<ipc::Service, [NodeSample], FrameHeader>>,
+    topology: Option<Sample<ipc::Service, [u32], TopologyHeader>>,
+    tool_ring: rtrb::Producer<ToolState>,
+    telemetry_ring: rtrb::Producer<HapticTelemetry>,
+    stats: Stats,
+    tick: u64,
+    overruns: u64,
+    stale_ticks: u64,
+    device_faults: u64,
+    ring_drops: u64,
+    rt_flags: u32,
+    pinned_core: i32,
+    window_start_ns: u64,
+    window_start_tick: u64,
+    telemetry_every: u64,
+    warmup_ticks: u64,
+}
+
+/// What a tick hands back to the caller (for the pacing loop and tests).
+#[derive(Debug, Clone, Copy)]
+pub struct TickOutcome {
+    /// The state published this tick.
+    pub state: ToolState,
+    /// A device error that makes continuing unsafe.
+    pub fatal: Option<lop_drivers::DeviceError>,
+}
+
+impl HapticLoop {
+    /// Creates the ports and buffers. Call on the thread that will run the ticks.
+    pub fn new(
+        names: &ServiceNames,
+        settings: HapticSettings,
+        tool_ring: rtrb::Producer<ToolState>,
+        telemetry_ring: rtrb::Producer<HapticTelemetry>,
+    ) -> Result<HapticLoop> {
+        let node = services::node("lopd-haptic-rt")?;
+        services::cleanup_dead_nodes(&node);
+        let frame_service = services::frame_service(&node, names, Role::Owner)?;
+        let frames = frame_service
+            .subscriber_builder()
+            .buffer_size(2)
+            .create()
+            .context("frame subscriber")?;
+        let topo_service = services::topology_service(&node, names, Role::Owner)?;
+        let topologies = topo_service
+            .subscriber_builder()
+            .create()
+            .context("topology subscriber")?;
+        let board = services::tool_board_owner(&node, names)?;
+        let writer = board
+            .writer_builder()
+            .create()
+            .context("tool blackboard writer (is another lopd haptic running with this prefix?)")?;
+        let tool_entry = writer
+            .entry::<ToolState>(&services::TOOL_LATEST_KEY)
+            .context("tool blackboard entry")?;
+        let rate = settings.rate_hz.round() as u64;
+        Ok(HapticLoop {
+            safety: ForceSafety::new(settings.max_force, settings.max_step, settings.ramp_ticks),
+            settings,
+            _node: node,
+            frames,
+            topologies,
+            _board: board,
+            _writer: writer,
+            tool_entry,
+            frame: None,
+            topology: None,
+            tool_ring,
+            telemetry_ring,
+            stats: Stats::new()?,
+            tick: 0,
+            overruns: 0,
+            stale_ticks: 0,
+            device_faults: 0,
+            ring_drops: 0,
+            rt_flags: 0,
+            pinned_core: -1,
+            window_start_ns: rt::now_ns(),
+            window_start_tick: 0,
+            telemetry_every: (rate / 4).max(1),
+            warmup_ticks: rate,
+        })
+    }
+
+    /// Records which real-time privileges the loop got (for telemetry).
+    pub fn set_rt_state(&mut self, flags: u32, pinned_core: i32) {
+        self.rt_flags = flags;
+        self.pinned_core = pinned_core;
+    }
+
+    /// Counts a missed deadline.
+    pub fn count_overrun(&mut self) {
+        self.overruns += 1;
+    }
+
+    /// Ticks run so far.
+    pub fn ticks(&self) -> u64 {
+        self.tick
+    }
+
+    /// Tool states dropped because the publisher thread fell behind.
+    pub fn ring_drops(&self) -> u64 {
+        self.ring_drops
+    }
+
+    /// One haptic tick. `wake_ns` is when the loop woke, `deadline_ns` when it should have.
+    /// Allocation-free.
+    pub fn tick(
+        &mut self,
+        device: &mut dyn HapticDevice,
+        wake_ns: u64,
+        deadline_ns: u64,
+    ) -> TickOutcome {
+        let t = self.tick as f64 / self.settings.rate_hz;
+        let mut state = ToolState {
+            contract_version: CONTRACT_VERSION,
+            sequence: self.tick,
+            stamp_ns: wake_ns,
+            tool_radius: self.settings.tool.radius,
+            contact_body: -1,
+            ..Default::default()
+        };
+        let mut fatal = None;
+
+        // 1. Read and validate the device.
+        let mut healthy = true;
+        let sample = match device.read(t) {
+            Ok(s) if s.is_finite() && self.in_workspace(s.position_mm) => Some(s),
+            Ok(_) => None,
+            Err(e) => {
+                if !e.is_recoverable() {
+                    fatal = Some(e);
+                }
+                None
+            }
+        };
+        if sample.is_none() {
+            healthy = false;
+            self.device_faults += 1;
+            state.flags |= TOOL_FLAG_DEVICE_ERROR;
+        }
+
+        // 2. Take the newest topology and frame. Receiving never allocates.
+        while let Ok(Some(s)) = self.topologies.receive() {
+            self.topology = Some(s);
+        }
+        while let Ok(Some(s)) = self.frames.receive() {
+            self.frame = Some(s);
+        }
+        let frame_age = match &self.frame {
+            Some(f) => wake_ns.saturating_sub(f.user_header().publish_ns),
+            None => u64::MAX,
+        };
+        if frame_age > self.settings.stale_ns {
+            healthy = false;
+            self.stale_ticks += 1;
+            state.flags |= TOOL_FLAG_STALE_FRAME;
+        } else {
+            self.stats.record(FRAME_AGE, frame_age);
+        }
+
+        // 3. Contact and penalty force against the newest surface.
+        let mut desired = [0.0; 3];
+        if let Some(s) = sample {
+            let p = self.settings.workspace.device_to_scene(s.position_mm);
+            state.device_position = p;
+            state.proxy_position = p;
+            state.buttons = s.buttons;
+            self.settings.tool.center = p;
+            if let Some((body, tri, hit)) = self.nearest_contact(p) {
+                let depth = self.settings.tool.depth(&hit);
+                if depth > 0.0 {
+                    desired = self.settings.tool.force_on_tool(&hit);
+                    state.flags |= TOOL_FLAG_CONTACT;
+                    state.contact_body = body as i32;
+                    state.contact_triangle = tri as u32;
+                    state.contact_barycentric = hit.barycentric;
+                    let r = self.settings.tool.radius;
+                    state.proxy_position = [
+                        hit.point[0] + hit.normal[0] * r,
+                        hit.point[1] + hit.normal[1] * r,
+                        hit.point[2] + hit.normal[2] * r,
+                    ];
+                }
+            }
+        }
+        if let Some(topo) = &self.topology {
+            state.topology_id = topo.user_header().topology_id;
+        }
+
+        // 4. Safety: finite, clamped, ramped, rate-limited. Then the device.
+        let force = self.safety.condition(desired, healthy);
+        if !healthy {
+            state.flags |= TOOL_FLAG_RAMPING;
+        }
+        state.force = force;
+        if let Err(e) = device.write_force(self.settings.workspace.scene_dir_to_device(force)) {
+            self.device_faults += 1;
+            state.flags |= TOOL_FLAG_DEVICE_ERROR;
+            if !e.is_recoverable() {
+                fatal = Some(e);
+            }
+        }
+
+        // 5. Publish: blackboard for the deformation process, ring for viewers.
+        self.tool_entry.update_with_copy(state);
+        if self.tool_ring.push(state).is_err() {
+            self.ring_drops += 1;
+        }
+
+        // 6. Timing.
+        let done = rt::now_ns();
+        self.stats
+            .record(JITTER, wake_ns.saturating_sub(deadline_ns));
+        self.stats.record(COMPUTE, done.saturating_sub(wake_ns));
+        self.tick += 1;
+        if self.tick == self.warmup_ticks {
+            self.stats.total.iter_mut().for_each(|h| h.reset());
+        }
+        if self.tick % self.telemetry_every == 0 {
+            self.emit_telemetry(done, force);
+        }
+        TickOutcome { state, fatal }
+    }
+
+    fn in_workspace(&self, mm: [f64; 3]) -> bool {
+        let l = &self.settings.limits;
+        (0..3).all(|k| {
+            mm[k] >= l.workspace_min_mm[k] - WORKSPACE_SLACK_MM
+                && mm[k] <= l.workspace_max_mm[k] + WORKSPACE_SLACK_MM
+        })
+    }
+
+    /// The deepest contact over all bodies whose bounds are near `p`: (body, global triangle,
+    /// hit). `None` without a matching topology and frame.
+    fn nearest_contact(&self, p: [f64; 3]) -> Option<(usize, usize, SurfaceHit)> {
+        let topo = self.topology.as_ref()?;
+        let frame = self.frame.as_ref()?;
+        let th = topo.user_header();
+        let fh = frame.user_header();
+        if th.topology_id != fh.topology_id
+            || fh.contract_version != CONTRACT_VERSION
+            || frame.payload().len() != th.node_count as usize
+        {
+            return None;
+        }
+        let indices = topo.payload();
+        let tri_count = (th.triangle_count as usize).min(indices.len() / 3);
+        // SAFETY: `[u32; 3]` has the alignment of `u32` and no padding; the length is checked.
+        let triangles: &[[u32; 3]] =
+            unsafe { std::slice::from_raw_parts(indices.as_ptr() as *const [u32; 3], tri_count) };
+        let nodes = FrameNodes(frame.payload());
+        let reach = self.settings.tool.radius + AABB_MARGIN;
+        let mut best: Option<(usize, usize, SurfaceHit)> = None;
+        for b in 0..(th.body_count as usize).min(MAX_BODIES) {
+            let bf = &fh.bodies[b];
+            let near = (0..3).all(|k| {
+                p[k] >= bf.aabb_min[k] as f64 - reach && p[k] <= bf.aabb_max[k] as f64 + reach
+            });
+            if !near {
+                continue;
+            }
+            let bt = &th.bodies[b];
+            let start = bt.triangle_offset as usize;
+            let end = (start + bt.triangle_count as usize).min(tri_count);
+            if start >= end {
+                continue;
+            }
+            if let Some(hit) = closest_on_surface(&nodes, &triangles[start..end], p) {
+                let better = match &best {
+                    None => true,
+                    Some((_, _, b)) => hit.signed_distance() < b.signed_distance(),
+                };
+                if better {
+                    best = Some((b, start + hit.triangle, hit));
+                }
+            }
+        }
+        best
+    }
+
+    fn emit_telemetry(&mut self, now: u64, force: [f64; 3]) {
+        let ticks = self.tick - self.window_start_tick;
+        let secs = now.saturating_sub(self.window_start_ns) as f64 * 1e-9;
+        let s = &self.stats;
+        let telemetry = HapticTelemetry {
+            contract_version: CONTRACT_VERSION,
+            rt_flags: self.rt_flags,
+            stamp_ns: now,
+            ticks: self.tick,
+            overruns: self.overruns,
+            stale_ticks: self.stale_ticks,
+            device_faults: self.device_faults,
+            rate_hz: if secs > 0.0 { ticks as f64 / secs } else { 0.0 },
+            force_norm: (force[0] * force[0] + force[1] * force[1] + force[2] * force[2]).sqrt(),
+            window_jitter: percentiles(&s.window[JITTER]),
+            window_compute: percentiles(&s.window[COMPUTE]),
+            window_frame_age: percentiles(&s.window[FRAME_AGE]),
+            total_jitter: percentiles(&s.total[JITTER]),
+            total_compute: percentiles(&s.total[COMPUTE]),
+            total_frame_age: percentiles(&s.total[FRAME_AGE]),
+            pinned_core: self.pinned_core,
+            _pad: 0,
+        };
+        self.stats.window.iter_mut().for_each(|h| h.reset());
+        self.window_start_ns = now;
+        self.window_start_tick = self.tick;
+        let _ = self.telemetry_ring.push(telemetry);
+    }
+}
+
+/// Writes zero force when dropped, so a panic on the RT thread still leaves the device safe.
+struct ZeroForceGuard<'a>(&'a mut dyn HapticDevice);
+
+impl Drop for ZeroForceGuard<'_> {
+    fn drop(&mut self) {
+        let _ = self.0.write_force([0.0; 3]);
+        self.0.stop();
+    }
+}
+
+/// How the haptic process ended.
+#[derive(Debug, Clone)]
+pub struct HapticSummary {
+    /// Ticks run.
+    pub ticks: u64,
+    /// Missed deadlines.
+    pub overruns: u64,
+    /// Tool states the publisher thread missed.
+    pub ring_drops: u64,
+    /// Set when a device error stopped the loop.
+    pub fatal: Option<lop_drivers::DeviceError>,
+}
+
+/// Real-time set-up requested for the loop thread.
+#[derive(Debug, Clone)]
+pub struct RtRequest {
+    /// Core to pin to.
+    pub core: Option<usize>,
+    /// `SCHED_FIFO` priority.
+    pub priority: u8,
+}
+
+/// Runs the loop on the calling thread until `stop` is set, `max_ticks` is reached or the device
+/// fails. The device is zeroed and stopped before this returns, and also if it panics.
+pub fn run_loop(
+    names: &ServiceNames,
+    settings: HapticSettings,
+    device: &mut dyn HapticDevice,
+    rt_request: &RtRequest,
+    stop: &AtomicBool,
+    max_ticks: Option<u64>,
+    tool_ring: rtrb::Producer<ToolState>,
+    telemetry_ring: rtrb::Producer<HapticTelemetry>,
+) -> Result<HapticSummary> {
+    let guard = ZeroForceGuard(device);
+    let spin_ns = settings.spin_ns;
+    let period = settings.period_ns();
+    let mut hl = HapticLoop::new(names, settings, tool_ring, telemetry_ring)?;
+
+    // Start: privileges (each optional, reported once), then a warm stack.
+    let mut flags = 0;
+    let mut pinned = -1;
+    if let Some(core) = rt_request.core {
+        match rt::pin_to_core(core) {
+            Ok(()) => {
+                flags |= RT_FLAG_PINNED;
+                pinned = core as i32;
+            }
+            Err(e) => tracing::warn!("haptic loop not pinned: {e}"),
+        }
+    }
+    match rt::set_fifo(rt_request.priority) {
+        Ok(()) => flags |= RT_FLAG_FIFO,
+        Err(e) => tracing::warn!("haptic loop runs without real-time priority: {e}"),
+    }
+    if crate::MEMORY_LOCKED.load(Ordering::Relaxed) {
+        flags |= RT_FLAG_MLOCKED;
+    }
+    hl.set_rt_state(flags, pinned);
+    rt::prefault_stack(256 * 1024);
+
+    // Process: absolute deadlines; a late tick is counted, never caught up in a burst.
+    let mut fatal = None;
+    let mut deadline = rt::now_ns() + period;
+    while !stop.load(Ordering::Relaxed) && max_ticks.is_none_or(|m| hl.ticks() < m) {
+        let wake = rt::sleep_until(deadline, spin_ns);
+        let outcome = hl.tick(&mut *guard.0, wake, deadline);
+        if let Some(e) = outcome.fatal {
+            fatal = Some(e);
+            break;
+        }
+        deadline += period;
+        let now = rt::now_ns();
+        if now > deadline {
+            let missed = (now - deadline) / period + 1;
+            for _ in 0..missed {
+                hl.count_overrun();
+            }
+            deadline += missed * period;
+        }
+    }
+    let summary = HapticSummary {
+        ticks: hl.ticks(),
+        overruns: hl.overruns,
+        ring_drops: hl.ring_drops(),
+        fatal,
+    };
+    // Stop: zero force first (the guard's drop), then release the ports.
+    drop(guard);
+    drop(hl);
+    Ok(summary)
+}
+
+/// Drains the rings and publishes `PREFIX/tool` and `PREFIX/telemetry/haptic`. Runs on a normal
+/// thread: iceoryx2's publish path allocates, which the RT thread must not do.
+pub fn run_publisher(
+    names: &ServiceNames,
+    mut tool_ring: rtrb::Consumer<ToolState>,
+    mut telemetry_ring: rtrb::Consumer<HapticTelemetry>,
+    done: Arc<AtomicBool>,
+) -> Result<()> {
+    let node = services::node("lopd-haptic-pub")?;
+    let tool_pub = services::tool_service(&node, names, Role::Owner)?
+        .publisher_builder()
+        .create()
+        .context("tool publisher")?;
+    let telemetry_pub = services::telemetry_service(&node, names, Role::Owner)?
+        .publisher_builder()
+        .create()
+        .context("telemetry publisher")?;
+    let mut last_faults = 0;
+    let mut last_stale = 0;
+    loop {
+        let finished = done.load(Ordering::Acquire);
+        while let Ok(s) = tool_ring.pop() {
+            let _ = tool_pub.send_copy(s);
+        }
+        while let Ok(t) = telemetry_ring.pop() {
+            if t.device_faults > last_faults {
+                tracing::warn!(
+                    "device faults: {} (+{})",
+                    t.device_faults,
+                    t.device_faults - last_faults
+                );
+                last_faults = t.device_faults;
+            }
+            if t.stale_ticks > last_stale + t.ticks / 100 && t.ticks > 2000 {
+                tracing::debug!("ticks with a stale frame: {}", t.stale_ticks);
+                last_stale = t.stale_ticks;
+            }
+            let _ = telemetry_pub.send_copy(t);
+        }
+        if finished {
+            return Ok(());
+        }
+        std::thread::sleep(Duration::from_micros(500));
+    }
+}
+
+/// Creates the two rings between the RT thread and the publisher thread.
+pub fn rings() -> (
+    (rtrb::Producer<ToolState>, rtrb::Consumer<ToolState>),
+    (
+        rtrb::Producer<HapticTelemetry>,
+        rtrb::Consumer<HapticTelemetry>,
+    ),
+) {
+    (rtrb::RingBuffer::new(TOOL_RING), rtrb::RingBuffer::new(16))
+}

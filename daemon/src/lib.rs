@@ -1,0 +1,19 @@
+//! `lopd`, the lop daemon: the supervisor (`lopd run`), the 1 kHz haptic process
+//! (`lopd haptic`) and the deformation process (`lopd deform`), plus small tools
+//! (`lopd mesh info`).
+//!
+//! The binary (`main.rs`) is glue: it parses the command line and calls into these modules.
+
+use std::sync::atomic::AtomicBool;
+
+pub mod deform;
+pub mod haptic;
+pub mod rt;
+pub mod safety;
+pub mod scene;
+pub mod signals;
+pub mod status;
+pub mod supervisor;
+
+/// Set once `mlockall` succeeded in this process.
+pub static MEMORY_LOCKED: AtomicBool = AtomicBool::new(false);

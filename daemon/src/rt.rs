@@ -1,0 +1,114 @@
+//! Real-time plumbing for the haptic thread: memory locking, core pinning, `SCHED_FIFO`,
+//! absolute-deadline sleeping and stack pre-faulting.
+//!
+//! Every privilege is optional: when one is missing (an unprivileged container, a laptop) the
+//! function says why once, returns `false`, and the loop runs anyway with worse jitter.
+
+use std::time::Duration;
+
+/// Nanoseconds per second.
+pub const NS_PER_S: u64 = 1_000_000_000;
+
+/// Locks current and future pages in RAM so the RT thread never takes a page fault.
+pub fn lock_memory() -> Result<(), String> {
+    // SAFETY: plain syscall with constant flags.
+    let r = unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) };
+    if r == 0 {
+        Ok(())
+    } else {
+        Err(format!(
+            "mlockall failed ({}); raise RLIMIT_MEMLOCK (ulimit -l unlimited, or LimitMEMLOCK=infinity in the systemd unit)",
+            std::io::Error::last_os_error()
+        ))
+    }
+}
+
+/// Pins the calling thread to `core`.
+pub fn pin_to_core(core: usize) -> Result<(), String> {
+    let ids = core_affinity::get_core_ids().unwrap_or_default();
+    match ids.into_iter().find(|c| c.id == core) {
+        Some(id) if core_affinity::set_for_current(id) => Ok(()),
+        Some(_) => Err(format!("could not pin to core {core}")),
+        None => Err(format!("core {core} is not available to this process")),
+    }
+}
+
+/// Index of the last core this process may run on: the default for the RT thread, so core 0
+/// keeps interrupts and housekeeping.
+pub fn last_core() -> Option<usize> {
+    core_affinity::get_core_ids().and_then(|ids| ids.iter().map(|c| c.id).max())
+}
+
+/// Gives the calling thread `SCHED_FIFO` at `priority` (1..=99).
+pub fn set_fifo(priority: u8) -> Result<(), String> {
+    use thread_priority::*;
+    let prio = ThreadPriority::Crossplatform(
+        ThreadPriorityValue::try_from(priority.min(99)).map_err(|e| format!("{e:?}"))?,
+    );
+    set_thread_priority_and_policy(
+        thread_native_id(),
+        prio,
+        ThreadSchedulePolicy::Realtime(RealtimeThreadSchedulePolicy::Fifo),
+    )
+    .map_err(|e| {
+        format!(
+            "SCHED_FIFO refused ({e:?}); grant CAP_SYS_NICE or an rtprio limit (LimitRTPRIO=99)"
+        )
+    })
+}
+
+/// Touches `bytes` of stack so later deep calls never fault a new stack page in.
+#[inline(never)]
+pub fn prefault_stack(bytes: usize) {
+    const CHUNK: usize = 16 * 1024;
+    fn touch(remaining: usize) {
+        let mut buf = [0u8; CHUNK];
+        // black_box keeps the buffer and the writes.
+        std::hint::black_box(&mut buf);
+        if remaining > CHUNK {
+            touch(remaining - CHUNK);
+        }
+    }
+    touch(bytes);
+}
+
+/// Now on `CLOCK_MONOTONIC`, ns.
+#[inline]
+pub fn now_ns() -> u64 {
+    lop_ipc::clock::monotonic_ns()
+}
+
+/// Sleeps until the absolute `CLOCK_MONOTONIC` time `deadline_ns` minus `spin_ns`, then spins
+/// until the deadline. Returns the wake-up time. No allocation; the only syscall is the sleep.
+#[inline]
+pub fn sleep_until(deadline_ns: u64, spin_ns: u64) -> u64 {
+    let sleep_to = deadline_ns.saturating_sub(spin_ns);
+    if now_ns() < sleep_to {
+        let ts = libc::timespec {
+            tv_sec: (sleep_to / NS_PER_S) as libc::time_t,
+            tv_nsec: (sleep_to % NS_PER_S) as libc::c_long,
+        };
+        // SAFETY: valid timespec; TIMER_ABSTIME sleep on CLOCK_MONOTONIC. EINTR just returns
+        // early and the spin below finishes the wait.
+        unsafe {
+            libc::clock_nanosleep(
+                libc::CLOCK_MONOTONIC,
+                libc::TIMER_ABSTIME,
+                &ts,
+                std::ptr::null_mut(),
+            )
+        };
+    }
+    loop {
+        let now = now_ns();
+        if now >= deadline_ns {
+            return now;
+        }
+        std::hint::spin_loop();
+    }
+}
+
+/// A `Duration` as ns, saturating.
+pub fn ns(d: Duration) -> u64 {
+    d.as_nanos().min(u64::MAX as u128) as u64
+}

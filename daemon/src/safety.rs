@@ -1,0 +1,165 @@
+//! The last stage before the device: every force leaving the haptic loop passes through
+//! [`ForceSafety`], which enforces DESIGN.md's safety invariants 1 and 2.
+//!
+//! - The output is always finite and its magnitude never exceeds the clamp.
+//! - While the input is unhealthy (stale frame, NaN, device fault) the force ramps linearly to
+//!   zero within `ramp_ticks`, and it ramps back in the same way once healthy again, so a
+//!   recovering stream cannot kick the hand.
+//! - Otherwise the force changes by at most `max_step` per tick, except at contact onset (from
+//!   zero force), where the penalty law's own small value is allowed through at once.
+
+/// Force conditioning state. Pure and allocation-free.
+#[derive(Debug, Clone)]
+pub struct ForceSafety {
+    max_force: f64,
+    max_step: f64,
+    gain_step: f64,
+    gain: f64,
+    last: [f64; 3],
+}
+
+impl ForceSafety {
+    /// `max_force` in N (> 0), `max_step` N per tick, `ramp_ticks` ticks from full force to zero.
+    pub fn new(max_force: f64, max_step: f64, ramp_ticks: u32) -> ForceSafety {
+        ForceSafety {
+            max_force: if max_force.is_finite() {
+                max_force.max(0.0)
+            } else {
+                0.0
+            },
+            max_step: if max_step.is_finite() {
+                max_step.max(0.0)
+            } else {
+                0.0
+            },
+            gain_step: 1.0 / ramp_ticks.max(1) as f64,
+            gain: 1.0,
+            last: [0.0; 3],
+        }
+    }
+
+    /// The force to write this tick for the `desired` force. `healthy` is false when the data
+    /// behind `desired` cannot be trusted; then `desired` is ignored and the output ramps down.
+    pub fn condition(&mut self, desired: [f64; 3], healthy: bool) -> [f64; 3] {
+        let finite = desired.iter().all(|c| c.is_finite());
+        let healthy = healthy && finite;
+        if healthy {
+            self.gain = (self.gain + self.gain_step).min(1.0);
+        } else {
+            self.gain = (self.gain - self.gain_step).max(0.0);
+        }
+        let target = if healthy { desired } else { self.last };
+        let mut f = clamp_norm(target, self.max_force);
+        if healthy {
+            let onset = self.last == [0.0; 3];
+            if !onset {
+                f = limit_step(self.last, f, self.max_step);
+            }
+            f = scale(f, self.gain);
+        } else {
+            // Ramp the last force down; reaches exactly zero when the gain does.
+            let full = if self.gain + self.gain_step > 0.0 {
+                self.gain / (self.gain + self.gain_step)
+            } else {
+                0.0
+            };
+            f = scale(f, full);
+        }
+        if !f.iter().all(|c| c.is_finite()) {
+            f = [0.0; 3];
+        }
+        self.last = f;
+        f
+    }
+
+    /// The last force returned.
+    pub fn last(&self) -> [f64; 3] {
+        self.last
+    }
+
+    /// The clamp, N.
+    pub fn max_force(&self) -> f64 {
+        self.max_force
+    }
+}
+
+fn scale(v: [f64; 3], s: f64) -> [f64; 3] {
+    [v[0] * s, v[1] * s, v[2] * s]
+}
+
+fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// `v` shortened to at most `max` (NaN-safe: a non-finite norm yields zero).
+pub fn clamp_norm(v: [f64; 3], max: f64) -> [f64; 3] {
+    let n = norm(v);
+    if !n.is_finite() {
+        return [0.0; 3];
+    }
+    if n > max {
+        scale(v, max / n)
+    } else {
+        v
+    }
+}
+
+fn limit_step(from: [f64; 3], to: [f64; 3], max_step: f64) -> [f64; 3] {
+    let d = [to[0] - from[0], to[1] - from[1], to[2] - from[2]];
+    let n = norm(d);
+    if n > max_step && n > 0.0 {
+        let s = max_step / n;
+        [from[0] + d[0] * s, from[1] + d[1] * s, from[2] + d[2] * s]
+    } else {
+        to
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clamps_and_stays_finite() {
+        let mut s = ForceSafety::new(3.0, 10.0, 5);
+        let f = s.condition([30.0, 40.0, 0.0], true);
+        assert!((norm(f) - 3.0).abs() < 1e-12);
+        let f = s.condition([f64::NAN, 0.0, 0.0], true);
+        assert!(f.iter().all(|c| c.is_finite()));
+        let f = s.condition([f64::INFINITY, 0.0, 0.0], true);
+        assert!(f.iter().all(|c| c.is_finite()));
+    }
+
+    #[test]
+    fn unhealthy_ramps_to_zero_within_ramp_ticks() {
+        let mut s = ForceSafety::new(3.0, 10.0, 5);
+        for _ in 0..3 {
+            s.condition([0.0, 2.0, 0.0], true);
+        }
+        assert!((s.last()[1] - 2.0).abs() < 1e-12);
+        let mut mags = Vec::new();
+        for _ in 0..5 {
+            mags.push(norm(s.condition([0.0, 2.0, 0.0], false)));
+        }
+        // Strictly decreasing, linear, exactly zero at the 5th tick.
+        assert!((mags[0] - 1.6).abs() < 1e-12, "{mags:?}");
+        assert!(mags.windows(2).all(|w| w[1] < w[0]));
+        assert_eq!(mags[4], 0.0);
+        // And it ramps back in over 5 ticks.
+        let back: Vec<f64> = (0..5)
+            .map(|_| norm(s.condition([0.0, 2.0, 0.0], true)))
+            .collect();
+        assert!((back[0] - 0.4).abs() < 1e-12, "{back:?}");
+        assert!((back[4] - 2.0).abs() < 1e-12, "{back:?}");
+    }
+
+    #[test]
+    fn step_limit_except_at_onset() {
+        let mut s = ForceSafety::new(3.0, 0.05, 5);
+        // Onset: allowed at once.
+        assert_eq!(s.condition([0.0, 0.3, 0.0], true), [0.0, 0.3, 0.0]);
+        // Then limited to 0.05 N per tick.
+        let f = s.condition([0.0, 1.3, 0.0], true);
+        assert!((f[1] - 0.35).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,233 @@
+//! `lopd run`: starts `lopd haptic` and `lopd deform` as child processes of the same binary,
+//! supervises them, prints a live status line and shuts both down cleanly.
+//!
+//! - A crashed deformation process is restarted with exponential back-off (0.2 s doubling to
+//!   5 s; reset after 10 s of healthy running) while the haptic loop keeps running: the loop sees
+//!   the frames go stale and ramps the force to zero, then picks up the new topology.
+//! - A crashed haptic process is restarted the same way (it wrote zero force on its way out).
+//! - Ctrl-C / SIGTERM / `--duration`: SIGTERM to both children (each writes zero force / stops
+//!   stepping), SIGKILL after 3 s if one hangs, then dead-node clean-up and a check that no
+//!   service under the prefix is left.
+//! - The children get SIGTERM if the supervisor itself dies (`PR_SET_PDEATHSIG`).
+
+use std::io::{IsTerminal, Write};
+use std::os::unix::process::CommandExt;
+use std::path::PathBuf;
+use std::process::{Child, Command};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use lop_ipc::{services, ServiceNames};
+
+use crate::signals;
+use crate::status::StatusMonitor;
+
+/// Options of `lopd run`.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Resolved scene file.
+    pub scene: PathBuf,
+    /// `--device` as given (already validated).
+    pub device: String,
+    /// Stop after this long.
+    pub duration: Option<Duration>,
+    /// Service prefix.
+    pub prefix: String,
+    /// `--config`.
+    pub config: Option<PathBuf>,
+    /// `--force-log`, passed to the haptic process.
+    pub force_log: Option<PathBuf>,
+    /// Status line interval.
+    pub status_interval: Duration,
+    /// Print the status line.
+    pub status: bool,
+}
+
+struct Supervised {
+    role: &'static str,
+    args: Vec<String>,
+    child: Option<Child>,
+    started: Instant,
+    backoff: Duration,
+    next_start: Option<Instant>,
+    restarts: u32,
+}
+
+const BACKOFF_MIN: Duration = Duration::from_millis(200);
+const BACKOFF_MAX: Duration = Duration::from_secs(5);
+const HEALTHY_AFTER: Duration = Duration::from_secs(10);
+const STOP_GRACE: Duration = Duration::from_secs(3);
+
+impl Supervised {
+    fn new(role: &'static str, args: Vec<String>) -> Supervised {
+        Supervised {
+            role,
+            args,
+            child: None,
+            started: Instant::now(),
+            backoff: BACKOFF_MIN,
+            next_start: Some(Instant::now()),
+            restarts: 0,
+        }
+    }
+
+    fn spawn(&mut self) -> Result<()> {
+        let exe = std::env::current_exe().context("locating the lopd binary")?;
+        let mut cmd = Command::new(exe);
+        cmd.arg(self.role).args(&self.args);
+        // SAFETY: prctl is async-signal-safe; nothing else runs between fork and exec.
+        unsafe {
+            cmd.pre_exec(|| {
+                signals::die_with_parent();
+                Ok(())
+            });
+        }
+        let child = cmd
+            .spawn()
+            .with_context(|| format!("starting lopd {}", self.role))?;
+        tracing::info!("started lopd {} (pid {})", self.role, child.id());
+        self.child = Some(child);
+        self.started = Instant::now();
+        self.next_start = None;
+        Ok(())
+    }
+
+    /// Reaps an exited child and schedules its restart.
+    fn check(&mut self) {
+        let Some(child) = &mut self.child else {
+            return;
+        };
+        if let Ok(Some(status)) = child.try_wait() {
+            if self.started.elapsed() > HEALTHY_AFTER {
+                self.backoff = BACKOFF_MIN;
+            }
+            tracing::warn!(
+                "lopd {} (pid {}) exited: {status}; restarting in {:?}",
+                self.role,
+                child.id(),
+                self.backoff
+            );
+            self.child = None;
+            self.next_start = Some(Instant::now() + self.backoff);
+            self.backoff = (self.backoff * 2).min(BACKOFF_MAX);
+            self.restarts += 1;
+        }
+    }
+
+    fn maybe_start(&mut self) -> Result<()> {
+        if let Some(at) = self.next_start {
+            if Instant::now() >= at {
+                self.spawn()?;
+            }
+        }
+        Ok(())
+    }
+
+    fn terminate(&mut self) {
+        if let Some(child) = &self.child {
+            // SAFETY: plain kill on our own child's pid.
+            unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
+        }
+    }
+
+    fn wait_or_kill(&mut self, until: Instant) {
+        let Some(child) = &mut self.child else {
+            return;
+        };
+        loop {
+            match child.try_wait() {
+                Ok(Some(status)) => {
+                    tracing::info!("lopd {} stopped: {status}", self.role);
+                    break;
+                }
+                Ok(None) if Instant::now() < until => std::thread::sleep(Duration::from_millis(10)),
+                _ => {
+                    tracing::warn!("lopd {} did not stop in time; killing it", self.role);
+                    let _ = child.kill();
+                    let _ = child.wait();
+                    break;
+                }
+            }
+        }
+        self.child = None;
+    }
+}
+
+/// Runs the supervisor until a stop signal or the duration. Returns the process exit code.
+pub fn run(opts: RunOptions) -> Result<i32> {
+    let names = ServiceNames::new(&opts.prefix)?;
+    let mut common = vec![
+        "--scene".to_string(),
+        opts.scene.display().to_string(),
+        "--prefix".to_string(),
+        opts.prefix.clone(),
+    ];
+    if let Some(c) = &opts.config {
+        common.extend(["--config".to_string(), c.display().to_string()]);
+    }
+    let mut haptic_args = common.clone();
+    haptic_args.extend(["--device".to_string(), opts.device.clone()]);
+    if let Some(f) = &opts.force_log {
+        haptic_args.extend(["--force-log".to_string(), f.display().to_string()]);
+    }
+    let mut haptic = Supervised::new("haptic", haptic_args);
+    let mut deform = Supervised::new("deform", common);
+
+    let mut monitor = StatusMonitor::new(&names)?;
+    let tty = std::io::stdout().is_terminal();
+    let start = Instant::now();
+    let mut last_status = Instant::now();
+    let mut code = 0;
+    while !signals::stop_requested() && opts.duration.is_none_or(|d| start.elapsed() < d) {
+        haptic.check();
+        deform.check();
+        if let Err(e) = haptic.maybe_start().and_then(|()| deform.maybe_start()) {
+            tracing::error!("{e:#}");
+            code = 1;
+            break;
+        }
+        monitor.poll();
+        if opts.status && last_status.elapsed() >= opts.status_interval {
+            last_status = Instant::now();
+            let line = monitor.line(deform.restarts);
+            let mut out = std::io::stdout().lock();
+            if tty {
+                let _ = write!(out, "\r\x1b[2K{line}");
+            } else {
+                let _ = writeln!(out, "status: {line}");
+            }
+            let _ = out.flush();
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    if tty && opts.status {
+        println!();
+    }
+
+    // Shut down: the haptic loop first (zero force), then the deformation process.
+    monitor.detach();
+    haptic.terminate();
+    deform.terminate();
+    let until = Instant::now() + STOP_GRACE;
+    haptic.wait_or_kill(until);
+    deform.wait_or_kill(until);
+    drop(monitor);
+
+    let node = services::node("lopd-run-cleanup")?;
+    let cleaned = services::cleanup_dead_nodes(&node);
+    drop(node);
+    if cleaned > 0 {
+        tracing::info!("cleaned {cleaned} dead node(s)");
+    }
+    let left = services::list_services(&opts.prefix);
+    if left.is_empty() {
+        tracing::info!("stopped cleanly; no service left under {:?}", opts.prefix);
+    } else {
+        tracing::warn!("services left under {:?}: {left:?}", opts.prefix);
+    }
+    println!(
+        "lopd run: stopped; haptic restarts {}, deform restarts {}",
+        haptic.restarts, deform.restarts
+    );
+    Ok(code)
+}

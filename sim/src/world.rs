@@ -1,0 +1,188 @@
+//! The simulated scene: bodies, each with its mesh and its current model, stepped on its own
+//! time step.
+//!
+//! `World` owns no clock: the caller decides when a body is due (`body_due`) and steps it
+//! (`step_body`), so the deformation process can time each body and keep simulated time on the
+//! wall clock, while benchmarks and tests step as fast as they like, deterministically.
+
+use crate::contact::{closest_on_surface, scale, ToolSphere};
+use crate::mesh::TetMesh;
+use crate::msd::{BlowUp, ContactReport, MassSpring, MsdParameters, ToolContact};
+
+/// How far beyond the tool radius a body's bounding box is still checked for contact, m. Covers
+/// the tissue's motion during one step.
+const CONTACT_MARGIN: f64 = 0.01;
+
+/// One deformable body.
+#[derive(Debug, Clone)]
+pub struct Body {
+    /// Name from the scene.
+    pub name: String,
+    /// Rest mesh, placed in scene coordinates.
+    pub mesh: TetMesh,
+    /// The model that moves it.
+    pub model: MassSpring,
+    /// External nodal loads for the next step, N. Filled by the caller between steps, cleared
+    /// by [`World::clear_loads`].
+    pub loads: Vec<[f64; 3]>,
+    /// Simulated time of this body, s.
+    pub time: f64,
+    /// Blow-ups detected and reset since creation.
+    pub resets: u32,
+    /// Cause of the most recent blow-up.
+    pub last_blow_up: Option<BlowUp>,
+    /// What the tool did to the body in its last step.
+    pub last_contact: ContactReport,
+    /// For each node, the surface triangles that use it (built once).
+    node_triangles: Vec<Vec<u32>>,
+    /// Scratch: filled by `step_body` with the triangles near the tool, read by the model.
+    candidates: Vec<u32>,
+}
+
+/// All bodies of a scene.
+#[derive(Debug, Clone)]
+pub struct World {
+    /// The bodies, in scene order.
+    pub bodies: Vec<Body>,
+    /// Gravity, m/s².
+    pub gravity: [f64; 3],
+}
+
+impl World {
+    /// An empty world.
+    pub fn new(gravity: [f64; 3]) -> World {
+        World {
+            bodies: Vec::new(),
+            gravity,
+        }
+    }
+
+    /// Adds a mass-spring body; returns its index.
+    pub fn add_body(&mut self, name: &str, mesh: TetMesh, params: MsdParameters) -> usize {
+        let model = MassSpring::new(&mesh, params);
+        let n = mesh.nodes.len();
+        let mut node_triangles = vec![Vec::new(); n];
+        for (t, tri) in mesh.surface.iter().enumerate() {
+            for &k in tri {
+                node_triangles[k as usize].push(t as u32);
+            }
+        }
+        self.bodies.push(Body {
+            name: name.to_string(),
+            mesh,
+            model,
+            loads: vec![[0.0; 3]; n],
+            time: 0.0,
+            resets: 0,
+            last_blow_up: None,
+            last_contact: ContactReport::default(),
+            node_triangles,
+            candidates: Vec::with_capacity(64),
+        });
+        self.bodies.len() - 1
+    }
+
+    /// Zeroes every body's external loads.
+    pub fn clear_loads(&mut self) {
+        for b in &mut self.bodies {
+            b.loads.iter_mut().for_each(|f| *f = [0.0; 3]);
+        }
+    }
+
+    /// Applies `force` (N) at a point of surface triangle `triangle` (index into the body's
+    /// `mesh.surface`) given by barycentric coordinates, spread to the triangle's nodes by those
+    /// weights (which keeps the total force and its point of application). Out-of-range indices
+    /// are ignored: loads come from another process and may refer to a stale topology.
+    pub fn add_surface_load(
+        &mut self,
+        body: usize,
+        triangle: usize,
+        bary: [f64; 3],
+        force: [f64; 3],
+    ) {
+        let Some(b) = self.bodies.get_mut(body) else {
+            return;
+        };
+        let Some(tri) = b.mesh.surface.get(triangle) else {
+            return;
+        };
+        if !force.iter().chain(bary.iter()).all(|c| c.is_finite()) {
+            return;
+        }
+        for (k, &node) in tri.iter().enumerate() {
+            if let Some(f) = b.loads.get_mut(node as usize) {
+                let add = scale(force, bary[k]);
+                f[0] += add[0];
+                f[1] += add[1];
+                f[2] += add[2];
+            }
+        }
+    }
+
+    /// Whether body `i` has a step due to reach simulated time `until`.
+    pub fn body_due(&self, i: usize, until: f64) -> bool {
+        let b = &self.bodies[i];
+        b.time + b.model.dt() <= until + 1e-12
+    }
+
+    /// Advances body `i` by one of its steps with its current loads and, if given, the tool
+    /// pressing on it. A blow-up resets the body (counted in `resets`) and is returned; the world
+    /// stays valid either way. Allocation-free after the first steps.
+    pub fn step_body(&mut self, i: usize, tool: Option<&ToolSphere>) -> Result<(), BlowUp> {
+        let gravity = self.gravity;
+        let b = &mut self.bodies[i];
+        b.time += b.model.dt();
+        b.candidates.clear();
+        if let Some(t) = tool {
+            if near_bounds(b.model.positions(), t.center, t.radius + CONTACT_MARGIN) {
+                if let Some(hit) =
+                    closest_on_surface(b.model.positions(), &b.mesh.surface, t.center)
+                {
+                    if hit.distance < t.radius + CONTACT_MARGIN || hit.inside {
+                        for &node in &b.mesh.surface[hit.triangle] {
+                            for &tri in &b.node_triangles[node as usize] {
+                                if !b.candidates.contains(&tri) {
+                                    b.candidates.push(tri);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let contact = match tool {
+            Some(t) if !b.candidates.is_empty() => Some(ToolContact {
+                tool: *t,
+                surface: &b.mesh.surface,
+                candidates: &b.candidates,
+            }),
+            _ => None,
+        };
+        let r = b.model.step(gravity, &b.loads, contact.as_ref());
+        match r {
+            Ok(report) => {
+                b.last_contact = report;
+                Ok(())
+            }
+            Err(cause) => {
+                b.last_contact = ContactReport::default();
+                b.resets += 1;
+                b.last_blow_up = Some(cause);
+                Err(cause)
+            }
+        }
+    }
+}
+
+/// Whether `p` is within `margin` of the bounding box of `positions`.
+fn near_bounds(positions: &[[f64; 3]], p: [f64; 3], margin: f64) -> bool {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for x in positions {
+        for k in 0..3 {
+            lo[k] = lo[k].min(x[k]);
+            hi[k] = hi[k].max(x[k]);
+        }
+    }
+    (0..3).all(|k| p[k] >= lo[k] - margin && p[k] <= hi[k] + margin)
+}
