@@ -238,21 +238,6 @@ impl Default for ToolSpec {
     }
 }
 
-impl ToolSpec {
-    /// Magnitude of the spring force at penetration depth `depth` (m), before damping and
-    /// clamping: `k d` or `k d²`. Zero for `depth <= 0` or NaN.
-    pub fn spring_force(&self, depth: f64) -> f64 {
-        if depth > 0.0 {
-            match self.force_law {
-                ForceLaw::Linear => self.stiffness * depth,
-                ForceLaw::Quadratic => self.stiffness * depth * depth,
-            }
-        } else {
-            0.0
-        }
-    }
-}
-
 /// Loop rates.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Rates {

@@ -196,20 +196,6 @@ fn body_transform_scales_rotates_then_translates() {
     assert_eq!(b.transform_point([1.0, 0.0, 0.0]), [1.0, 2.0, 0.0]);
 }
 
-#[test]
-fn tool_spring_force_laws() {
-    let lin = ToolSpec::default();
-    assert!((lin.spring_force(0.002) - 0.6).abs() < 1e-12);
-    assert_eq!(lin.spring_force(-1.0), 0.0);
-    assert_eq!(lin.spring_force(f64::NAN), 0.0);
-    let quad = ToolSpec {
-        force_law: ForceLaw::Quadratic,
-        stiffness: 1e4,
-        ..ToolSpec::default()
-    };
-    assert!((quad.spring_force(0.01) - 1.0).abs() < 1e-12);
-}
-
 fn temp_dirs() -> (PathBuf, PathBuf) {
     let root = fixture_dir().join("resolve");
     let first = root.join("first");

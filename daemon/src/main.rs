@@ -1,6 +1,7 @@
 //! `lopd`: command-line glue over the `lop_daemon` library. Errors end in `anyhow` here and map to
 //! exit codes: 0 success, 1 runtime failure, 2 bad input (arguments, config, scene, mesh).
 
+use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -117,6 +118,7 @@ fn main() -> ExitCode {
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
         )
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
         .with_target(false)
         .init();
     signals::install();

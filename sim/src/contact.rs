@@ -214,6 +214,43 @@ mod tests {
     }
 
     #[test]
+    fn force_laws() {
+        let mut tool = ToolSphere {
+            center: [0.0; 3],
+            radius: 0.003,
+            stiffness: 300.0,
+            law: ForceLaw::Linear,
+        };
+        assert!((tool.force_magnitude(0.002) - 0.6).abs() < 1e-12);
+        assert_eq!(tool.force_magnitude(-1.0), 0.0);
+        assert_eq!(tool.force_magnitude(f64::NAN), 0.0);
+        tool.law = ForceLaw::Quadratic;
+        tool.stiffness = 1e4;
+        assert!((tool.force_magnitude(0.01) - 1.0).abs() < 1e-12);
+        assert!((tool.max_stiffness(0.01) - 200.0).abs() < 1e-12);
+        // A sphere centred 1 mm above a face (outside) penetrates radius − 1 mm.
+        let hit = SurfaceHit {
+            triangle: 0,
+            point: [0.0; 3],
+            barycentric: [1.0, 0.0, 0.0],
+            normal: [0.0, 1.0, 0.0],
+            distance: 0.001,
+            inside: false,
+        };
+        tool.law = ForceLaw::Linear;
+        tool.stiffness = 300.0;
+        assert!((tool.depth(&hit) - 0.002).abs() < 1e-15);
+        let f = tool.force_on_tool(&hit);
+        assert!((f[1] - 0.6).abs() < 1e-12 && f[0] == 0.0 && f[2] == 0.0);
+        // Inside by 1 mm: depth radius + 1 mm.
+        let inside = SurfaceHit {
+            inside: true,
+            ..hit
+        };
+        assert!((tool.depth(&inside) - 0.004).abs() < 1e-15);
+    }
+
+    #[test]
     fn inside_outside_of_a_tetrahedron_surface() {
         // Outward-wound unit tetrahedron.
         let pos: Vec<[f64; 3]> = vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]];

@@ -1,0 +1,170 @@
+//! The whole pipeline end to end, across processes: `lopd run` with the mock device on the
+//! organs scene, a read-only client attached.
+//!
+//! Invariants guarded:
+//! - the client receives the topology and frames whose positions move under the mock poke;
+//! - tool states arrive at about 1 kHz (counted over a window, with a wide tolerance: CI
+//!   machines are small and noisy, so no tight timing is asserted);
+//! - a killed deformation process is restarted by the supervisor while haptic ticks continue,
+//!   and a new topology and frames follow;
+//! - SIGINT (Ctrl-C) stops everything with exit code 0, the last force the device received is
+//!   zero, and no service under the prefix is left.
+
+use std::time::{Duration, Instant};
+
+use lop_client::{Attachment, ToolState, TOOL_FLAG_CONTACT};
+use lop_system_tests::{find_processes, unique_prefix, Daemon};
+
+fn max_displacement(a: &lop_client::Frame, b: &lop_client::Frame) -> f32 {
+    a.nodes
+        .iter()
+        .zip(&b.nodes)
+        .map(|(p, q)| {
+            let d = [
+                p.position[0] - q.position[0],
+                p.position[1] - q.position[1],
+                p.position[2] - q.position[2],
+            ];
+            (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+        })
+        .fold(0.0, f32::max)
+}
+
+#[test]
+fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
+    let prefix = unique_prefix("pipeline");
+    let force_log = std::env::temp_dir().join(format!("{prefix}-forces.csv"));
+    let force_log_s = force_log.display().to_string();
+    let mut daemon = Daemon::spawn(
+        &[
+            "run",
+            "--scene",
+            "organs",
+            "--device",
+            "mock",
+            "--prefix",
+            &prefix,
+            "--quiet",
+            "--force-log",
+            &force_log_s,
+        ],
+        &prefix,
+        Duration::from_secs(120),
+    );
+
+    // Attach and get the topology.
+    let mut client = Attachment::open(&prefix, Duration::from_secs(30))
+        .unwrap_or_else(|e| panic!("attach: {e}\n{}", daemon.log_text()));
+    let topology = client
+        .wait_topology(Duration::from_secs(30))
+        .expect("topology")
+        .clone();
+    let names: Vec<&str> = topology.bodies().iter().map(|b| b.name_str()).collect();
+    assert_eq!(names, ["liver", "spleen", "stomach", "pancreas"]);
+    assert!(topology.triangles.len() > 2000 && topology.tets.len() > 3500);
+
+    // Frames move under the poke; tool states arrive at about 1 kHz.
+    let first = client
+        .next_frame(Duration::from_secs(10))
+        .expect("first frame");
+    assert_eq!(first.nodes.len(), topology.header.node_count as usize);
+    let mut tools: Vec<ToolState> = Vec::new();
+    client.tool_states(&mut tools);
+    tools.clear();
+    let window = Instant::now();
+    let mut moved = 0.0f32;
+    let mut frames = 0;
+    while window.elapsed() < Duration::from_secs(8) {
+        for f in client.frames().expect("frames") {
+            moved = moved.max(max_displacement(&f, &first));
+            frames += 1;
+        }
+        client.tool_states(&mut tools);
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let secs = window.elapsed().as_secs_f64();
+    let rate = tools.len() as f64 / secs;
+    assert!(
+        (700.0..1300.0).contains(&rate),
+        "tool states at {rate:.0}/s over {secs:.1} s\n{}",
+        daemon.log_text()
+    );
+    assert!(frames > 100, "only {frames} frames in {secs:.1} s");
+    let contacts = tools
+        .iter()
+        .filter(|t| t.flags & TOOL_FLAG_CONTACT != 0)
+        .count();
+    assert!(
+        contacts > 100,
+        "the mock poke never touched the liver ({contacts} contact ticks)"
+    );
+    assert!(
+        moved > 1e-3,
+        "positions moved at most {moved} m under the poke"
+    );
+    let max_force = tools
+        .iter()
+        .map(|t| (t.force[0].powi(2) + t.force[1].powi(2) + t.force[2].powi(2)).sqrt())
+        .fold(0.0, f64::max);
+    assert!(
+        max_force > 0.0 && max_force <= 3.0 + 1e-9,
+        "max force {max_force}"
+    );
+
+    // Kill the deformation process; the haptic loop keeps ticking and the supervisor restarts it.
+    let deform = find_processes(&["deform", "--prefix", &prefix]);
+    assert_eq!(deform.len(), 1, "deform processes: {deform:?}");
+    // SAFETY: kill on a process this test started (through lopd run).
+    unsafe { libc::kill(deform[0], libc::SIGKILL) };
+    let old_topology = topology.header.topology_id;
+    tools.clear();
+    let t0 = Instant::now();
+    let mut new_topology = None;
+    let mut frames_after = 0;
+    while t0.elapsed() < Duration::from_secs(20) && frames_after < 20 {
+        client.tool_states(&mut tools);
+        if let Ok(Some(t)) = client.poll_topology() {
+            if t.header.topology_id != old_topology {
+                new_topology = Some(t.header.topology_id);
+            }
+        }
+        if new_topology.is_some() {
+            frames_after += client.frames().expect("frames").len();
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(
+        new_topology.is_some() && frames_after >= 20,
+        "deformation not restarted within 20 s\n{}",
+        daemon.log_text()
+    );
+    let ticks = tools.len() as f64 / t0.elapsed().as_secs_f64();
+    assert!(
+        ticks > 500.0,
+        "haptic ticks stalled while deform restarted: {ticks:.0}/s"
+    );
+    assert!(tools.windows(2).all(|w| w[1].sequence > w[0].sequence));
+    let restarted = find_processes(&["deform", "--prefix", &prefix]);
+    assert_eq!(restarted.len(), 1);
+    assert_ne!(restarted[0], deform[0]);
+
+    // Ctrl-C: clean exit, zero force last, nothing left behind.
+    drop(client);
+    daemon.signal(libc::SIGINT);
+    let status = daemon
+        .wait(Duration::from_secs(20))
+        .expect("lopd run did not stop");
+    assert!(status.success(), "exit {status}\n{}", daemon.log_text());
+    let left = lop_ipc::services::list_services(&prefix);
+    assert!(left.is_empty(), "services left behind: {left:?}");
+    let csv = std::fs::read_to_string(&force_log).expect("force log");
+    let last = csv.lines().last().expect("force rows");
+    let f: Vec<f64> = last
+        .split(',')
+        .skip(1)
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert_eq!(f, [0.0, 0.0, 0.0], "last force written: {last}");
+    assert!(daemon.log_text().contains("no service left"));
+    let _ = std::fs::remove_file(&force_log);
+}
