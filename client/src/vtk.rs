@@ -25,7 +25,7 @@ pub fn write_vtu(path: &Path, topology: &Topology, frame: &Frame) -> std::io::Re
             let _ = writeln!(s, "{b}");
         }
     }
-    s += "</DataArray>\n</CellData>\n<Points>\n<DataArray type=\"Float32\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+    s += "</DataArray>\n</CellData>\n<Points>\n<DataArray type=\"Float32\" Name=\"Points\" NumberOfComponents=\"3\" format=\"ascii\">\n";
     for p in &frame.nodes {
         let _ = writeln!(s, "{} {} {}", p.position[0], p.position[1], p.position[2]);
     }

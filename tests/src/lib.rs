@@ -20,6 +20,17 @@ pub fn lopd_path() -> PathBuf {
     p
 }
 
+/// Another binary of the same build (e.g. `lop-record`).
+pub fn sibling_binary(name: &str) -> PathBuf {
+    let p = lopd_path().with_file_name(name);
+    assert!(
+        p.exists(),
+        "{} not found: run `cargo test --workspace`",
+        p.display()
+    );
+    p
+}
+
 /// A service prefix no other test or rig uses.
 pub fn unique_prefix(tag: &str) -> String {
     static N: AtomicU32 = AtomicU32::new(0);

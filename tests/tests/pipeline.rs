@@ -13,7 +13,7 @@
 use std::time::{Duration, Instant};
 
 use lop_client::{Attachment, ToolState, TOOL_FLAG_CONTACT};
-use lop_system_tests::{find_processes, unique_prefix, Daemon};
+use lop_system_tests::{find_processes, sibling_binary, unique_prefix, Daemon};
 
 fn max_displacement(a: &lop_client::Frame, b: &lop_client::Frame) -> f32 {
     a.nodes
@@ -110,6 +110,28 @@ fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
         max_force > 0.0 && max_force <= 3.0 + 1e-9,
         "max force {max_force}"
     );
+
+    // lop-record attaches read-only next to us and writes a ParaView series.
+    let out = std::env::temp_dir().join(format!("{prefix}-record"));
+    let rec = std::process::Command::new(sibling_binary("lop-record"))
+        .args(["--prefix", &prefix, "--frames", "5", "--out"])
+        .arg(&out)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("run lop-record");
+    assert!(
+        rec.status.success(),
+        "{}",
+        String::from_utf8_lossy(&rec.stderr)
+    );
+    let pvd = std::fs::read_to_string(out.join("frame.pvd")).expect("frame.pvd");
+    assert_eq!(pvd.matches("<DataSet").count(), 5);
+    let vtu = std::fs::read_to_string(out.join("frame_000004.vtu")).expect("vtu");
+    assert!(vtu.contains(&format!(
+        "NumberOfPoints=\"{}\" NumberOfCells=\"{}\"",
+        topology.header.node_count, topology.header.tet_count
+    )));
+    let _ = std::fs::remove_dir_all(&out);
 
     // Kill the deformation process; the haptic loop keeps ticking and the supervisor restarts it.
     let deform = find_processes(&["deform", "--prefix", &prefix]);

@@ -1,0 +1,162 @@
+//! `lopd`'s command line on good and bad input: shipped meshes give sane figures; malformed
+//! meshes, bad scenes and unsupported devices give exit code 2 and a message naming the file,
+//! key or value — never a panic.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn lopd() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_lopd"));
+    c.env("RUST_BACKTRACE", "0").env("LOP_LOG", "warn");
+    c
+}
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn run(c: &mut Command) -> (i32, String, String) {
+    let out = c.output().expect("run lopd");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn field(text: &str, key: &str) -> f64 {
+    let line = text
+        .lines()
+        .find(|l| l.trim_start().starts_with(key))
+        .unwrap_or_else(|| panic!("no {key:?} in\n{text}"));
+    line.split(':')
+        .nth(1)
+        .unwrap()
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .trim_end_matches(',')
+        .parse()
+        .unwrap_or_else(|e| panic!("{key}: {e} in {line:?}"))
+}
+
+#[test]
+fn mesh_info_on_every_shipped_mesh() {
+    // (name, nodes, tets, volume m³) with the expected volume from the analytic shape where
+    // there is one: the bar 0.4 × 0.1 × 0.1 exactly; the cylinder's polygonal section is a
+    // little under π r² h.
+    let expect = [
+        ("beam", 568.0, 1770.0, Some((0.004, 1e-12))),
+        (
+            "cylinder",
+            260.0,
+            991.0,
+            Some((std::f64::consts::PI * 0.03 * 0.03 * 0.12, 0.03)),
+        ),
+        ("liver", 555.0, 1706.0, None),
+        ("spleen", 238.0, 705.0, None),
+        ("stomach", 311.0, 920.0, None),
+        ("pancreas", 231.0, 655.0, None),
+    ];
+    for (name, nodes, tets, volume) in expect {
+        let path = repo().join("assets/meshes").join(name);
+        let (code, out, err) = run(lopd().args(["mesh", "info"]).arg(&path));
+        assert_eq!(code, 0, "{name}: {err}");
+        assert_eq!(field(&out, "nodes"), nodes, "{name}\n{out}");
+        assert_eq!(field(&out, "tetrahedra"), tets, "{name}\n{out}");
+        let q_line = out
+            .lines()
+            .find(|l| l.starts_with("quality:"))
+            .expect("quality line");
+        let q_min: f64 = q_line
+            .split_whitespace()
+            .nth(2)
+            .unwrap()
+            .trim_end_matches(',')
+            .parse()
+            .unwrap();
+        assert!(q_min > 0.05 && q_min <= 1.0, "{name}: quality {q_min}");
+        let v = field(&out, "volume");
+        if let Some((exact, rel)) = volume {
+            let rel: f64 = rel;
+            assert!(
+                ((v - exact) / exact).abs() <= rel.max(1e-9),
+                "{name}: volume {v} vs {exact}"
+            );
+        } else {
+            assert!(v > 1e-5 && v < 1e-2, "{name}: volume {v}");
+        }
+    }
+}
+
+#[test]
+fn malformed_mesh_is_a_located_error_not_a_panic() {
+    let dir = std::env::temp_dir().join(format!("lopd-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let base = dir.join("bad");
+    std::fs::write(
+        base.with_extension("node"),
+        "4 3 0 0\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n",
+    )
+    .unwrap();
+    std::fs::write(base.with_extension("ele"), "1 4 0\n1 1 2 3 9\n").unwrap();
+    let (code, _, err) = run(lopd().args(["mesh", "info"]).arg(&base));
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("bad.ele:2"), "{err}");
+    assert!(err.contains('9'), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn write_scene(dir: &Path, text: &str) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let p = dir.join("scene.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn bad_scene_key_and_value_are_named() {
+    let dir = std::env::temp_dir().join(format!("lopd-cli-scene-{}", std::process::id()));
+    let organs = std::fs::read_to_string(repo().join("config/scenes/organs.toml")).unwrap();
+    let mesh_dir = repo().join("assets/meshes");
+    let fixed = organs.replace("../../assets/meshes", mesh_dir.to_str().unwrap());
+    // A NaN Young's modulus.
+    let p = write_scene(&dir, &fixed.replacen("young = 140.0", "young = nan", 1));
+    let (code, _, err) = run(lopd().args(["run", "--duration", "1", "--scene"]).arg(&p));
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("young") && (err.contains("NaN") || err.contains("nan")),
+        "{err}"
+    );
+    // An unknown key.
+    let p = write_scene(
+        &dir,
+        &fixed.replacen("[tool]\n", "[tool]\nstifness = 3.0\n", 1),
+    );
+    let (code, _, err) = run(lopd().args(["run", "--duration", "1", "--scene"]).arg(&p));
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("stifness"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn unknown_scene_lists_the_shipped_ones() {
+    let (code, _, err) = run(lopd().args(["run", "--duration", "1", "--scene", "kidney"]));
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("kidney") && err.contains("organs"), "{err}");
+}
+
+#[test]
+fn unsupported_devices_are_refused_clearly() {
+    for (dev, needle) in [
+        ("openhaptics", "OpenHaptics"),
+        ("replay:/tmp/x.rec", "replay"),
+        ("phantom", "phantom"),
+        ("mock:no-such-script", "no-such-script"),
+    ] {
+        let (code, _, err) = run(lopd().args(["run", "--duration", "1", "--device", dev]));
+        assert_eq!(code, 2, "{dev}: {err}");
+        assert!(err.contains(needle), "{dev}: {err}");
+    }
+}
