@@ -297,7 +297,7 @@ pub struct HapticTelemetry {
     pub rate_hz: f64,
     /// Magnitude of the last force rendered, N.
     pub force_norm: f64,
-    /// |actual wake-up − deadline| over the window.
+    /// Lateness of the wake-up (wake − deadline; the loop spins to the deadline, never early).
     pub window_jitter: Percentiles,
     /// Tick compute time (read → write → publish) over the window.
     pub window_compute: Percentiles,

@@ -1,0 +1,560 @@
+//! `lop-bench latency`: end-to-end latency of the real pipeline with the mock device.
+//!
+//! The bench starts `lopd run --device mock --quiet` under a private service prefix
+//! (`lopbench-<pid>`), attaches read-only like any viewer (`lop_client::Attachment`), waits for the
+//! first frame, lets one second pass as warm-up, then measures for `--seconds`, and stops the
+//! daemon with SIGTERM (SIGKILL after 5 s; on every error path too). Every figure is reported as
+//! count, p50, p99, p99.9 and max in µs. All timestamps are `CLOCK_MONOTONIC`, which is
+//! system-wide, so stamps taken in different processes can be subtracted.
+//!
+//! | row | meaning | measured |
+//! |---|---|---|
+//! | haptic period jitter | \|actual wake-up − deadline\| of the 1 kHz loop | by the haptic loop itself (`HapticTelemetry::total_jitter`) |
+//! | machine wake-up latency (cyclictest) | how late a bare `SCHED_FIFO` thread wakes on this machine, the floor under the row above | `cyclictest`, run concurrently during the window (see `cyclictest.rs`) |
+//! | haptic tick compute | wake-up → device written → tool state published, one tick | haptic loop (`total_compute`) |
+//! | frame age at haptic loop | how old the newest surface was when a tick rendered against it | haptic loop (`total_frame_age`) |
+//! | tool → deform latency | how old the tool state was when the deformation step read it (`tool_read_ns − tool_stamp_ns` of each frame header; frames with no tool state yet are skipped) | bench, from every frame received in the window |
+//! | deform → client latency | frame published → received by this bench (`received_ns − publish_ns`) | bench, from every frame received in the window; **includes the bench's polling interval** (it sleeps `--poll-us` between polls) |
+//!
+//! The haptic rows come from the loop's own preallocated histograms, which cover everything from
+//! one second after the haptic process started (its own warm-up) to the last telemetry sample
+//! taken after the window ends; the bench's window starts one second after the first frame, so
+//! both leave out start-up. The tick count, overruns and the achieved rate are counted over the
+//! window, as the difference between the first telemetry sample inside it and the last one (the
+//! haptic loop publishes telemetry about 4× a second). `rt_flags` says whether the loop ran
+//! under `SCHED_FIFO`, pinned and with locked memory: without those privileges the jitter is
+//! that of a normal thread.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use hdrhistogram::Histogram;
+use lop_client::{clock, Attachment, HapticTelemetry, CONTRACT_VERSION};
+use lop_ipc::{RT_FLAG_FIFO, RT_FLAG_MLOCKED, RT_FLAG_PINNED};
+use serde::Serialize;
+
+use crate::cyclictest;
+use crate::pipeline::{self, Lopd, LopdOptions};
+use crate::table::{self, Row};
+
+/// Warm-up after the first frame, s.
+const WARMUP_S: f64 = 1.0;
+/// `--duration` given to `lopd run` beyond the window: a backstop only (the bench stops it with
+/// SIGTERM), generous so a slow scene load can never cut the window short.
+const BACKSTOP_EXTRA_S: f64 = 10.0;
+/// How long to wait for the daemon's services and its first frame.
+const ATTACH_TIMEOUT: Duration = Duration::from_secs(15);
+
+/// Options of `lop-bench latency`.
+#[derive(Args, Debug, Clone)]
+pub struct LatencyArgs {
+    /// Seconds to measure (after a 1 s warm-up).
+    #[arg(long, default_value_t = 10.0)]
+    seconds: f64,
+    /// Scene name (see `lopd scenes`) or path to a scene TOML.
+    #[arg(long, default_value = "organs")]
+    scene: String,
+    /// Also write the figures as JSON to this file.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// The `lopd` binary (default: the `lopd` next to this executable).
+    #[arg(long)]
+    lopd: Option<PathBuf>,
+    /// Do not run cyclictest beside the pipeline.
+    #[arg(long)]
+    no_cyclictest: bool,
+    /// Sleep between two polls for frames, µs (part of the deform → client figure).
+    #[arg(long, default_value_t = 150)]
+    poll_us: u64,
+}
+
+/// Whether and how the loop got its real-time privileges.
+#[derive(Debug, Clone, Serialize)]
+pub struct RtReport {
+    /// `SCHED_FIFO`.
+    pub sched_fifo: bool,
+    /// Pinned to a core.
+    pub pinned: bool,
+    /// The core, if pinned.
+    pub pinned_core: Option<i32>,
+    /// `mlockall`.
+    pub mlocked: bool,
+}
+
+/// cyclictest's part of the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct CyclictestReport {
+    /// `ran`, `disabled`, `not installed` or `failed`.
+    pub status: String,
+    /// Why it did not run, or how to install it.
+    pub note: Option<String>,
+    /// What it measured (its row is also in `rows`).
+    pub result: Option<cyclictest::Outcome>,
+}
+
+/// Everything `lop-bench latency` reports (the JSON file).
+#[derive(Debug, Clone, Serialize)]
+pub struct LatencyReport {
+    /// Scene name.
+    pub scene: String,
+    /// Scene file.
+    pub scene_path: String,
+    /// Device (always the mock).
+    pub device: String,
+    /// The measuring window, s (as requested).
+    pub seconds: f64,
+    /// Warm-up before the window, s.
+    pub warmup_seconds: f64,
+    /// Service prefix used.
+    pub prefix: String,
+    /// The haptic rate the scene asks for, Hz.
+    pub target_rate_hz: f64,
+    /// Achieved: ticks in the window / its length, Hz.
+    pub rate_hz: f64,
+    /// Haptic ticks counted over the window (between two telemetry samples).
+    pub window_ticks: u64,
+    /// Length of that window, s.
+    pub window_seconds: f64,
+    /// Overruns in the window.
+    pub window_overruns: u64,
+    /// Ticks since the haptic loop started (last telemetry).
+    pub ticks: u64,
+    /// Overruns since the haptic loop started.
+    pub overruns: u64,
+    /// Ticks whose frame was stale, since the haptic loop started.
+    pub stale_ticks: u64,
+    /// Device faults since the haptic loop started.
+    pub device_faults: u64,
+    /// Real-time privileges of the haptic loop.
+    pub rt: RtReport,
+    /// Frames received in the window.
+    pub frames_received: u64,
+    /// Frames published in the window but never received (sequence gaps).
+    pub frames_missed: u64,
+    /// Frames received without a tool state (left out of tool → deform).
+    pub frames_without_tool: u64,
+    /// Sleep between polls, µs (part of deform → client).
+    pub poll_interval_us: u64,
+    /// The figures, in table order.
+    pub rows: Vec<Row>,
+    /// cyclictest's status and result.
+    pub cyclictest: CyclictestReport,
+}
+
+enum CtPlan {
+    Disabled,
+    NotInstalled,
+    Unavailable(String),
+    Ready(cyclictest::Plan),
+}
+
+/// Runs the benchmark, prints the table and writes the JSON.
+pub fn run(a: LatencyArgs) -> Result<()> {
+    if !(a.seconds.is_finite() && a.seconds >= 0.5 && a.seconds <= 86_400.0) {
+        bail!("--seconds {}: must be between 0.5 and 86400", a.seconds);
+    }
+    if a.poll_us > 100_000 {
+        bail!("--poll-us {}: at most 100000", a.poll_us);
+    }
+    let lopd_path = pipeline::find_lopd(a.lopd.as_deref())?;
+    let scene_path = lop_config::resolve_scene(&a.scene)?;
+    let scene = lop_config::load_scene(&scene_path)
+        .with_context(|| format!("loading scene {}", scene_path.display()))?;
+    let target_rate = scene.rates.haptic_hz;
+    let period_us = (1e6 / target_rate).round().max(1.0) as u64;
+
+    // One priority below the haptic loop's, so the yardstick never delays what it is compared to.
+    let ct_priority = lop_config::DaemonConfig::default()
+        .haptic
+        .rt_priority
+        .saturating_sub(1)
+        .max(1);
+    let ct_plan = if a.no_cyclictest {
+        CtPlan::Disabled
+    } else {
+        match cyclictest::find() {
+            None => CtPlan::NotInstalled,
+            Some(exe) => match cyclictest::probe(&exe, ct_priority) {
+                Ok(plan) => CtPlan::Ready(plan),
+                Err(e) => CtPlan::Unavailable(format!("{e:#}")),
+            },
+        }
+    };
+
+    let prefix = pipeline::unique_prefix();
+    let mut lopd = Lopd::spawn(&LopdOptions {
+        lopd: lopd_path,
+        scene: scene_path.display().to_string(),
+        device: "mock".into(),
+        duration: Duration::from_secs_f64(WARMUP_S + a.seconds + BACKSTOP_EXTRA_S),
+        prefix: prefix.clone(),
+    })?;
+    let measured = measure(&mut lopd, &a, period_us, &ct_plan);
+    // Stop the pipeline whatever happened (the guard would also do it on drop).
+    let stopped = lopd.stop();
+    let m = measured?;
+
+    let tel_first = m.tel_first;
+    let tel = m.tel_last;
+    let (Some(window_ticks), Some(window_overruns)) = (
+        tel.ticks.checked_sub(tel_first.ticks),
+        tel.overruns.checked_sub(tel_first.overruns),
+    ) else {
+        bail!("the haptic process restarted during the window (its tick count went back)");
+    };
+    let window_seconds = (tel.stamp_ns - tel_first.stamp_ns) as f64 * 1e-9;
+    let rate_hz = window_ticks as f64 / window_seconds;
+    let rt = RtReport {
+        sched_fifo: tel.rt_flags & RT_FLAG_FIFO != 0,
+        pinned: tel.rt_flags & RT_FLAG_PINNED != 0,
+        pinned_core: (tel.rt_flags & RT_FLAG_PINNED != 0 && tel.pinned_core >= 0)
+            .then_some(tel.pinned_core),
+        mlocked: tel.rt_flags & RT_FLAG_MLOCKED != 0,
+    };
+
+    let mut rows = vec![Row::from_percentiles(
+        "haptic_jitter",
+        "haptic period jitter",
+        &tel.total_jitter,
+    )];
+    let ct_report = match (&ct_plan, m.cyclictest) {
+        (CtPlan::Disabled, _) => CyclictestReport {
+            status: "disabled".into(),
+            note: Some("--no-cyclictest".into()),
+            result: None,
+        },
+        (CtPlan::NotInstalled, _) => CyclictestReport {
+            status: "not installed".into(),
+            note: Some(
+                "cyclictest not found on PATH; install it with `apt-get install rt-tests` to \
+                 compare the haptic jitter with this machine's wake-up latency"
+                    .into(),
+            ),
+            result: None,
+        },
+        (CtPlan::Unavailable(e), _) => CyclictestReport {
+            status: "failed".into(),
+            note: Some(e.clone()),
+            result: None,
+        },
+        (CtPlan::Ready(_), Some(Ok(outcome))) => {
+            rows.push(outcome.row.clone());
+            CyclictestReport {
+                status: "ran".into(),
+                note: None,
+                result: Some(outcome),
+            }
+        }
+        (CtPlan::Ready(_), Some(Err(e))) => CyclictestReport {
+            status: "failed".into(),
+            note: Some(format!("{e:#}")),
+            result: None,
+        },
+        (CtPlan::Ready(_), None) => CyclictestReport {
+            status: "failed".into(),
+            note: Some("did not start".into()),
+            result: None,
+        },
+    };
+    rows.push(Row::from_percentiles(
+        "haptic_compute",
+        "haptic tick compute",
+        &tel.total_compute,
+    ));
+    rows.push(Row::from_percentiles(
+        "frame_age",
+        "frame age at haptic loop",
+        &tel.total_frame_age,
+    ));
+    rows.push(Row::from_histogram_ns(
+        "tool_to_deform",
+        "tool → deform latency",
+        &m.tool_to_deform,
+    ));
+    rows.push(Row::from_histogram_ns(
+        "deform_to_client",
+        "deform → client latency",
+        &m.deform_to_client,
+    ));
+
+    let report = LatencyReport {
+        scene: scene.name.clone(),
+        scene_path: scene_path.display().to_string(),
+        device: "mock".into(),
+        seconds: a.seconds,
+        warmup_seconds: WARMUP_S,
+        prefix,
+        target_rate_hz: target_rate,
+        rate_hz,
+        window_ticks,
+        window_seconds,
+        window_overruns,
+        ticks: tel.ticks,
+        overruns: tel.overruns,
+        stale_ticks: tel.stale_ticks,
+        device_faults: tel.device_faults,
+        rt,
+        frames_received: m.frames_received,
+        frames_missed: m.frames_missed,
+        frames_without_tool: m.frames_without_tool,
+        poll_interval_us: a.poll_us,
+        rows,
+        cyclictest: ct_report,
+    };
+    print!("{}", render(&report, period_us));
+    if let Some(path) = &a.json {
+        let text = serde_json::to_string_pretty(&report)?;
+        std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+        println!("JSON written to {}", path.display());
+    }
+    // The figures stand, but a daemon that did not stop cleanly is a failure worth an exit code.
+    stopped.map(|_| ())
+}
+
+/// What the measuring loop collected.
+struct Measured {
+    tel_first: HapticTelemetry,
+    tel_last: HapticTelemetry,
+    tool_to_deform: Histogram<u64>,
+    deform_to_client: Histogram<u64>,
+    frames_received: u64,
+    frames_missed: u64,
+    frames_without_tool: u64,
+    cyclictest: Option<Result<cyclictest::Outcome>>,
+}
+
+fn telemetry(att: &mut Attachment) -> Option<HapticTelemetry> {
+    att.telemetry()
+        .filter(|t| t.contract_version == CONTRACT_VERSION)
+}
+
+fn measure(lopd: &mut Lopd, a: &LatencyArgs, period_us: u64, ct: &CtPlan) -> Result<Measured> {
+    let mut att = lopd.attach(ATTACH_TIMEOUT)?;
+    let poll = Duration::from_micros(a.poll_us);
+
+    // The first frame starts the warm-up.
+    let waiting = Instant::now();
+    let first_ns = loop {
+        lopd.check_alive()?;
+        if !att.frames()?.is_empty() {
+            break clock::monotonic_ns();
+        }
+        if waiting.elapsed() > ATTACH_TIMEOUT {
+            bail!(
+                "no frame from lopd within {ATTACH_TIMEOUT:?}; {}",
+                lopd.log_tail(20)
+            );
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    };
+    let window_ns = (a.seconds * 1e9) as u64;
+    let start_ns = first_ns + (WARMUP_S * 1e9) as u64;
+    let end_ns = start_ns + window_ns;
+
+    let mut tool_to_deform = table::latency_histogram();
+    let mut deform_to_client = table::latency_histogram();
+    let mut frames_received = 0u64;
+    let mut frames_missed = 0u64;
+    let mut frames_without_tool = 0u64;
+    let mut last_seq: Option<u64> = None;
+    let mut tel_first: Option<HapticTelemetry> = None;
+    let mut tel_last: Option<HapticTelemetry> = None;
+    let mut running_ct: Option<cyclictest::Running> = None;
+    let mut ct_start_err: Option<anyhow::Error> = None;
+    let mut last_check = Instant::now();
+
+    loop {
+        let now = clock::monotonic_ns();
+        if now >= end_ns {
+            break;
+        }
+        if now >= start_ns && running_ct.is_none() && ct_start_err.is_none() {
+            if let CtPlan::Ready(plan) = ct {
+                let loops = (window_ns / (period_us * 1000)).max(1);
+                match cyclictest::start(plan, period_us, loops) {
+                    Ok(r) => running_ct = Some(r),
+                    Err(e) => ct_start_err = Some(e),
+                }
+            }
+        }
+        for f in att.frames()? {
+            if f.received_ns < start_ns || f.received_ns >= end_ns {
+                last_seq = Some(f.header.sequence);
+                continue;
+            }
+            if let Some(prev) = last_seq {
+                frames_missed += f.header.sequence.saturating_sub(prev + 1);
+            }
+            last_seq = Some(f.header.sequence);
+            frames_received += 1;
+            let h = &f.header;
+            if h.tool_stamp_ns == 0 {
+                frames_without_tool += 1;
+            } else {
+                tool_to_deform.saturating_record(h.tool_read_ns.saturating_sub(h.tool_stamp_ns));
+            }
+            deform_to_client.saturating_record(f.received_ns.saturating_sub(h.publish_ns));
+        }
+        if last_check.elapsed() >= Duration::from_millis(10) {
+            last_check = Instant::now();
+            if let Some(t) = telemetry(&mut att) {
+                if tel_first.is_none() && t.stamp_ns >= start_ns {
+                    tel_first = Some(t);
+                }
+                tel_last = Some(t);
+            }
+            lopd.check_alive()?;
+        }
+        std::thread::sleep(poll);
+    }
+
+    // One more telemetry sample, taken after the window ended, so the haptic figures cover it.
+    let waiting = Instant::now();
+    while waiting.elapsed() < Duration::from_secs(2) {
+        if let Some(t) = telemetry(&mut att) {
+            tel_last = Some(t);
+            if t.stamp_ns >= end_ns {
+                break;
+            }
+        }
+        lopd.check_alive()?;
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let cyclictest = match (running_ct, ct_start_err) {
+        (Some(r), _) => Some(r.finish(
+            Duration::from_secs(5),
+            "cyclictest",
+            "machine wake-up latency (cyclictest)",
+        )),
+        (None, Some(e)) => Some(Err(e)),
+        (None, None) => None,
+    };
+    drop(att);
+
+    let (Some(tel_first), Some(tel_last)) = (tel_first, tel_last) else {
+        bail!(
+            "no haptic telemetry from lopd during the window (prefix {}); {}",
+            lopd.prefix,
+            lopd.log_tail(20)
+        );
+    };
+    if tel_last.stamp_ns <= tel_first.stamp_ns {
+        bail!("only one haptic telemetry sample in the window; measure longer (--seconds)");
+    }
+    Ok(Measured {
+        tel_first,
+        tel_last,
+        tool_to_deform,
+        deform_to_client,
+        frames_received,
+        frames_missed,
+        frames_without_tool,
+        cyclictest,
+    })
+}
+
+fn yes_no(b: bool) -> &'static str {
+    if b {
+        "yes"
+    } else {
+        "no"
+    }
+}
+
+/// The printed report: headline, table, counts and notes.
+fn render(r: &LatencyReport, period_us: u64) -> String {
+    let spin_us = lop_config::DaemonConfig::default().haptic.spin_us;
+    let pinned = match (r.rt.pinned, r.rt.pinned_core) {
+        (true, Some(c)) => format!("pinned core {c}"),
+        (true, None) => "pinned yes".into(),
+        (false, _) => "pinned no".into(),
+    };
+    let mut s = format!(
+        "lop-bench latency — scene {}, {} device, {:.1} s (after {:.0} s warm-up), haptic {:.1} Hz, \
+         SCHED_FIFO {}, {pinned}, mlocked {}\n",
+        r.scene,
+        r.device,
+        r.seconds,
+        r.warmup_seconds,
+        r.rate_hz,
+        yes_no(r.rt.sched_fifo),
+        yes_no(r.rt.mlocked)
+    );
+    s += &table::render(&r.rows);
+    s += "\n";
+    s += &format!(
+        "overruns: {} of {} ticks in the window ({:.2} s, {} since start); stale-frame ticks since start: {}; device faults: {}\n",
+        r.window_overruns, r.window_ticks, r.window_seconds, r.overruns, r.stale_ticks, r.device_faults
+    );
+    s += &format!(
+        "frames received: {} ({:.1}/s), missed: {}, without a tool state: {}\n",
+        r.frames_received,
+        r.frames_received as f64 / r.seconds,
+        r.frames_missed,
+        r.frames_without_tool
+    );
+    s += "notes:\n";
+    const W: usize = 100;
+    let haptic_count = r.rows.first().map_or(0, |row| row.count);
+    s += &table::note(
+        &format!(
+            "haptic rows: the loop's own histograms, everything after its 1 s warm-up \
+             ({haptic_count} ticks)."
+        ),
+        W,
+    );
+    s += &table::note(
+        &format!(
+            "deform → client includes this bench's polling interval (it sleeps {} µs between \
+             polls, plus timer slack).",
+            r.poll_interval_us
+        ),
+        W,
+    );
+    match r.cyclictest.status.as_str() {
+        "ran" => {
+            if let Some(o) = &r.cyclictest.result {
+                let who = match o.priority {
+                    Some(p) => format!("SCHED_FIFO {p}"),
+                    None => "default-priority".into(),
+                };
+                let overflow = if o.overflows > 0 {
+                    format!(", {} samples beyond the histogram", o.overflows)
+                } else {
+                    String::new()
+                };
+                s += &table::note(
+                    &format!(
+                        "cyclictest: a bare {who} thread waking every {period_us} µs during the \
+                         window (unpinned, power management untouched; min {:.0}, avg {:.0} \
+                         µs{overflow}). On a shared VM this floor is the honest yardstick for \
+                         the haptic jitter; the haptic loop busy-waits the last {spin_us:.0} µs \
+                         before each deadline, which hides wake-up latency up to that much.",
+                        o.min_us, o.avg_us
+                    ),
+                    W,
+                );
+            }
+        }
+        "disabled" => {}
+        "not installed" => {
+            s += &table::note(
+                "cyclictest is not installed: `apt-get install rt-tests` adds the machine's \
+                 wake-up latency as a yardstick for the haptic jitter.",
+                W,
+            );
+        }
+        _ => {
+            s += &table::note(
+                &format!(
+                    "cyclictest did not run: {}",
+                    r.cyclictest.note.as_deref().unwrap_or("unknown error")
+                ),
+                W,
+            );
+        }
+    }
+    s
+}

@@ -1,0 +1,111 @@
+//! Smoke test of `lop-bench latency`: a 2 s run against the real pipeline must produce every row
+//! with samples in a sane order, and a tick count near the scene's 1 kHz. No wall-clock bound on
+//! anything: the rate is counted over the window by the haptic loop's own telemetry, and the
+//! tolerance is wide (±50 %) for small, noisy CI machines.
+
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// The `lopd` of the same build: cargo puts every workspace binary into the same target dir.
+fn lopd_beside_bench() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_lop-bench")).with_file_name("lopd")
+}
+
+#[test]
+fn latency_two_seconds_reports_every_row() {
+    let lopd = lopd_beside_bench();
+    if !lopd.is_file() {
+        eprintln!(
+            "SKIPPED: {} does not exist; build it first (`cargo build -p lop-daemon`, or run \
+             `cargo test --workspace`)",
+            lopd.display()
+        );
+        return;
+    }
+    let json = std::env::temp_dir().join(format!("lopbench-smoke-{}.json", std::process::id()));
+    let _ = std::fs::remove_file(&json);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lop-bench"))
+        .args(["latency", "--seconds", "2", "--no-cyclictest", "--json"])
+        .arg(&json)
+        .arg("--lopd")
+        .arg(&lopd)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn lop-bench");
+
+    // Watchdog: the bench stops its own lopd (and lopd's children follow their parent), so
+    // killing a hung bench leaves nothing behind.
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().expect("wait lop-bench") {
+            break Some(s);
+        }
+        if start.elapsed() > Duration::from_secs(90) {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let out = child.wait_with_output().expect("lop-bench output");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let status =
+        status.unwrap_or_else(|| panic!("lop-bench hung; stdout:\n{stdout}\nstderr:\n{stderr}"));
+    assert!(
+        status.success(),
+        "lop-bench failed ({status}); stdout:\n{stdout}\nstderr:\n{stderr}"
+    );
+    assert!(stdout.contains("haptic period jitter"), "{stdout}");
+
+    let text = std::fs::read_to_string(&json).expect("JSON report written");
+    let _ = std::fs::remove_file(&json);
+    let v: serde_json::Value = serde_json::from_str(&text).expect("valid JSON");
+
+    let rows = v["rows"].as_array().expect("rows");
+    let keys: Vec<&str> = rows.iter().filter_map(|r| r["key"].as_str()).collect();
+    for want in [
+        "haptic_jitter",
+        "haptic_compute",
+        "frame_age",
+        "tool_to_deform",
+        "deform_to_client",
+    ] {
+        assert!(keys.contains(&want), "row {want} missing: {keys:?}\n{text}");
+    }
+    assert!(
+        !keys.contains(&"cyclictest"),
+        "--no-cyclictest still ran it"
+    );
+    for r in rows {
+        let key = r["key"].as_str().unwrap_or("?");
+        let count = r["count"].as_u64().expect("count");
+        assert!(count > 0, "row {key} has no samples\n{text}");
+        let q = |f: &str| r[f].as_f64().unwrap_or_else(|| panic!("{key}.{f} missing"));
+        let (p50, p99, p999, max) = (q("p50_us"), q("p99_us"), q("p999_us"), q("max_us"));
+        assert!(
+            0.0 <= p50 && p50 <= p99 && p99 <= p999 && p999 <= max,
+            "row {key} out of order: {p50} {p99} {p999} {max}"
+        );
+    }
+
+    // Ticks counted over the window by the loop itself: within 50 % of the scene's 1 kHz.
+    let ticks = v["window_ticks"].as_f64().expect("window_ticks");
+    let secs = v["window_seconds"].as_f64().expect("window_seconds");
+    assert!(secs > 0.0, "{text}");
+    let rate = v["target_rate_hz"].as_f64().expect("target_rate_hz");
+    assert_eq!(
+        rate, 1000.0,
+        "the organs scene runs the haptic loop at 1 kHz"
+    );
+    let expected = rate * secs;
+    assert!(
+        (ticks - expected).abs() <= 0.5 * expected,
+        "{ticks} ticks over {secs} s, expected about {expected}\n{text}"
+    );
+    assert!(v["frames_received"].as_u64().unwrap_or(0) > 0, "{text}");
+    assert_eq!(v["cyclictest"]["status"], "disabled", "{text}");
+}
