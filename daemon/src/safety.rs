@@ -13,8 +13,10 @@
 pub struct ForceSafety {
     max_force: f64,
     max_step: f64,
-    gain_step: f64,
-    gain: f64,
+    /// Ticks of the ramp; the gain is `level / ramp_ticks`, counted in integers so that it
+    /// reaches exactly 0 and 1.
+    ramp_ticks: u32,
+    level: u32,
     last: [f64; 3],
 }
 
@@ -32,8 +34,8 @@ impl ForceSafety {
             } else {
                 0.0
             },
-            gain_step: 1.0 / ramp_ticks.max(1) as f64,
-            gain: 1.0,
+            ramp_ticks: ramp_ticks.max(1),
+            level: ramp_ticks.max(1),
             last: [0.0; 3],
         }
     }
@@ -43,11 +45,13 @@ impl ForceSafety {
     pub fn condition(&mut self, desired: [f64; 3], healthy: bool) -> [f64; 3] {
         let finite = desired.iter().all(|c| c.is_finite());
         let healthy = healthy && finite;
+        let previous = self.level;
         if healthy {
-            self.gain = (self.gain + self.gain_step).min(1.0);
+            self.level = (self.level + 1).min(self.ramp_ticks);
         } else {
-            self.gain = (self.gain - self.gain_step).max(0.0);
+            self.level = self.level.saturating_sub(1);
         }
+        let gain = self.level as f64 / self.ramp_ticks as f64;
         let target = if healthy { desired } else { self.last };
         let mut f = clamp_norm(target, self.max_force);
         if healthy {
@@ -55,15 +59,12 @@ impl ForceSafety {
             if !onset {
                 f = limit_step(self.last, f, self.max_step);
             }
-            f = scale(f, self.gain);
+            f = scale(f, gain);
+        } else if self.level == 0 {
+            f = [0.0; 3];
         } else {
-            // Ramp the last force down; reaches exactly zero when the gain does.
-            let full = if self.gain + self.gain_step > 0.0 {
-                self.gain / (self.gain + self.gain_step)
-            } else {
-                0.0
-            };
-            f = scale(f, full);
+            // Ramp the last force down linearly: exactly zero when the level reaches 0.
+            f = scale(f, self.level as f64 / previous.max(1) as f64);
         }
         if !f.iter().all(|c| c.is_finite()) {
             f = [0.0; 3];
