@@ -8,37 +8,22 @@ use std::fs::File;
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context, Result};
 use lop_client::Attachment;
 
-static INTERRUPTED: AtomicBool = AtomicBool::new(false);
-
-extern "C" fn on_signal(_sig: libc::c_int) {
-    INTERRUPTED.store(true, Ordering::Release);
-}
-
 /// Makes SIGINT, SIGTERM and SIGHUP set a flag instead of killing the bench, so that the waiting
 /// loops (which call [`Lopd::check_alive`]) end with an error and every guard stops its child.
+/// The same handler as `lopd`'s.
 pub fn install_stop_handler() {
-    for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
-        // SAFETY: a zeroed sigaction with a plain handler is valid; the handler only stores to an
-        // atomic, which is async-signal-safe.
-        unsafe {
-            let mut sa: libc::sigaction = std::mem::zeroed();
-            sa.sa_sigaction = on_signal as extern "C" fn(libc::c_int) as usize;
-            libc::sigemptyset(&mut sa.sa_mask);
-            sa.sa_flags = libc::SA_RESTART;
-            libc::sigaction(sig, &sa, std::ptr::null_mut());
-        }
-    }
+    lop_daemon::signals::install();
 }
 
 /// Whether the bench was asked to stop.
 pub fn interrupted() -> bool {
-    INTERRUPTED.load(Ordering::Acquire)
+    lop_daemon::signals::stop_requested()
 }
 
 /// A child process that is stopped when the guard is dropped.
@@ -56,7 +41,7 @@ impl ChildGuard {
         // SAFETY: prctl is async-signal-safe and touches nothing of the parent.
         unsafe {
             cmd.pre_exec(|| {
-                libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM);
+                lop_daemon::signals::die_with_parent();
                 Ok(())
             });
         }
