@@ -375,7 +375,7 @@ impl HapticLoop {
         if self.tick == self.warmup_ticks {
             self.stats.total.iter_mut().for_each(|h| h.reset());
         }
-        if self.tick % self.telemetry_every == 0 {
+        if self.tick.is_multiple_of(self.telemetry_every) {
             self.emit_telemetry(done, force);
         }
         TickOutcome { state, fatal }
@@ -501,6 +501,7 @@ pub struct RtRequest {
 
 /// Runs the loop on the calling thread until `stop` is set, `max_ticks` is reached or the device
 /// fails. The device is zeroed and stopped before this returns, and also if it panics.
+#[allow(clippy::too_many_arguments)] // each is a distinct input of the loop's start-up
 pub fn run_loop(
     names: &ServiceNames,
     settings: HapticSettings,
