@@ -126,10 +126,10 @@ pub fn run(opts: DeformOptions) -> Result<()> {
     );
     for b in &world.bodies {
         tracing::info!(
-            "  {}: {} nodes, {} springs, dt {} s in {} sub-steps",
+            "  {}: {} nodes, {:?}, dt {} s in {} sub-steps",
             b.name,
             b.mesh.nodes.len(),
-            b.model.spring_count(),
+            b.model.kind(),
             b.model.dt(),
             b.model.substeps()
         );

@@ -10,5 +10,6 @@
 
 pub mod contact;
 pub mod mesh;
+pub mod model;
 pub mod msd;
 pub mod world;

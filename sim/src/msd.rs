@@ -17,8 +17,9 @@
 //! implicitly (linearised backward Euler along the contact normal, per node), which is stable for
 //! any stiffness, while everything else stays explicit.
 
-use crate::contact::{add, closest_on_surface, dot, norm, scale, sub, SurfaceHit, ToolSphere};
+use crate::contact::{add, closest_on_surface, dot, norm, scale, sub, SurfaceHit};
 use crate::mesh::TetMesh;
+use crate::model::{BlowUp, ContactReport, ToolContact, RUNAWAY_SPEED};
 
 /// Parameters of a mass-spring body.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -48,42 +49,6 @@ struct Spring {
     b: u32,
     rest: f64,
 }
-
-/// The tool's contact with a body during one step: the penalty spring is integrated inside the
-/// sub-steps (the tool position is a kinematic boundary condition), which keeps a stiff tool on
-/// light tissue stable.
-#[derive(Debug, Clone, Copy)]
-pub struct ToolContact<'a> {
-    /// The tool tip.
-    pub tool: ToolSphere,
-    /// The body's outward surface triangles.
-    pub surface: &'a [[u32; 3]],
-    /// Indices into `surface` that may be touched this step (found by the caller around the
-    /// closest triangle); only these are tested in each sub-step.
-    pub candidates: &'a [u32],
-}
-
-/// What the tool did to a body over a step.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct ContactReport {
-    /// Force the tissue received at the end of the step, N (the hand feels the opposite).
-    pub force_on_tissue: [f64; 3],
-    /// Penetration depth at the end of the step, m.
-    pub depth: f64,
-}
-
-/// Why a step was rejected and the body reset.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum BlowUp {
-    /// A position or velocity became NaN or infinite.
-    NonFinite,
-    /// A node moved faster than the runaway limit.
-    Runaway,
-}
-
-/// Nodal speed above which a body is considered to have blown up, m/s. Tissue under a hand-held
-/// tool moves at well under 1 m/s; 50 m/s only happens when integration diverges.
-pub const RUNAWAY_SPEED: f64 = 50.0;
 
 /// A mass-spring body.
 #[derive(Debug, Clone)]

@@ -7,7 +7,8 @@
 
 use crate::contact::{closest_on_surface, scale, ToolSphere};
 use crate::mesh::TetMesh;
-use crate::msd::{BlowUp, ContactReport, MassSpring, MsdParameters, ToolContact};
+use crate::model::{BlowUp, ContactReport, Model, ToolContact};
+use crate::msd::{MassSpring, MsdParameters};
 
 /// How far beyond the tool radius a body's bounding box is still checked for contact, m. Covers
 /// the tissue's motion during one step.
@@ -21,7 +22,7 @@ pub struct Body {
     /// Rest mesh, placed in scene coordinates.
     pub mesh: TetMesh,
     /// The model that moves it.
-    pub model: MassSpring,
+    pub model: Model,
     /// External nodal loads for the next step, N. Filled by the caller between steps, cleared
     /// by [`World::clear_loads`].
     pub loads: Vec<[f64; 3]>,
@@ -59,7 +60,7 @@ impl World {
 
     /// Adds a mass-spring body; returns its index.
     pub fn add_body(&mut self, name: &str, mesh: TetMesh, params: MsdParameters) -> usize {
-        let model = MassSpring::new(&mesh, params);
+        let model = Model::MassSpring(MassSpring::new(&mesh, params));
         let n = mesh.nodes.len();
         let mut node_triangles = vec![Vec::new(); n];
         for (t, tri) in mesh.surface.iter().enumerate() {

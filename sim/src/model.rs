@@ -1,0 +1,124 @@
+//! The interface every deformation model offers the world (and, later, the levels-of-precision
+//! controller): state access, one step under loads and the tool, energy measures, reset and
+//! state transfer. Models are a closed set, so this is an enum, not a trait object: dispatch is a
+//! match, and each model keeps its own concrete API for tests and benchmarks.
+//!
+//! Contract for every model's `step`:
+//! - advances by the model's own `dt` under `gravity`, the nodal loads and the tool contact;
+//! - fixed (Dirichlet) nodes never move;
+//! - allocation-free after the first steps;
+//! - on a blow-up (a non-finite value, or a node faster than [`RUNAWAY_SPEED`]) the model resets
+//!   to rest and returns the cause, so nothing non-finite ever leaves it.
+
+use crate::contact::ToolSphere;
+use crate::msd::MassSpring;
+
+/// The tool's contact with a body during one step: the penalty spring is integrated inside the
+/// sub-steps (the tool position is a kinematic boundary condition), which keeps a stiff tool on
+/// light tissue stable.
+#[derive(Debug, Clone, Copy)]
+pub struct ToolContact<'a> {
+    /// The tool tip.
+    pub tool: ToolSphere,
+    /// The body's outward surface triangles.
+    pub surface: &'a [[u32; 3]],
+    /// Indices into `surface` that may be touched this step (found by the caller around the
+    /// closest triangle); only these are tested in each sub-step.
+    pub candidates: &'a [u32],
+}
+
+/// What the tool did to a body over a step.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ContactReport {
+    /// Force the tissue received at the end of the step, N (the hand feels the opposite).
+    pub force_on_tissue: [f64; 3],
+    /// Penetration depth at the end of the step, m.
+    pub depth: f64,
+}
+
+/// Why a step was rejected and the body reset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BlowUp {
+    /// A position or velocity became NaN or infinite.
+    NonFinite,
+    /// A node moved faster than the runaway limit.
+    Runaway,
+}
+
+/// Nodal speed above which a body is considered to have blown up, m/s. Tissue under a hand-held
+/// tool moves at well under 1 m/s; 50 m/s only happens when integration diverges.
+pub const RUNAWAY_SPEED: f64 = 50.0;
+
+/// Which model a body runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelKind {
+    /// Mass-spring-damper.
+    MassSpring,
+    /// Finite elements.
+    Fem,
+}
+
+/// A body's deformation model.
+#[derive(Debug, Clone)]
+pub enum Model {
+    /// Mass-spring-damper.
+    MassSpring(MassSpring),
+}
+
+macro_rules! dispatch {
+    ($self:ident, $m:ident => $e:expr) => {
+        match $self {
+            Model::MassSpring($m) => $e,
+        }
+    };
+}
+
+impl Model {
+    /// Which model this is.
+    pub fn kind(&self) -> ModelKind {
+        match self {
+            Model::MassSpring(_) => ModelKind::MassSpring,
+        }
+    }
+    /// Node positions, m.
+    pub fn positions(&self) -> &[[f64; 3]] {
+        dispatch!(self, m => m.positions())
+    }
+    /// Node velocities, m/s.
+    pub fn velocities(&self) -> &[[f64; 3]] {
+        dispatch!(self, m => m.velocities())
+    }
+    /// Lumped nodal masses, kg.
+    pub fn masses(&self) -> &[f64] {
+        dispatch!(self, m => m.masses())
+    }
+    /// The model's time step, s.
+    pub fn dt(&self) -> f64 {
+        dispatch!(self, m => m.dt())
+    }
+    /// Kinetic energy, J.
+    pub fn kinetic_energy(&self) -> f64 {
+        dispatch!(self, m => m.kinetic_energy())
+    }
+    /// Largest nodal speed, m/s.
+    pub fn max_speed(&self) -> f64 {
+        dispatch!(self, m => m.max_speed())
+    }
+    /// Back to the rest shape, at rest.
+    pub fn reset(&mut self) {
+        dispatch!(self, m => m.reset())
+    }
+    /// One step (see the module docs for the contract).
+    pub fn step(
+        &mut self,
+        gravity: [f64; 3],
+        external: &[[f64; 3]],
+        contact: Option<&ToolContact<'_>>,
+    ) -> Result<ContactReport, BlowUp> {
+        dispatch!(self, m => m.step(gravity, external, contact))
+    }
+    /// Sub-steps (or solver iterations) per step, for logs.
+    pub fn substeps(&self) -> usize {
+        dispatch!(self, m => m.substeps())
+    }
+}
