@@ -9,6 +9,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod contact;
+pub mod fem;
 pub mod mesh;
 pub mod model;
 pub mod msd;

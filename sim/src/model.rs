@@ -63,12 +63,15 @@ pub enum ModelKind {
 pub enum Model {
     /// Mass-spring-damper.
     MassSpring(MassSpring),
+    /// Finite elements (linear or corotational).
+    Fem(crate::fem::Fem),
 }
 
 macro_rules! dispatch {
     ($self:ident, $m:ident => $e:expr) => {
         match $self {
             Model::MassSpring($m) => $e,
+            Model::Fem($m) => $e,
         }
     };
 }
@@ -78,6 +81,7 @@ impl Model {
     pub fn kind(&self) -> ModelKind {
         match self {
             Model::MassSpring(_) => ModelKind::MassSpring,
+            Model::Fem(_) => ModelKind::Fem,
         }
     }
     /// Node positions, m.

@@ -61,6 +61,12 @@ impl World {
     /// Adds a mass-spring body; returns its index.
     pub fn add_body(&mut self, name: &str, mesh: TetMesh, params: MsdParameters) -> usize {
         let model = Model::MassSpring(MassSpring::new(&mesh, params));
+        self.add_model(name, mesh, model)
+    }
+
+    /// Adds a body with a model built by the caller (its rest shape must be `mesh`); returns its
+    /// index.
+    pub fn add_model(&mut self, name: &str, mesh: TetMesh, model: Model) -> usize {
         let n = mesh.nodes.len();
         let mut node_triangles = vec![Vec::new(); n];
         for (t, tri) in mesh.surface.iter().enumerate() {

@@ -12,7 +12,7 @@ use std::path::PathBuf;
 
 use lop_sim::contact::{closest_on_surface, ForceLaw, ToolSphere};
 use lop_sim::mesh::{read_mesh, TetMesh};
-use lop_sim::msd::{MsdParameters, NodeMass};
+use lop_sim::msd::{Integrator, MsdParameters, NodeMass};
 use lop_sim::world::World;
 
 fn cylinder() -> TetMesh {
@@ -27,6 +27,7 @@ fn params() -> MsdParameters {
         mass: NodeMass::Density(120.0),
         damping: 0.4,
         dt: 0.02,
+        integrator: Integrator::SymplecticEuler,
     }
 }
 

@@ -1,0 +1,488 @@
+//! The sparse symmetric system on the free degrees of freedom, its fixed sparsity pattern, the
+//! element scatter map and the faer Cholesky factorisation.
+//!
+//! - **Numbering.** Held nodes (fixed, or used by no tetrahedron) have no unknowns: the system
+//!   is the reduced one on the free DOFs, which eliminates Dirichlet nodes symmetrically and
+//!   keeps the matrix SPD. Free nodes are ordered by approximate minimum degree (faer's AMD) on
+//!   the *node* graph, and node `k` in that order owns DOFs `3k..3k+3`: the fill-reducing order
+//!   is built into the numbering, so the factorisation itself runs with the identity ordering
+//!   and never permutes the matrix, and 3×3 node blocks stay contiguous (supernode friendly).
+//! - **Pattern.** One triangle of the matrix in CSC form: the lower one when faer chose the
+//!   supernodal factorisation, the upper one for the simplicial factorisation — the triangle
+//!   each reads, so faer makes no copy. The pattern holds every DOF pair of every node pair
+//!   that shares a tetrahedron; it never changes.
+//! - **Scatter map.** For each element, the position in the CSC value array of each of the 78
+//!   stored entries of its 12×12 matrix (the 6 upper-triangle node blocks with 9 entries and
+//!   the 4 diagonal node blocks with 6), or `NONE` where a node is held. Assembly is then a
+//!   scatter-add: no search, no allocation.
+//! - **Factorisation.** Symbolic once (faer `factorize_symbolic_cholesky`, identity ordering on
+//!   the pre-ordered numbering; faer chooses supernodal or simplicial by its flop estimate);
+//!   numeric LLᵀ into a value buffer owned here, in double precision (direct solves) or single
+//!   precision (the corotational preconditioner), with one `MemBuffer` sized for all of them.
+
+use std::fmt;
+use std::sync::Arc;
+
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::amd;
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
+    SymbolicCholeskyRaw, SymmetricOrdering,
+};
+use faer::sparse::linalg::SupernodalThreshold;
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side};
+
+use super::element::{stiffness_block, Element};
+
+/// "No DOF" / "not stored" marker.
+pub(crate) const NONE: u32 = u32::MAX;
+
+/// Entries of an element matrix that are stored (one triangle): 6 off-diagonal node blocks of
+/// 9 plus 4 diagonal node blocks of 6.
+pub(crate) const ELEMENT_ENTRIES: usize = 78;
+
+/// Node pairs `(a, b)`, `a <= b`, in scatter-map order.
+const PAIRS: [(usize, usize); 10] = [
+    (0, 0),
+    (0, 1),
+    (0, 2),
+    (0, 3),
+    (1, 1),
+    (1, 2),
+    (1, 3),
+    (2, 2),
+    (2, 3),
+    (3, 3),
+];
+
+/// Why the numeric factorisation failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct NotPositiveDefinite;
+
+/// A fixed-pattern SPD system with its Cholesky factor.
+pub(crate) struct System {
+    /// Per node: its first DOF (x; y and z follow), or [`NONE`] for a held node.
+    pub dof: Vec<u32>,
+    /// Number of free DOFs.
+    pub n_dof: usize,
+    /// CSC column pointers of the stored triangle.
+    col_ptr: Vec<u32>,
+    /// CSC row indices (sorted within each column).
+    row_idx: Vec<u32>,
+    /// Matrix values, filled by [`System::clear_with_mass`] and [`System::add_element`], read
+    /// by [`System::factorize`].
+    pub values: Vec<f64>,
+    /// Per DOF: index of its diagonal entry in `values`.
+    diag: Vec<u32>,
+    /// Per element: the value index of each stored entry, in [`PAIRS`] order.
+    scatter: Vec<[u32; ELEMENT_ENTRIES]>,
+    /// Symbolic factorisation (shared by clones: it never changes).
+    symbolic: Arc<SymbolicCholesky<u32>>,
+    /// Numeric factor in double or single precision (allocated on first use), filled by
+    /// [`System::factorize`], read by [`System::solve_in_place`]; `current` says which one
+    /// holds the factor of `values`, if any.
+    l64: Vec<f64>,
+    l32: Vec<f32>,
+    current: Option<Precision>,
+    /// Scratch for single precision: `values` and the right-hand side rounded to `f32`,
+    /// written and read by `factorize` / `solve_in_place`.
+    values32: Vec<f32>,
+    rhs32: Vec<f32>,
+    /// Scratch memory for faer's factorisation and solve.
+    work: Workspace,
+}
+
+impl System {
+    /// Builds numbering, pattern, scatter map and symbolic factorisation. `held[i]` marks
+    /// nodes without unknowns. `supernodal`: `None` lets faer choose by its flop estimate.
+    pub fn new(
+        n_nodes: usize,
+        elements: &[Element],
+        held: &[bool],
+        supernodal: Option<bool>,
+    ) -> Result<System, faer::sparse::FaerError> {
+        // Free-node adjacency (both directions, sorted, no self loops).
+        let mut free_index = vec![NONE; n_nodes];
+        let mut n_free = 0u32;
+        for (i, h) in held.iter().enumerate() {
+            if !h {
+                free_index[i] = n_free;
+                n_free += 1;
+            }
+        }
+        let n_free = n_free as usize;
+        let mut adj: Vec<Vec<u32>> = vec![Vec::new(); n_free];
+        for e in elements {
+            for &a in &e.nodes {
+                for &b in &e.nodes {
+                    let (fa, fb) = (free_index[a as usize], free_index[b as usize]);
+                    if a != b && fa != NONE && fb != NONE {
+                        adj[fa as usize].push(fb);
+                    }
+                }
+            }
+        }
+        for list in &mut adj {
+            list.sort_unstable();
+            list.dedup();
+        }
+
+        // AMD on the node graph.
+        let mut perm = vec![0u32; n_free];
+        let mut perm_inv = vec![0u32; n_free];
+        if n_free > 0 {
+            let mut ptr = Vec::with_capacity(n_free + 1);
+            let mut idx = Vec::new();
+            ptr.push(0u32);
+            for list in &adj {
+                idx.extend_from_slice(list);
+                ptr.push(idx.len() as u32);
+            }
+            let graph = SymbolicSparseColMatRef::new_checked(n_free, n_free, &ptr, None, &idx);
+            let mut mem = MemBuffer::try_new(amd::order_scratch::<u32>(n_free, idx.len()))?;
+            amd::order(
+                &mut perm,
+                &mut perm_inv,
+                graph,
+                amd::Control::default(),
+                MemStack::new(&mut mem),
+            )?;
+        }
+        // perm[new] = old: node `perm[k]` (free index) comes k-th.
+        let mut dof = vec![NONE; n_nodes];
+        let mut node_of_free = vec![0u32; n_free];
+        for (i, &f) in free_index.iter().enumerate() {
+            if f != NONE {
+                node_of_free[f as usize] = i as u32;
+            }
+        }
+        for (k, &old) in perm.iter().enumerate() {
+            dof[node_of_free[old as usize] as usize] = 3 * k as u32;
+        }
+        let n_dof = 3 * n_free;
+
+        // Node-block neighbours in the new order, for the upper pattern first (rows <= cols).
+        let mut nb: Vec<Vec<u32>> = vec![Vec::new(); n_free]; // per new node: new neighbours
+        for (f, list) in adj.iter().enumerate() {
+            let k = perm_inv[f];
+            nb[k as usize] = list.iter().map(|&g| perm_inv[g as usize]).collect();
+            nb[k as usize].push(k);
+            nb[k as usize].sort_unstable();
+        }
+        let upper = build_pattern(&nb, false);
+        let symbolic = {
+            let (ptr, idx) = (&upper.0, &upper.1);
+            let a = SymbolicSparseColMatRef::new_checked(n_dof, n_dof, ptr, None, idx);
+            let params = CholeskySymbolicParams {
+                supernodal_flop_ratio_threshold: match supernodal {
+                    None => SupernodalThreshold::AUTO,
+                    Some(true) => SupernodalThreshold::FORCE_SUPERNODAL,
+                    Some(false) => SupernodalThreshold::FORCE_SIMPLICIAL,
+                },
+                ..Default::default()
+            };
+            factorize_symbolic_cholesky(a, Side::Upper, SymmetricOrdering::Identity, params)?
+        };
+        let lower = matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_));
+        let (col_ptr, row_idx) = if lower {
+            build_pattern(&nb, true)
+        } else {
+            upper
+        };
+
+        // Diagonal positions and element scatter map.
+        let find = |row: u32, col: u32| -> u32 {
+            let (r, c) = if lower == (row >= col) {
+                (row, col)
+            } else {
+                (col, row)
+            };
+            let start = col_ptr[c as usize] as usize;
+            let end = col_ptr[c as usize + 1] as usize;
+            let pos = row_idx[start..end]
+                .binary_search(&r)
+                .expect("entry is in the pattern");
+            (start + pos) as u32
+        };
+        let diag: Vec<u32> = (0..n_dof as u32).map(|d| find(d, d)).collect();
+        let scatter = elements
+            .iter()
+            .map(|e| {
+                let mut map = [NONE; ELEMENT_ENTRIES];
+                let mut k = 0;
+                for (a, b) in PAIRS {
+                    let (da, db) = (dof[e.nodes[a] as usize], dof[e.nodes[b] as usize]);
+                    for r in 0..3u32 {
+                        for c in 0..3u32 {
+                            if a == b && c < r {
+                                continue;
+                            }
+                            if da != NONE && db != NONE {
+                                map[k] = find(da + r, db + c);
+                            }
+                            k += 1;
+                        }
+                    }
+                }
+                map
+            })
+            .collect();
+
+        let req = StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
+            symbolic.factorize_numeric_llt_scratch::<f32>(Par::Seq, Default::default()),
+            symbolic.solve_in_place_scratch::<f32>(1, Par::Seq),
+        ]);
+        let values = vec![0.0; row_idx.len()];
+        Ok(System {
+            dof,
+            n_dof,
+            col_ptr,
+            row_idx,
+            values,
+            diag,
+            scatter,
+            symbolic: Arc::new(symbolic),
+            l64: Vec::new(),
+            l32: Vec::new(),
+            current: None,
+            values32: Vec::new(),
+            rhs32: Vec::new(),
+            work: Workspace::new(req)?,
+        })
+    }
+
+    /// Stored non-zeros of the matrix (one triangle) and of its Cholesky factor.
+    pub fn nnz(&self) -> (usize, usize) {
+        (self.values.len(), self.symbolic.len_val())
+    }
+
+    /// True if faer runs the supernodal factorisation.
+    pub fn is_supernodal(&self) -> bool {
+        matches!(self.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_))
+    }
+
+    /// Starts an assembly: `values = diag(mass_coef · mᵢ)` on the free DOFs.
+    pub fn clear_with_mass(&mut self, mass: &[f64], mass_coef: f64) {
+        self.values.fill(0.0);
+        for (i, &d) in self.dof.iter().enumerate() {
+            if d != NONE {
+                for c in 0..3 {
+                    self.values[self.diag[d as usize + c] as usize] += mass_coef * mass[i];
+                }
+            }
+        }
+    }
+
+    /// Adds element `e`'s stiffness built from its (rest or rotated) gradients `g`, with
+    /// `vl = Vλ`, `vm = Vμ`: a scatter-add through the precomputed map.
+    #[inline]
+    pub fn add_element(&mut self, e: usize, g: &[[f64; 3]; 4], vl: f64, vm: f64) {
+        let map = &self.scatter[e];
+        let mut k = 0;
+        for (a, b) in PAIRS {
+            let block = stiffness_block(g[a], g[b], vl, vm);
+            for r in 0..3 {
+                for c in 0..3 {
+                    if a == b && c < r {
+                        continue;
+                    }
+                    let at = map[k];
+                    if at != NONE {
+                        self.values[at as usize] += block[r][c];
+                    }
+                    k += 1;
+                }
+            }
+        }
+    }
+
+    /// Numeric Cholesky factorisation of `values` into the owned factor buffer of the given
+    /// precision (allocated on its first use). Single precision halves the memory traffic of
+    /// factorisation and solves; it serves as a preconditioner only.
+    pub fn factorize(&mut self, precision: Precision) -> Result<(), NotPositiveDefinite> {
+        self.current = None;
+        let side = if self.is_supernodal() {
+            Side::Lower
+        } else {
+            Side::Upper
+        };
+        let n = self.n_dof;
+        let len = self.symbolic.len_val();
+        let pattern =
+            SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
+        let stack = MemStack::new(&mut self.work.buf);
+        let ok = match precision {
+            Precision::Double => {
+                if self.l64.len() != len {
+                    self.l64 = vec![0.0; len];
+                }
+                self.symbolic
+                    .factorize_numeric_llt::<f64>(
+                        &mut self.l64,
+                        SparseColMatRef::new(pattern, &self.values),
+                        side,
+                        LltRegularization::default(),
+                        Par::Seq,
+                        stack,
+                        Default::default(),
+                    )
+                    .is_ok()
+            }
+            Precision::Single => {
+                if self.l32.len() != len {
+                    self.l32 = vec![0.0; len];
+                    self.values32 = vec![0.0; self.values.len()];
+                    self.rhs32 = vec![0.0; n];
+                }
+                for (s, d) in self.values32.iter_mut().zip(&self.values) {
+                    *s = *d as f32;
+                }
+                self.symbolic
+                    .factorize_numeric_llt::<f32>(
+                        &mut self.l32,
+                        SparseColMatRef::new(pattern, &self.values32),
+                        side,
+                        LltRegularization::default(),
+                        Par::Seq,
+                        stack,
+                        Default::default(),
+                    )
+                    .is_ok()
+            }
+        };
+        if ok {
+            self.current = Some(precision);
+            Ok(())
+        } else {
+            Err(NotPositiveDefinite)
+        }
+    }
+
+    /// Solves `A x = rhs` in place with the current factor (in its precision; the result is
+    /// `f64` either way). Without a factor, leaves `rhs` unchanged.
+    pub fn solve_in_place(&mut self, rhs: &mut [f64]) {
+        let n = self.n_dof;
+        if n == 0 {
+            return;
+        }
+        let stack = MemStack::new(&mut self.work.buf);
+        match self.current {
+            Some(Precision::Double) => LltRef::<u32, f64>::new(&self.symbolic, &self.l64)
+                .solve_in_place_with_conj(
+                    Conj::No,
+                    MatMut::from_column_major_slice_mut(rhs, n, 1),
+                    Par::Seq,
+                    stack,
+                ),
+            Some(Precision::Single) => {
+                for (s, d) in self.rhs32.iter_mut().zip(rhs.iter()) {
+                    *s = *d as f32;
+                }
+                LltRef::<u32, f32>::new(&self.symbolic, &self.l32).solve_in_place_with_conj(
+                    Conj::No,
+                    MatMut::from_column_major_slice_mut(&mut self.rhs32, n, 1),
+                    Par::Seq,
+                    stack,
+                );
+                for (d, s) in rhs.iter_mut().zip(&self.rhs32) {
+                    *d = f64::from(*s);
+                }
+            }
+            None => debug_assert!(false, "solve without a factor"),
+        }
+    }
+}
+
+/// Precision of the numeric factor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Precision {
+    /// `f64`: direct solves (linear mode, static solves, the `Refactor` solver).
+    Double,
+    /// `f32`: the corotational preconditioner.
+    Single,
+}
+
+/// CSC pattern (one triangle) of the DOF matrix whose node blocks are `nb` (per node, its
+/// sorted neighbours including itself). `lower`: rows >= cols, else rows <= cols.
+fn build_pattern(nb: &[Vec<u32>], lower: bool) -> (Vec<u32>, Vec<u32>) {
+    let mut col_ptr = Vec::with_capacity(3 * nb.len() + 1);
+    let mut row_idx = Vec::new();
+    col_ptr.push(0u32);
+    for (q, list) in nb.iter().enumerate() {
+        let q = q as u32;
+        for c in 0..3u32 {
+            let col = 3 * q + c;
+            for &p in list {
+                for r in 0..3u32 {
+                    let row = 3 * p + r;
+                    if (lower && row >= col) || (!lower && row <= col) {
+                        row_idx.push(row);
+                    }
+                }
+            }
+            col_ptr.push(row_idx.len() as u32);
+        }
+    }
+    (col_ptr, row_idx)
+}
+
+/// Scratch memory for faer; a clone gets a fresh buffer of the same size.
+struct Workspace {
+    req: StackReq,
+    buf: MemBuffer,
+}
+
+impl Workspace {
+    fn new(req: StackReq) -> Result<Workspace, faer::sparse::FaerError> {
+        Ok(Workspace {
+            req,
+            buf: MemBuffer::try_new(req)?,
+        })
+    }
+}
+
+impl Clone for Workspace {
+    fn clone(&self) -> Workspace {
+        Workspace {
+            req: self.req,
+            buf: MemBuffer::new(self.req),
+        }
+    }
+}
+
+impl Clone for System {
+    fn clone(&self) -> System {
+        System {
+            dof: self.dof.clone(),
+            n_dof: self.n_dof,
+            col_ptr: self.col_ptr.clone(),
+            row_idx: self.row_idx.clone(),
+            values: self.values.clone(),
+            diag: self.diag.clone(),
+            scatter: self.scatter.clone(),
+            symbolic: Arc::clone(&self.symbolic),
+            l64: self.l64.clone(),
+            l32: self.l32.clone(),
+            current: self.current,
+            values32: self.values32.clone(),
+            rhs32: self.rhs32.clone(),
+            work: self.work.clone(),
+        }
+    }
+}
+
+impl fmt::Debug for System {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (a, l) = self.nnz();
+        f.debug_struct("System")
+            .field("dofs", &self.n_dof)
+            .field("nnz", &a)
+            .field("factor_nnz", &l)
+            .field("supernodal", &self.is_supernodal())
+            .finish()
+    }
+}

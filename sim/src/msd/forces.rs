@@ -1,0 +1,175 @@
+//! Forces of the mass-spring model shared by every integrator: springs, gravity and external
+//! loads (position-only), and the tool's penalty contact.
+
+use crate::contact::{add, closest_on_surface, dot, norm, scale, sub};
+use crate::model::ToolContact;
+
+/// A spring between nodes `a < b`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Spring {
+    pub a: u32,
+    pub b: u32,
+    /// Rest length, m.
+    pub rest: f64,
+}
+
+/// The body's fixed description: springs, masses and rest shape.
+#[derive(Debug, Clone)]
+pub(super) struct Network {
+    /// Sorted by `(a, b)`, unique.
+    pub springs: Vec<Spring>,
+    /// N/m.
+    pub stiffness: f64,
+    /// γ, N·s/m.
+    pub damping: f64,
+    /// kg, one per node.
+    pub mass: Vec<f64>,
+    /// 1/kg; 0 for fixed and massless nodes, so the explicit integrators never move them.
+    pub inv_mass: Vec<f64>,
+    pub rest: Vec<[f64; 3]>,
+}
+
+/// What acts on the body during a step besides its springs.
+pub(super) struct Loads<'a, 'c> {
+    pub gravity: [f64; 3],
+    /// N, one per node; missing entries are zero.
+    pub external: &'a [[f64; 3]],
+    pub contact: Option<&'a ToolContact<'c>>,
+}
+
+/// The tool touching the body: where, how deep, how hard.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Touch {
+    /// Nodes of the touched triangle.
+    pub tri: [u32; 3],
+    /// Barycentric weights of the contact point on it.
+    pub weights: [f64; 3],
+    /// Unit outward normal.
+    pub normal: [f64; 3],
+    /// Penetration, m (> 0).
+    pub depth: f64,
+    /// Force the tissue receives, N.
+    pub on_tissue: [f64; 3],
+    /// `dF/dd` of the force law at this depth, N/m.
+    pub stiffness: f64,
+}
+
+/// The tool's contact on positions `x`: the closest candidate triangle, if the tool penetrates
+/// it. Allocation-free.
+pub(super) fn touch(c: &ToolContact<'_>, x: &[[f64; 3]]) -> Option<Touch> {
+    let mut best: Option<(usize, crate::contact::SurfaceHit)> = None;
+    for &t in c.candidates {
+        let Some(tri) = c.surface.get(t as usize) else {
+            continue;
+        };
+        if let Some(hit) = closest_on_surface(x, std::slice::from_ref(tri), c.tool.center) {
+            if best.is_none_or(|(_, b)| hit.distance < b.distance) {
+                best = Some((t as usize, hit));
+            }
+        }
+    }
+    let (t, hit) = best?;
+    let depth = c.tool.depth(&hit);
+    if !(depth > 0.0) {
+        return None;
+    }
+    Some(Touch {
+        tri: c.surface[t],
+        weights: hit.barycentric,
+        normal: hit.normal,
+        depth,
+        on_tissue: scale(c.tool.force_on_tool(&hit), -1.0),
+        stiffness: c.tool.max_stiffness(depth),
+    })
+}
+
+impl Network {
+    /// `out = M g + f_ext + f_spring(x)`: every force that depends on positions only.
+    pub fn conservative_forces(&self, x: &[[f64; 3]], loads: &Loads<'_, '_>, out: &mut [[f64; 3]]) {
+        for (i, f) in out.iter_mut().enumerate() {
+            let ext = loads.external.get(i).copied().unwrap_or([0.0; 3]);
+            *f = add(scale(loads.gravity, self.mass[i]), ext);
+        }
+        let k = self.stiffness;
+        for s in &self.springs {
+            let (a, b) = (s.a as usize, s.b as usize);
+            let d = sub(x[b], x[a]);
+            let len = norm(d);
+            if len <= 0.0 {
+                continue;
+            }
+            // Hooke's law along the spring (eq. 4.1).
+            let f = scale(d, k * (len - s.rest) / len);
+            out[a] = add(out[a], f);
+            out[b] = sub(out[b], f);
+        }
+    }
+
+    /// Adds the tool's penalty force at positions `x` into `force` (which holds the
+    /// conservative forces), spread to the touched triangle's nodes by the barycentric weights,
+    /// and makes its normal part implicit for the sub-step `h`: with `K = w² dF/dd` the node's
+    /// stiffness along the normal `n`, the normal force `f_n` (damping at velocity `v`
+    /// included) becomes `(f_n − h K v_n) / (1 + h² K / m)`, its linearised backward-Euler
+    /// value, so the stiff tool cannot destabilise an explicit integrator.
+    pub fn add_contact_explicit(
+        &self,
+        c: &ToolContact<'_>,
+        x: &[[f64; 3]],
+        v: &[[f64; 3]],
+        force: &mut [[f64; 3]],
+        h: f64,
+    ) {
+        let Some(t) = touch(c, x) else {
+            return;
+        };
+        let n = t.normal;
+        for k in 0..3 {
+            let i = t.tri[k] as usize;
+            let w = t.weights[k];
+            force[i] = add(force[i], scale(t.on_tissue, w));
+            let inv_m = self.inv_mass[i];
+            if inv_m == 0.0 {
+                continue;
+            }
+            let kn = t.stiffness * w * w;
+            let f_n = dot(sub(force[i], scale(v[i], self.damping)), n);
+            let v_n = dot(v[i], n);
+            let implicit = (f_n - h * kn * v_n) / (1.0 + h * h * kn * inv_m);
+            force[i] = add(force[i], scale(n, implicit - f_n));
+        }
+    }
+
+    /// All forces at `(x, v)` except damping, for an explicit integrator with sub-step `h`:
+    /// conservative forces plus the (normal-implicit) contact.
+    pub fn forces(
+        &self,
+        x: &[[f64; 3]],
+        v: &[[f64; 3]],
+        loads: &Loads<'_, '_>,
+        h: f64,
+        out: &mut [[f64; 3]],
+    ) {
+        self.conservative_forces(x, loads, out);
+        if let Some(c) = loads.contact {
+            self.add_contact_explicit(c, x, v, out, h);
+        }
+    }
+
+    /// Acceleration of a node of inverse mass `inv_mass` under force `f`, damping at velocity
+    /// `v` added; zero for fixed and massless nodes (`inv_mass == 0`).
+    #[inline]
+    pub fn accel(&self, f: [f64; 3], v: [f64; 3], inv_mass: f64) -> [f64; 3] {
+        scale(sub(f, scale(v, self.damping)), inv_mass)
+    }
+
+    /// `Σ ½ k (l − L)²`, J.
+    pub fn elastic_energy(&self, x: &[[f64; 3]]) -> f64 {
+        self.springs
+            .iter()
+            .map(|s| {
+                let stretch = norm(sub(x[s.b as usize], x[s.a as usize])) - s.rest;
+                0.5 * self.stiffness * stretch * stretch
+            })
+            .sum()
+    }
+}

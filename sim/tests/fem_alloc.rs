@@ -1,0 +1,99 @@
+//! `Fem::step` allocates nothing once warmed up: in linear and corotational mode, with and
+//! without the tool, including the corotational solver's refactorisations and the contact's
+//! extra solves. Counted by a global allocator (this test binary only).
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use lop_sim::contact::{ForceLaw, ToolSphere};
+use lop_sim::fem::{CorotationalSolver, Fem, FemMode, FemParameters};
+use lop_sim::mesh::read_mesh;
+use lop_sim::model::ToolContact;
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn step_is_allocation_free() {
+    let mesh = read_mesh(&PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes/liver"))
+        .unwrap();
+    let top = mesh
+        .surface_nodes()
+        .into_iter()
+        .max_by(|&a, &b| mesh.nodes[a as usize][2].total_cmp(&mesh.nodes[b as usize][2]))
+        .unwrap();
+    let p = mesh.nodes[top as usize];
+    let candidates: Vec<u32> = (0..mesh.surface.len() as u32).collect();
+    let loads = vec![[0.0, 0.0, 1e-6]; mesh.nodes.len()];
+    for (mode, solver) in [
+        (FemMode::Linear, CorotationalSolver::LaggedFactorPcg),
+        (FemMode::Corotational, CorotationalSolver::LaggedFactorPcg),
+        (FemMode::Corotational, CorotationalSolver::Refactor),
+    ] {
+        let params = FemParameters {
+            young: 140.0,
+            poisson: 0.023,
+            density: 10.0,
+            damping: 10.0,
+            dt: 0.01,
+            mode,
+        };
+        let mut fem = Fem::new(&mesh, params).unwrap();
+        fem.set_corotational_solver(solver);
+        let g = [0.0, -9.81, 0.0];
+        fem.step(g, &loads, None).unwrap();
+        let before = ALLOCATIONS.load(Ordering::Relaxed);
+        let mut touched = 0;
+        let mut refactors = 0;
+        for s in 0..120 {
+            // The tool presses, slides, and leaves, repeatedly.
+            let tool = ToolSphere {
+                center: [p[0] + 0.01 * (s as f64 * 0.1).sin(), p[1], p[2] - 0.002],
+                radius: 0.003,
+                stiffness: 300.0,
+                law: ForceLaw::Linear,
+            };
+            let contact = ToolContact {
+                tool,
+                surface: &mesh.surface,
+                candidates: &candidates,
+            };
+            let c = (s % 40 < 30).then_some(&contact);
+            let report = fem.step(g, &loads, c).unwrap();
+            touched += (report.depth > 0.0) as usize;
+            refactors += (fem.last_iterations() > 4) as usize;
+        }
+        let after = ALLOCATIONS.load(Ordering::Relaxed);
+        assert!(
+            touched > 10,
+            "{mode:?}: the tool touched in {touched} steps"
+        );
+        if mode == FemMode::Corotational && solver == CorotationalSolver::LaggedFactorPcg {
+            assert!(refactors > 0, "a refactorisation happened in the window");
+        }
+        assert_eq!(
+            after - before,
+            0,
+            "{mode:?}/{solver:?}: allocations in step"
+        );
+    }
+}

@@ -1,0 +1,100 @@
+//! `MassSpring::step` allocates nothing after the first step, for every integrator, with the
+//! tool in contact (the sparse refactorisation and solve of implicit Euler included).
+//!
+//! A counting global allocator (this test binary only) counts the allocations made by the
+//! current thread while tracking is on, so other tests' threads cannot disturb the count.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::path::PathBuf;
+
+use lop_sim::contact::{ForceLaw, ToolSphere};
+use lop_sim::mesh::read_mesh;
+use lop_sim::model::ToolContact;
+use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
+
+struct Counting;
+
+thread_local! {
+    static TRACKING: Cell<bool> = const { Cell::new(false) };
+    static COUNT: Cell<usize> = const { Cell::new(0) };
+}
+
+fn note() {
+    // `try_with`: the thread's locals may already be gone while it exits.
+    let _ = TRACKING.try_with(|t| {
+        if t.get() {
+            let _ = COUNT.try_with(|c| c.set(c.get() + 1));
+        }
+    });
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        note();
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        note();
+        unsafe { System.alloc_zeroed(layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        note();
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Counting = Counting;
+
+/// Allocations made by `f` on this thread.
+fn allocations(f: impl FnOnce()) -> usize {
+    COUNT.with(|c| c.set(0));
+    TRACKING.with(|t| t.set(true));
+    f();
+    TRACKING.with(|t| t.set(false));
+    COUNT.with(|c| c.get())
+}
+
+#[test]
+fn step_is_allocation_free_after_the_first_step() {
+    // The counter counts.
+    assert!(allocations(|| drop(std::hint::black_box(vec![0u8; 16]))) >= 1);
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes/cylinder");
+    let mesh = read_mesh(&path).expect("shipped cylinder mesh");
+    // Press on the top face: every triangle touching the node closest to the tool.
+    let tool = ToolSphere {
+        center: [0.0, 0.121, 0.0],
+        radius: 0.003,
+        stiffness: 300.0,
+        law: ForceLaw::Linear,
+    };
+    let candidates: Vec<u32> = (0..mesh.surface.len() as u32).collect();
+    let contact = ToolContact {
+        tool,
+        surface: &mesh.surface,
+        candidates: &candidates,
+    };
+    let loads = vec![[0.0, 0.0, 1e-4]; mesh.nodes.len()];
+    for integrator in Integrator::ALL {
+        let params = MsdParameters {
+            stiffness: 700.0,
+            mass: NodeMass::Density(120.0),
+            damping: 0.4,
+            dt: 0.02,
+            integrator,
+        };
+        let mut ms = MassSpring::new(&mesh, params);
+        ms.step([0.0, -9.81, 0.0], &loads, Some(&contact)).unwrap();
+        let n = allocations(|| {
+            for _ in 0..3 {
+                let r = ms.step([0.0, -9.81, 0.0], &loads, Some(&contact)).unwrap();
+                assert!(r.depth > 0.0);
+            }
+        });
+        assert_eq!(n, 0, "{integrator:?} allocated {n} times in 3 steps");
+    }
+}
