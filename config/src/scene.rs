@@ -79,7 +79,7 @@ pub enum Integrator {
     /// Semi-implicit (symplectic) Euler: velocity first, then position.
     #[default]
     SymplecticEuler,
-    /// Position Verlet.
+    /// Velocity Verlet (the same positions as Störmer–Verlet).
     Verlet,
     /// Classic fourth-order Runge-Kutta.
     Rk4,

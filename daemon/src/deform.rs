@@ -16,6 +16,7 @@ use iceoryx2::prelude::*;
 use lop_config::{DaemonConfig, Scene};
 use lop_ipc::services::{self, Role, ToolBoard};
 use lop_ipc::*;
+use lop_sim::model::ModelKind;
 
 use crate::rt;
 use crate::scene::{self, tool_sphere, LoadedScene};
@@ -230,7 +231,10 @@ pub fn run(opts: DeformOptions) -> Result<()> {
             bf.max_speed = speed as f32;
             bf.step_ns = step_ns[i];
             bf.resets = b.resets;
-            bf.model = BodyModel::Msd as u8;
+            bf.model = match b.model.kind() {
+                ModelKind::MassSpring => BodyModel::Msd,
+                ModelKind::Fem => BodyModel::Fem,
+            } as u8;
             bf.state = if b.last_contact.depth > 0.0 || speed > REST_SPEED {
                 BODY_STATE_ACTIVE
             } else {

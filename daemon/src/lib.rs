@@ -12,6 +12,7 @@ pub mod rt;
 pub mod safety;
 pub mod scene;
 pub mod signals;
+pub mod simulate;
 pub mod status;
 pub mod supervisor;
 

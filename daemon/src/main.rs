@@ -38,6 +38,8 @@ enum Command {
     Haptic(HapticArgs),
     /// The deformation process alone (normally started by `lopd run`).
     Deform(CommonArgs),
+    /// Run a scene offline (no device, no IPC) and write timings, final positions and a summary.
+    Simulate(SimulateArgs),
     /// Mesh tools.
     Mesh {
         #[command(subcommand)]
@@ -87,6 +89,28 @@ struct HapticArgs {
 }
 
 #[derive(Args, Clone)]
+struct SimulateArgs {
+    /// Scene name or path.
+    #[arg(long, default_value = "organs")]
+    scene: String,
+    /// Steps of every body (the cap with --until-converged).
+    #[arg(long, default_value_t = 1000)]
+    steps: u64,
+    /// Stop each body once it has settled (max nodal speed under 1e-4 m/s for 20 steps).
+    #[arg(long)]
+    until_converged: bool,
+    /// Solve the static equilibrium (K u = f) of the FEM bodies instead of stepping.
+    #[arg(long = "static")]
+    static_solve: bool,
+    /// Mock script (name or path) that moves the tool on simulated time.
+    #[arg(long)]
+    script: Option<String>,
+    /// Output directory.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(Args, Clone)]
 struct RunArgs {
     #[command(flatten)]
     haptic: HapticArgs,
@@ -126,6 +150,7 @@ fn main() -> ExitCode {
         Command::Run(a) => cmd_run(a),
         Command::Haptic(a) => cmd_haptic(a).map(|()| 0),
         Command::Deform(a) => cmd_deform(a).map(|()| 0),
+        Command::Simulate(a) => cmd_simulate(a).map(|()| 0),
         Command::Mesh {
             command: MeshCommand::Info { paths },
         } => cmd_mesh_info(&paths),
@@ -326,6 +351,27 @@ fn cmd_deform(a: CommonArgs) -> Result<()> {
         config,
         duration,
     })
+}
+
+fn cmd_simulate(a: SimulateArgs) -> Result<()> {
+    let path = bad(resolve_scene(&a.scene))?;
+    let scene = bad(load_scene(&path))?;
+    let script = match &a.script {
+        Some(s) => Some(bad(resolve_script(s))?),
+        None => None,
+    };
+    if a.steps == 0 && !a.static_solve {
+        bad(Err(anyhow::anyhow!("--steps 0: nothing to simulate")))?;
+    }
+    lop_daemon::simulate::run(lop_daemon::simulate::SimulateOptions {
+        scene,
+        steps: a.steps,
+        until_converged: a.until_converged,
+        static_solve: a.static_solve,
+        script,
+        out: a.out,
+    })?;
+    Ok(())
 }
 
 fn cmd_mesh_info(paths: &[PathBuf]) -> Result<i32> {

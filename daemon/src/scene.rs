@@ -3,13 +3,15 @@
 //! benchmarks, so every one of them sees the same bodies in the same order.
 
 use anyhow::{Context, Result};
-use lop_config::{MassSpec, Scene, ToolSpec};
+use lop_config::{BodySpec, MassSpec, ModelPin, Scene, ToolSpec};
 use lop_ipc::{
     TopologyHeader, CONTRACT_VERSION, IMPORTANCE_IMPORTANT, IMPORTANCE_NORMAL, MAX_BODIES,
 };
 use lop_sim::contact::{ForceLaw, ToolSphere};
-use lop_sim::mesh::read_mesh;
-use lop_sim::msd::{MsdParameters, NodeMass};
+use lop_sim::fem::{Fem, FemMode, FemParameters};
+use lop_sim::mesh::{read_mesh, TetMesh};
+use lop_sim::model::Model;
+use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 use lop_sim::world::World;
 
 /// A loaded scene: the world plus what the wire needs.
@@ -39,6 +41,73 @@ pub fn tool_sphere(tool: &ToolSpec, center: [f64; 3]) -> ToolSphere {
             lop_config::ForceLaw::Quadratic => ForceLaw::Quadratic,
         },
     }
+}
+
+/// The simulation's integrator for a scene's.
+pub fn integrator(i: lop_config::Integrator) -> Integrator {
+    match i {
+        lop_config::Integrator::ExplicitEuler => Integrator::ExplicitEuler,
+        lop_config::Integrator::SymplecticEuler => Integrator::SymplecticEuler,
+        lop_config::Integrator::Verlet => Integrator::Verlet,
+        lop_config::Integrator::Rk4 => Integrator::Rk4,
+        lop_config::Integrator::ImplicitEuler => Integrator::ImplicitEuler,
+    }
+}
+
+/// The model a body runs until the levels-of-precision controller exists: FEM when the body is
+/// pinned to FEM, or is important and not pinned to something else; mass-spring otherwise (a
+/// body pinned to GC runs mass-spring for now, with a note).
+pub fn body_model(
+    scene: &Scene,
+    spec: &BodySpec,
+    mesh: &TetMesh,
+    notes: &mut Vec<String>,
+) -> Result<Model> {
+    let wants_fem = match spec.model {
+        ModelPin::Fem => true,
+        ModelPin::Auto => spec.importance == lop_config::Importance::Important,
+        ModelPin::Msd | ModelPin::Gc => false,
+    };
+    if spec.model == ModelPin::Gc {
+        notes.push(format!(
+            "body {:?}: Green-coordinates cages are not available yet; running mass-spring",
+            spec.name
+        ));
+    }
+    if let (true, Some(fem)) = (wants_fem, &spec.fem) {
+        let params = FemParameters {
+            young: fem.young,
+            poisson: fem.poisson,
+            density: fem.density,
+            damping: fem.damping,
+            dt: fem.dt,
+            mode: match fem.mode {
+                lop_config::FemMode::Linear => FemMode::Linear,
+                lop_config::FemMode::Corotational => FemMode::Corotational,
+            },
+        };
+        let fem = Fem::new(mesh, params)
+            .with_context(|| format!("{}: body {:?}: FEM", scene.path.display(), spec.name))?;
+        return Ok(Model::Fem(fem));
+    }
+    let msd = spec.msd.as_ref().with_context(|| {
+        format!(
+            "{}: body {:?} has no [body.msd] parameters; it needs them to run mass-spring",
+            scene.path.display(),
+            spec.name
+        )
+    })?;
+    let params = MsdParameters {
+        stiffness: msd.stiffness,
+        mass: match msd.mass {
+            MassSpec::Density(d) => NodeMass::Density(d),
+            MassSpec::NodeMass(m) => NodeMass::PerNode(m),
+        },
+        damping: msd.damping,
+        dt: msd.dt,
+        integrator: integrator(msd.integrator),
+    };
+    Ok(Model::MassSpring(MassSpring::new(mesh, params)))
 }
 
 /// Loads every body's mesh, places it, and builds its mass-spring model.
@@ -80,28 +149,7 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
         }
         mesh.fixed.sort_unstable();
         mesh.fixed.dedup();
-        let msd = spec.msd.as_ref().with_context(|| {
-            format!(
-                "{}: body {:?} has no [body.msd] parameters; the deformation process needs them",
-                scene.path.display(),
-                spec.name
-            )
-        })?;
-        if msd.integrator != lop_config::Integrator::SymplecticEuler {
-            integrator_notes.push(format!(
-                "body {:?}: integrator {:?} is not available yet; using symplectic Euler",
-                spec.name, msd.integrator
-            ));
-        }
-        let params = MsdParameters {
-            stiffness: msd.stiffness,
-            mass: match msd.mass {
-                MassSpec::Density(d) => NodeMass::Density(d),
-                MassSpec::NodeMass(m) => NodeMass::PerNode(m),
-            },
-            damping: msd.damping,
-            dt: msd.dt,
-        };
+        let model = body_model(&scene, spec, &mesh, &mut integrator_notes)?;
         let bt = &mut topology.bodies[i];
         bt.set_name(&spec.name);
         bt.node_offset = node_offset as u32;
@@ -120,7 +168,7 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
         tets.extend(mesh.tets.iter().flatten().map(|&k| k + off));
         node_offsets.push(node_offset);
         node_offset += mesh.nodes.len();
-        world.add_body(&spec.name, mesh, params);
+        world.add_model(&spec.name, mesh, model);
     }
     topology.node_count = node_offset as u32;
     topology.triangle_count = (triangles.len() / 3) as u32;

@@ -1,0 +1,259 @@
+//! `lopd simulate`: run a scene offline — no device, no shared memory, no wall clock — and write
+//! what happened: per-step timings (`steps.csv`), final node positions (`final_<body>.vtk` and
+//! `final_positions.csv`) and a summary (`summary.json`).
+//!
+//! Every body takes steps of its own `dt`; `--steps N` means N steps of every body. A mock
+//! script (`--script`) moves the tool through the scene on simulated time, so a run is
+//! deterministic and can be compared bit for bit. `--static` solves the static equilibrium of the
+//! FEM bodies (K u = f) instead, for validation and calibration.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use lop_config::Scene;
+use lop_drivers::mock::MockScript;
+use lop_sim::mesh::{write_vtk, TetMesh};
+use lop_sim::model::Model;
+use serde::Serialize;
+
+use crate::scene::{self, tool_sphere};
+
+/// Options of `lopd simulate`.
+pub struct SimulateOptions {
+    /// The scene.
+    pub scene: Scene,
+    /// Steps per body (a cap with `until_converged`).
+    pub steps: u64,
+    /// Stop once every body has settled.
+    pub until_converged: bool,
+    /// Solve the static equilibrium of FEM bodies instead of stepping.
+    pub static_solve: bool,
+    /// Tool trajectory.
+    pub script: Option<PathBuf>,
+    /// Output directory.
+    pub out: PathBuf,
+}
+
+/// A body counts as settled below this largest nodal speed, m/s …
+pub const SETTLED_SPEED: f64 = 1e-4;
+/// … for this many consecutive steps.
+pub const SETTLED_STEPS: u32 = 20;
+
+#[derive(Serialize)]
+struct BodySummary {
+    name: String,
+    model: String,
+    nodes: usize,
+    steps: u64,
+    simulated_s: f64,
+    step_us_median: f64,
+    step_us_p99: f64,
+    step_us_max: f64,
+    kinetic_energy_j: f64,
+    max_speed_m_s: f64,
+    max_displacement_m: f64,
+    settled: bool,
+    resets: u32,
+    static_solve: Option<String>,
+}
+
+#[derive(Serialize)]
+struct Summary {
+    scene: String,
+    scene_path: String,
+    steps_per_body: u64,
+    until_converged: bool,
+    static_solve: bool,
+    script: Option<String>,
+    wall_s: f64,
+    bodies: Vec<BodySummary>,
+}
+
+fn percentile(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    let i = ((sorted.len() - 1) as f64 * q).round() as usize;
+    sorted[i.min(sorted.len() - 1)]
+}
+
+/// Runs the simulation and writes the outputs. Returns the summary path.
+pub fn run(opts: SimulateOptions) -> Result<PathBuf> {
+    std::fs::create_dir_all(&opts.out)
+        .with_context(|| format!("creating {}", opts.out.display()))?;
+    let script = match &opts.script {
+        Some(p) => Some(MockScript::load(p).map_err(anyhow::Error::from)?),
+        None => None,
+    };
+    let workspace = opts.scene.workspace.transform();
+    let tool_spec = opts.scene.tool.clone();
+    let loaded = scene::load(opts.scene)?;
+    for note in &loaded.integrator_notes {
+        tracing::warn!("{note}");
+    }
+    let scene_name = loaded.scene.name.clone();
+    let scene_path = loaded.scene.path.display().to_string();
+    let mut world = loaded.world;
+    let n_bodies = world.bodies.len();
+    let wall = Instant::now();
+
+    let mut static_results: Vec<Option<String>> = vec![None; n_bodies];
+    let mut times: Vec<Vec<f64>> = vec![Vec::new(); n_bodies];
+    let mut steps_done = vec![0u64; n_bodies];
+    let mut settled_for = vec![0u32; n_bodies];
+    let steps_csv = opts.out.join("steps.csv");
+    let mut csv = std::io::BufWriter::new(std::fs::File::create(&steps_csv)?);
+    writeln!(
+        csv,
+        "body,step,sim_time_s,model,step_us,kinetic_energy_j,max_speed_m_s,contact_force_n"
+    )?;
+
+    if opts.static_solve {
+        let gravity = world.gravity;
+        for (i, b) in world.bodies.iter_mut().enumerate() {
+            let t0 = Instant::now();
+            static_results[i] = Some(match &mut b.model {
+                Model::Fem(fem) => {
+                    let zero = vec![[0.0; 3]; b.mesh.nodes.len()];
+                    match fem.solve_static(gravity, &zero) {
+                        Ok(r) => format!("{r:?}"),
+                        Err(e) => bail!("body {:?}: static solve failed: {e}", b.name),
+                    }
+                }
+                _ => "skipped: not an FEM body".to_string(),
+            });
+            times[i].push(t0.elapsed().as_secs_f64() * 1e6);
+        }
+    } else {
+        for i in 0..n_bodies {
+            while steps_done[i] < opts.steps {
+                let t = world.bodies[i].time;
+                let tool = script.as_ref().map(|s| {
+                    let sample = s.sample(t);
+                    tool_sphere(&tool_spec, workspace.device_to_scene(sample.position_mm))
+                });
+                let t0 = Instant::now();
+                let r = world.step_body(i, tool.as_ref());
+                let us = t0.elapsed().as_secs_f64() * 1e6;
+                let b = &world.bodies[i];
+                if let Err(cause) = r {
+                    tracing::warn!(
+                        "body {:?} blew up at step {} ({cause:?}); reset",
+                        b.name,
+                        steps_done[i]
+                    );
+                }
+                times[i].push(us);
+                steps_done[i] += 1;
+                let f = b.last_contact.force_on_tissue;
+                writeln!(
+                    csv,
+                    "{},{},{:.6},{:?},{:.3},{:.6e},{:.6e},{:.6e}",
+                    b.name,
+                    steps_done[i],
+                    b.time,
+                    b.model.kind(),
+                    us,
+                    b.model.kinetic_energy(),
+                    b.model.max_speed(),
+                    (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
+                )?;
+                if opts.until_converged {
+                    if b.model.max_speed() < SETTLED_SPEED {
+                        settled_for[i] += 1;
+                    } else {
+                        settled_for[i] = 0;
+                    }
+                    if settled_for[i] >= SETTLED_STEPS {
+                        break;
+                    }
+                }
+            }
+        }
+    }
+    csv.flush()?;
+
+    // Final positions: VTK per body, one CSV for all.
+    let mut pos_csv =
+        std::io::BufWriter::new(std::fs::File::create(opts.out.join("final_positions.csv"))?);
+    writeln!(pos_csv, "body,node,x,y,z")?;
+    let mut bodies = Vec::new();
+    for (i, b) in world.bodies.iter().enumerate() {
+        let x = b.model.positions();
+        for (k, p) in x.iter().enumerate() {
+            writeln!(
+                pos_csv,
+                "{},{k},{:.9e},{:.9e},{:.9e}",
+                b.name, p[0], p[1], p[2]
+            )?;
+        }
+        let deformed = TetMesh {
+            nodes: x.to_vec(),
+            ..b.mesh.clone()
+        };
+        write_vtk(&deformed, &opts.out.join(format!("final_{}.vtk", b.name)))?;
+        let max_disp = x
+            .iter()
+            .zip(&b.mesh.nodes)
+            .map(|(p, q)| {
+                ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+            })
+            .fold(0.0, f64::max);
+        let mut sorted = times[i].clone();
+        sorted.sort_by(f64::total_cmp);
+        bodies.push(BodySummary {
+            name: b.name.clone(),
+            model: format!("{:?}", b.model.kind()),
+            nodes: x.len(),
+            steps: steps_done[i],
+            simulated_s: b.time,
+            step_us_median: percentile(&sorted, 0.5),
+            step_us_p99: percentile(&sorted, 0.99),
+            step_us_max: sorted.last().copied().unwrap_or(0.0),
+            kinetic_energy_j: b.model.kinetic_energy(),
+            max_speed_m_s: b.model.max_speed(),
+            max_displacement_m: max_disp,
+            settled: b.model.max_speed() < SETTLED_SPEED,
+            resets: b.resets,
+            static_solve: static_results[i].clone(),
+        });
+    }
+    pos_csv.flush()?;
+    let summary = Summary {
+        scene: scene_name,
+        scene_path,
+        steps_per_body: opts.steps,
+        until_converged: opts.until_converged,
+        static_solve: opts.static_solve,
+        script: opts.script.as_ref().map(|p| p.display().to_string()),
+        wall_s: wall.elapsed().as_secs_f64(),
+        bodies,
+    };
+    let path = opts.out.join("summary.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&summary)? + "\n")?;
+    print_summary(&summary, &opts.out);
+    Ok(path)
+}
+
+fn print_summary(s: &Summary, out: &Path) {
+    println!(
+        "{:<12} {:>5} {:>7} {:>11} {:>11} {:>12} {:>10} {:>8}",
+        "body", "model", "steps", "median µs", "p99 µs", "max disp m", "KE J", "settled"
+    );
+    for b in &s.bodies {
+        println!(
+            "{:<12} {:>5} {:>7} {:>11.1} {:>11.1} {:>12.4e} {:>10.2e} {:>8}",
+            b.name,
+            if b.model == "Fem" { "FEM" } else { "MSD" },
+            b.steps,
+            b.step_us_median,
+            b.step_us_p99,
+            b.max_displacement_m,
+            b.kinetic_energy_j,
+            b.settled
+        );
+    }
+    println!("wrote {}", out.display());
+}
