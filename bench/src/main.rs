@@ -8,7 +8,9 @@ use clap::{Parser, Subcommand};
 
 mod cyclictest;
 mod latency;
+mod models;
 mod pipeline;
+mod plot;
 mod table;
 
 #[derive(Parser)]
@@ -23,6 +25,9 @@ enum Command {
     /// End-to-end latency of the real pipeline (`lopd run` with the mock device): haptic jitter,
     /// tick compute, frame age, tool → deform and deform → client latency.
     Latency(latency::LatencyArgs),
+    /// Deformation models: time per step on the shipped meshes, scaling with mesh size, and the
+    /// thesis' chapter-3 integrator study (CSV + SVG plots).
+    Models(models::ModelsArgs),
 }
 
 fn main() -> ExitCode {
@@ -30,6 +35,7 @@ fn main() -> ExitCode {
     pipeline::install_stop_handler();
     let result = match cli.command {
         Command::Latency(a) => latency::run(a),
+        Command::Models(a) => models::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
