@@ -133,11 +133,9 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
     ALLOCATIONS.store(0, Ordering::Relaxed);
 
     let mut contact_ticks = 0;
-    let mut frames_seen = 0u64;
     for i in 0..10_000u64 {
         if i % 10 == 0 {
             publish_frame(i / 10 + 1);
-            frames_seen += 1;
         }
         let now = clock::monotonic_ns();
         let out = counted(|| hl.tick(&mut device, now, now));
@@ -152,7 +150,6 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
         contact_ticks > 500,
         "the poke must exercise the contact path ({contact_ticks})"
     );
-    assert!(frames_seen == 1000);
     assert_eq!(allocations, 0, "heap allocations on the haptic tick");
 
     // The counter does see allocations (the test can fail).

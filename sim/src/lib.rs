@@ -13,4 +13,5 @@ pub mod fem;
 pub mod mesh;
 pub mod model;
 pub mod msd;
+mod vec3;
 pub mod world;

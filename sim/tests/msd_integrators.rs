@@ -12,10 +12,11 @@
 //! On the shipped cylinder every integrator must reach the same static equilibrium, carry the
 //! tool's load to the supports, and step deterministically.
 
-use std::path::PathBuf;
+mod common;
 
+use common::{cylinder, shipped_mesh, support_reaction};
 use lop_sim::contact::{closest_on_surface, ForceLaw, ToolSphere};
-use lop_sim::mesh::{read_mesh, TetMesh};
+
 use lop_sim::model::BlowUp;
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass, SubstepPolicy};
 use lop_sim::world::World;
@@ -352,11 +353,6 @@ fn substep_policy() {
 // The shipped cylinder (thesis §6.1, Table 6.1's MSD column)
 // ---------------------------------------------------------------------------------------------
 
-fn cylinder() -> TetMesh {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes/cylinder");
-    read_mesh(&p).expect("shipped cylinder mesh")
-}
-
 fn cylinder_params(integrator: Integrator) -> MsdParameters {
     MsdParameters {
         stiffness: 700.0,
@@ -416,30 +412,6 @@ fn every_integrator_reaches_the_same_equilibrium() {
             "{integrator:?}: {diff} m from implicit Euler's equilibrium (sag {sag} m)"
         );
     }
-}
-
-/// Sum of spring forces acting on the fixed nodes (recomputed from positions).
-fn support_reaction(mesh: &TetMesh, x: &[[f64; 3]], k: f64) -> [f64; 3] {
-    let fixed: std::collections::HashSet<u32> = mesh.fixed.iter().copied().collect();
-    let mut r = [0.0; 3];
-    for [a, b] in mesh.edges() {
-        let (pa, pb) = (mesh.nodes[a as usize], mesh.nodes[b as usize]);
-        let rest =
-            ((pb[0] - pa[0]).powi(2) + (pb[1] - pa[1]).powi(2) + (pb[2] - pa[2]).powi(2)).sqrt();
-        let (xa, xb) = (x[a as usize], x[b as usize]);
-        let d = [xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]];
-        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        let f = k * (len - rest) / len;
-        for kk in 0..3 {
-            if fixed.contains(&a) {
-                r[kk] += f * d[kk];
-            }
-            if fixed.contains(&b) {
-                r[kk] -= f * d[kk];
-            }
-        }
-    }
-    r
 }
 
 #[test]
@@ -522,8 +494,7 @@ fn stiff_tool_on_milligram_nodes_is_stable() {
     // contact treatment itself (normal-implicit for explicit integrators, in the matrix for
     // implicit Euler). Explicit Euler is left out only for time: its damped-only stability
     // region needs ~40 000 sub-steps per step here.
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes/spleen");
-    let mesh = read_mesh(&path).expect("shipped spleen mesh");
+    let mesh = shipped_mesh("spleen");
     let top = mesh
         .surface_nodes()
         .into_iter()

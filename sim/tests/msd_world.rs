@@ -8,17 +8,12 @@
 //! - fixed nodes never move; stepping is deterministic bit for bit;
 //! - a blow-up is detected, the body reset, and nothing non-finite remains.
 
-use std::path::PathBuf;
+mod common;
 
+use common::{cylinder, support_reaction};
 use lop_sim::contact::{closest_on_surface, ForceLaw, ToolSphere};
-use lop_sim::mesh::{read_mesh, TetMesh};
 use lop_sim::msd::{Integrator, MsdParameters, NodeMass};
 use lop_sim::world::World;
-
-fn cylinder() -> TetMesh {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes/cylinder");
-    read_mesh(&p).expect("shipped cylinder mesh")
-}
 
 /// Table 6.1's MSD column.
 fn params() -> MsdParameters {
@@ -29,30 +24,6 @@ fn params() -> MsdParameters {
         dt: 0.02,
         integrator: Integrator::SymplecticEuler,
     }
-}
-
-/// Sum of spring forces acting on the fixed nodes (recomputed from positions).
-fn support_reaction(mesh: &TetMesh, x: &[[f64; 3]], k: f64) -> [f64; 3] {
-    let fixed: std::collections::HashSet<u32> = mesh.fixed.iter().copied().collect();
-    let mut r = [0.0; 3];
-    for [a, b] in mesh.edges() {
-        let (pa, pb) = (mesh.nodes[a as usize], mesh.nodes[b as usize]);
-        let rest =
-            ((pb[0] - pa[0]).powi(2) + (pb[1] - pa[1]).powi(2) + (pb[2] - pa[2]).powi(2)).sqrt();
-        let (xa, xb) = (x[a as usize], x[b as usize]);
-        let d = [xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]];
-        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        let f = k * (len - rest) / len; // force on a along d
-        for kk in 0..3 {
-            if fixed.contains(&a) {
-                r[kk] += f * d[kk];
-            }
-            if fixed.contains(&b) {
-                r[kk] -= f * d[kk];
-            }
-        }
-    }
-    r
 }
 
 #[test]

@@ -1,20 +1,6 @@
 //! Tetrahedron geometry: signed volume, edge lengths and the mean-ratio quality metric.
 
-pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
+pub(crate) use crate::vec3::{cross, dot, sub};
 
 /// Six times the signed volume: `(b-a)·((c-a)×(d-a))`.
 pub(crate) fn volume6(p: &[[f64; 3]; 4]) -> f64 {
