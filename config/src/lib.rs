@@ -74,6 +74,8 @@
 //! integrator = "implicit-euler"
 //!
 //! [body.gc]
+//! cage = "fitted"
+//! dynamics = "projected"
 //! stiffness = 50.0
 //! density = 20.0
 //! damping = 0.3
@@ -126,6 +128,19 @@
 //! |---|---|---|---|
 //! | `mock_script` | path | none | script the mock device plays when none is given on the command line; relative to the scene file. Checked by the mock driver when used, so the scene still loads on a rig with a real device |
 //!
+//! ## `[lop]` (optional): levels of precision (thesis §4.4)
+//! Bodies with `model = "auto"` run as a Green-coordinates cage while untouched, switch to their
+//! precise model (FEM if important, mass-spring otherwise) when the tool comes within 2 mm, and
+//! hand back to the cage once settled. The hand-over fits the cage to the precise shape and fades
+//! what the cage cannot represent out over `blend`, so nothing pops.
+//!
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `rest_speed` | float | `0.002` | m/s (> 0): a precise body is settled while its fastest node is slower than this … |
+//! | `hold` | float | `0.3` | … for this long without tool contact, s (>= 0) |
+//! | `blend` | float | `0.2` | s (>= 0): fade-out of the residual shape after a hand-over to the cage; 0 snaps |
+//! | `start` | `"gc"` \| `"precise"` | `"gc"` | level every `auto` body starts at; `precise` lets bodies settle under gravity precisely first (thesis fig. 6.5) |
+//!
 //! ## `[[body]]` (one or more)
 //! | key | type | default | meaning |
 //! |---|---|---|---|
@@ -142,7 +157,7 @@
 //! A body needs the parameter tables of every model it can run:
 //! - `[body.fem]` if `importance = "important"` or `model = "fem"`;
 //! - `[body.msd]` unless `model = "fem"`: mass-spring is every body's fallback;
-//! - `[body.gc]` if `model = "gc"`; optional otherwise.
+//! - `[body.gc]` optional: without it a cage runs with the defaults below.
 //!
 //! ### `[body.fem]`: linear tetrahedral FEM (thesis §4.2)
 //! | key | type | default | meaning |
@@ -167,12 +182,18 @@
 //! | `integrator` | string | `"symplectic-euler"` | `"explicit-euler"`, `"symplectic-euler"`, `"verlet"`, `"rk4"` or `"implicit-euler"`; explicit ones are stable only below a limit: symplectic Euler and Verlet need `dt < 2/ω_max`, which `dt < min over nodes of 2·sqrt(m / (2 Σk))` guarantees (Σk: stiffness of the node's springs); implicit Euler is stable at any `dt` |
 //!
 //! ### `[body.gc]`: Green-coordinates cage (thesis §4.3; Tables 6.1, 6.2)
+//! Used while the body rests under `model = "auto"`, and always under `model = "gc"`.
+//!
 //! | key | type | default | meaning |
 //! |---|---|---|---|
-//! | `stiffness` | float | required | N/m (> 0) |
-//! | `density` | float | required | kg/m³ (> 0) |
-//! | `damping` | float | required | N·s/m per node (>= 0) |
-//! | `dt` | float | required | time step, s (0 < dt <= 1) |
+//! | `cage` | `"fitted"` \| `"box"` \| `"subdivided-box"` | `"fitted"` | `fitted`: the padded bounding box cut into roughly cubic cells, `round(extent / smallest extent)` segments per axis (a cylinder twice as tall as wide gets 1 × 2 × 1); `box`: the thesis' padded bounding box (8 vertices, 12 triangles), cheapest, but a long body cannot bend inside it; `subdivided-box`: the box with each edge cut into `subdivisions` segments (`6n²+2` vertices), closest to the precise model, dearest per step |
+//! | `subdivisions` | integer | `2` | segments per edge for `subdivided-box` (1..=8) |
+//! | `padding` | float | 5 % of the body's smallest extent | m (> 0): gap between the body's bounding box and the cage (no node may lie on the cage) |
+//! | `dynamics` | `"projected"` \| `"mass-spring"` | `"projected"` | `projected`: the body's precise model (FEM if important, else mass-spring) projected onto the cage's motions, nothing to tune, the accurate default; `mass-spring`: the thesis' cage with the hand-tuned parameters below |
+//! | `stiffness` | float | required for `mass-spring` | N/m (> 0), between every pair of cage vertices |
+//! | `density` | float | required for `mass-spring` | kg/m³ (> 0): cage volume × density, shared by its vertices |
+//! | `damping` | float | required for `mass-spring` | N·s/m per cage vertex (>= 0) |
+//! | `dt` | float | the precise model's `dt` | time step, s (0 < dt <= 1) |
 //!
 //! # Daemon configuration
 //!
@@ -218,7 +239,8 @@ pub use resolve::{
     scene_dirs, script_dirs,
 };
 pub use scene::{
-    load_scene, parse_scene, BodySpec, DeviceDefaults, FemMode, FemParams, ForceLaw, GcParams,
-    Importance, Integrator, MassSpec, ModelPin, MsdParams, Rates, Scene, ToolSpec,
+    load_scene, parse_scene, BodySpec, CageKind, DeviceDefaults, FemMode, FemParams, ForceLaw,
+    GcDynamics, GcParams, Importance, Integrator, LopSpec, MassSpec, ModelPin, MsdParams, Rates,
+    Scene, StartLevel, ToolSpec,
 };
 pub use workspace::{mat_t_vec, mat_vec, rotation_xyz_deg, Mat3, WorkspaceMap, WorkspaceTransform};

@@ -3,7 +3,9 @@
 
 use serde::Deserialize;
 
-use crate::scene::{FemMode, ForceLaw, Importance, Integrator, ModelPin};
+use crate::scene::{
+    CageKind, FemMode, ForceLaw, GcDynamics, Importance, Integrator, ModelPin, StartLevel,
+};
 
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -19,7 +21,18 @@ pub(crate) struct RawScene {
     #[serde(default)]
     pub device: RawDevice,
     #[serde(default)]
+    pub lop: RawLop,
+    #[serde(default)]
     pub body: Vec<RawBody>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawLop {
+    pub rest_speed: Option<f64>,
+    pub hold: Option<f64>,
+    pub blend: Option<f64>,
+    pub start: Option<StartLevel>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -105,10 +118,14 @@ pub(crate) struct RawMsd {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct RawGc {
-    pub stiffness: f64,
-    pub density: f64,
-    pub damping: f64,
-    pub dt: f64,
+    pub cage: Option<CageKind>,
+    pub subdivisions: Option<i64>,
+    pub padding: Option<f64>,
+    pub dynamics: Option<GcDynamics>,
+    pub stiffness: Option<f64>,
+    pub density: Option<f64>,
+    pub damping: Option<f64>,
+    pub dt: Option<f64>,
 }
 
 #[derive(Debug, Default, Deserialize)]

@@ -9,7 +9,7 @@ use serde::Deserialize;
 use crate::check::{fmt_f64, fmt_f64s, Check};
 use crate::error::ConfigError;
 use crate::raw::{
-    RawBody, RawDevice, RawFem, RawGc, RawMsd, RawRates, RawScene, RawTool, RawWorkspace,
+    RawBody, RawDevice, RawFem, RawGc, RawLop, RawMsd, RawRates, RawScene, RawTool, RawWorkspace,
 };
 use crate::source::{KeyPath, Source};
 use crate::workspace::{mat_vec, rotation_xyz_deg, WorkspaceMap};
@@ -35,6 +35,8 @@ pub struct Scene {
     pub rates: Rates,
     /// Device defaults for this scene.
     pub device: DeviceDefaults,
+    /// When bodies switch between their levels of precision.
+    pub lop: LopSpec,
 }
 
 impl Scene {
@@ -195,17 +197,102 @@ pub struct MsdParams {
     pub integrator: Integrator,
 }
 
+/// Shape of a body's Green-coordinates cage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CageKind {
+    /// The padded bounding box cut into roughly cubic cells (each axis gets
+    /// `round(extent / smallest extent)` segments): a long body can bend along its length.
+    #[default]
+    Fitted,
+    /// The thesis' cage: the padded bounding box, 8 vertices and 12 triangles.
+    Box,
+    /// The padded bounding box with every edge cut into `subdivisions` segments.
+    SubdividedBox,
+}
+
+/// What moves a body's cage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GcDynamics {
+    /// The body's precise model (FEM if important, else mass-spring) projected onto the cage:
+    /// nothing to tune.
+    #[default]
+    Projected,
+    /// The thesis' mass-spring cage with the hand-tuned `stiffness`, `density` and `damping`.
+    MassSpring,
+}
+
+/// Which level of precision bodies start at.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StartLevel {
+    /// The cage (thesis §4.4).
+    #[default]
+    Gc,
+    /// The precise model, handing over to the cage once settled.
+    Precise,
+}
+
 /// Green-coordinates cage parameters (thesis §4.3, Tables 6.1 and 6.2).
 #[derive(Debug, Clone, PartialEq)]
 pub struct GcParams {
-    /// Cage stiffness, N/m (> 0).
-    pub stiffness: f64,
-    /// Density, kg/m³ (> 0).
-    pub density: f64,
-    /// Damping, N·s/m per node (>= 0).
-    pub damping: f64,
-    /// Time step, s (0 < dt <= 1).
-    pub dt: f64,
+    /// Cage shape.
+    pub cage: CageKind,
+    /// Segments per box edge for [`CageKind::SubdividedBox`] (1..=8).
+    pub subdivisions: u32,
+    /// Gap between the body's bounding box and the cage, m (> 0); `None`: 5 % of the body's
+    /// smallest extent.
+    pub padding: Option<f64>,
+    /// What moves the cage.
+    pub dynamics: GcDynamics,
+    /// Mass-spring cage: spring stiffness, N/m (> 0). Required for `mass-spring`.
+    pub stiffness: Option<f64>,
+    /// Mass-spring cage: density, kg/m³ (> 0). Required for `mass-spring`.
+    pub density: Option<f64>,
+    /// Mass-spring cage: damping, N·s/m per cage vertex (>= 0). Required for `mass-spring`.
+    pub damping: Option<f64>,
+    /// Time step, s (0 < dt <= 1); `None`: the body's precise model's.
+    pub dt: Option<f64>,
+}
+
+impl Default for GcParams {
+    fn default() -> Self {
+        GcParams {
+            cage: CageKind::Fitted,
+            subdivisions: 2,
+            padding: None,
+            dynamics: GcDynamics::Projected,
+            stiffness: None,
+            density: None,
+            damping: None,
+            dt: None,
+        }
+    }
+}
+
+/// Levels-of-precision switching (thesis §4.4, fig. 4.4), `[lop]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LopSpec {
+    /// A precise body counts as settled below this largest nodal speed, m/s (> 0) …
+    pub rest_speed: f64,
+    /// … held this long without contact before it hands over to its cage, s (>= 0).
+    pub hold: f64,
+    /// The shape the cage cannot represent fades out over this long after a hand-over, s (>= 0).
+    pub blend: f64,
+    /// Level every `auto` body starts at.
+    pub start: StartLevel,
+}
+
+impl Default for LopSpec {
+    fn default() -> Self {
+        LopSpec {
+            rest_speed: 2e-3,
+            hold: 0.3,
+            blend: 0.2,
+            start: StartLevel::Gc,
+        }
+    }
 }
 
 /// The tool: a sphere driven by the device, rendered as a god-object.
@@ -321,6 +408,7 @@ fn validate_scene(src: &Source<'_>, raw: RawScene) -> Result<Scene, ConfigError>
     let workspace = validate_workspace(&c, raw.workspace)?;
     let rates = validate_rates(&c, raw.rates)?;
     let device = validate_device(&c, raw.device, &dir)?;
+    let lop = validate_lop(&c, raw.lop)?;
 
     if raw.body.is_empty() {
         return Err(c.invalid(
@@ -358,6 +446,26 @@ fn validate_scene(src: &Source<'_>, raw: RawScene) -> Result<Scene, ConfigError>
         workspace,
         rates,
         device,
+        lop,
+    })
+}
+
+fn validate_lop(c: &Check<'_, '_>, raw: RawLop) -> Result<LopSpec, ConfigError> {
+    let k = KeyPath::top("lop");
+    let d = LopSpec::default();
+    Ok(LopSpec {
+        rest_speed: c.positive(
+            &k.key("rest_speed"),
+            raw.rest_speed.unwrap_or(d.rest_speed),
+            "rest speed (m/s)",
+        )?,
+        hold: c.non_negative(&k.key("hold"), raw.hold.unwrap_or(d.hold), "hold time (s)")?,
+        blend: c.non_negative(
+            &k.key("blend"),
+            raw.blend.unwrap_or(d.blend),
+            "blend time (s)",
+        )?,
+        start: raw.start.unwrap_or(d.start),
     })
 }
 
@@ -524,14 +632,6 @@ fn validate_body(
              fallback model of every body",
         ));
     }
-    if rb.gc.is_none() && model == ModelPin::Gc {
-        return Err(c.invalid(
-            &key.key("gc"),
-            "(missing)",
-            "model = \"gc\" needs a [body.gc] table",
-        ));
-    }
-
     let translate = c.finite3(
         &key.key("translate"),
         rb.translate.unwrap_or([0.0; 3]),
@@ -651,11 +751,51 @@ fn validate_msd(c: &Check<'_, '_>, k: &KeyPath, raw: RawMsd) -> Result<MsdParams
 }
 
 fn validate_gc(c: &Check<'_, '_>, k: &KeyPath, raw: RawGc) -> Result<GcParams, ConfigError> {
+    let dynamics = raw.dynamics.unwrap_or_default();
+    let subdivisions = match raw.subdivisions {
+        None => 2,
+        Some(n) if (1..=8).contains(&n) => n as u32,
+        Some(n) => {
+            return Err(c.invalid(
+                &k.key("subdivisions"),
+                n.to_string(),
+                "subdivisions must be 1..=8 segments per cage edge (8 gives 386 cage vertices)",
+            ))
+        }
+    };
+    let padding = raw
+        .padding
+        .map(|p| c.positive(&k.key("padding"), p, "cage padding (m)"))
+        .transpose()?;
+    let need = |key: &str, v: Option<f64>| -> Result<Option<f64>, ConfigError> {
+        match (dynamics, v) {
+            (GcDynamics::MassSpring, None) => Err(c.invalid(
+                &k.key(key),
+                "(missing)",
+                format!("dynamics = \"mass-spring\" needs the cage's {key}"),
+            )),
+            _ => Ok(v),
+        }
+    };
+    let stiffness = need("stiffness", raw.stiffness)?
+        .map(|v| c.positive(&k.key("stiffness"), v, "GC stiffness (N/m)"))
+        .transpose()?;
+    let density = need("density", raw.density)?
+        .map(|v| c.positive(&k.key("density"), v, "GC density (kg/m³)"))
+        .transpose()?;
+    let damping = need("damping", raw.damping)?
+        .map(|v| c.non_negative(&k.key("damping"), v, "GC damping (N·s/m)"))
+        .transpose()?;
+    let dt = raw.dt.map(|v| c.time_step(&k.key("dt"), v)).transpose()?;
     Ok(GcParams {
-        stiffness: c.positive(&k.key("stiffness"), raw.stiffness, "GC stiffness (N/m)")?,
-        density: c.positive(&k.key("density"), raw.density, "GC density (kg/m³)")?,
-        damping: c.non_negative(&k.key("damping"), raw.damping, "GC damping (N·s/m)")?,
-        dt: c.time_step(&k.key("dt"), raw.dt)?,
+        cage: raw.cage.unwrap_or_default(),
+        subdivisions,
+        padding,
+        dynamics,
+        stiffness,
+        density,
+        damping,
+        dt,
     })
 }
 

@@ -164,13 +164,32 @@ fn body_without_msd() {
 }
 
 #[test]
-fn gc_pin_needs_gc() {
+fn mass_spring_cage_needs_its_parameters() {
     expect_err(
         &good_with(
             "name = \"b\"\nmesh = \"m\"\n",
-            "name = \"b\"\nmesh = \"m\"\nmodel = \"gc\"\n",
+            "name = \"b\"\nmesh = \"m\"\nmodel = \"gc\"\n[body.gc]\ndynamics = \"mass-spring\"\nstiffness = 50.0\n",
         ),
-        &["body[1].gc", "(missing)"],
+        &["body[1].gc.density", "(missing)", "mass-spring"],
+    );
+}
+
+#[test]
+fn cage_subdivisions_out_of_range() {
+    expect_err(
+        &good_with(
+            "name = \"b\"\nmesh = \"m\"\n",
+            "name = \"b\"\nmesh = \"m\"\n[body.gc]\ncage = \"subdivided-box\"\nsubdivisions = 0\n",
+        ),
+        &["body[1].gc.subdivisions", "0", "1..=8"],
+    );
+}
+
+#[test]
+fn lop_rest_speed_must_be_positive() {
+    expect_err(
+        &format!("[lop]\nrest_speed = -1.0\n{}", good_with("", "")),
+        &["lop.rest_speed", "-1"],
     );
 }
 

@@ -99,7 +99,7 @@ fn cylinders_match_table_6_1() {
         let gc = b.gc.as_ref().unwrap();
         assert_eq!(
             (gc.stiffness, gc.density, gc.damping, gc.dt),
-            (50.0, 20.0, 0.3, 0.02)
+            (Some(50.0), Some(20.0), Some(0.3), Some(0.02))
         );
     }
 }
@@ -129,7 +129,7 @@ fn organs_match_table_6_2() {
         let gc = b.gc.as_ref().unwrap();
         assert_eq!(
             (gc.stiffness, gc.density, gc.damping, gc.dt),
-            (50.0, 20.0, 0.3, 0.02)
+            (Some(50.0), Some(20.0), Some(0.3), Some(0.02))
         );
         assert_eq!(b.msd.as_ref().unwrap().mass, MassSpec::Density(10.0));
     }

@@ -81,11 +81,7 @@ pub fn run(opts: DeformOptions) -> Result<()> {
         mut topology,
         topology_indices,
         node_offsets,
-        integrator_notes,
     } = scene::load(opts.scene)?;
-    for note in &integrator_notes {
-        tracing::warn!("{note}");
-    }
     let names = opts.names;
     let node = services::node("lopd-deform")?;
     let cleaned = services::cleanup_dead_nodes(&node);
@@ -180,7 +176,7 @@ pub fn run(opts: DeformOptions) -> Result<()> {
         let sim_now = (now - start) as f64 * 1e-9;
         let step_start = rt::now_ns();
         let mut stepped = false;
-        for i in 0..world.bodies.len() {
+        for (i, last_ns) in step_ns.iter_mut().enumerate() {
             let mut steps = 0;
             while world.body_due(i, sim_now) && steps < MAX_CATCH_UP {
                 let t0 = rt::now_ns();
@@ -190,7 +186,8 @@ pub fn run(opts: DeformOptions) -> Result<()> {
                         world.bodies[i].name
                     );
                 }
-                step_ns[i] = (rt::now_ns() - t0).min(u32::MAX as u64) as u32;
+                *last_ns = (rt::now_ns() - t0).min(u32::MAX as u64) as u32;
+                log_switch(&mut world.bodies[i]);
                 steps += 1;
                 stepped = true;
             }
@@ -231,11 +228,15 @@ pub fn run(opts: DeformOptions) -> Result<()> {
             bf.max_speed = speed as f32;
             bf.step_ns = step_ns[i];
             bf.resets = b.resets;
-            bf.model = match b.model.kind() {
-                ModelKind::MassSpring => BodyModel::Msd,
-                ModelKind::Fem => BodyModel::Fem,
-            } as u8;
-            bf.state = if b.last_contact.depth > 0.0 || speed > REST_SPEED {
+            bf.model = body_model(b.model.kind()) as u8;
+            bf.switches = b.lop.as_ref().map_or(0, |l| l.switches());
+            // Under the controller the level is the state; a pinned body is active while it
+            // moves or is touched.
+            let active = match &b.lop {
+                Some(_) => b.model.kind() != ModelKind::Gc,
+                None => b.last_contact.depth > 0.0 || speed > REST_SPEED,
+            };
+            bf.state = if active {
                 BODY_STATE_ACTIVE
             } else {
                 BODY_STATE_REST
@@ -261,6 +262,32 @@ pub fn run(opts: DeformOptions) -> Result<()> {
     }
     tracing::info!("deformation stopped after {sequence} frames");
     Ok(())
+}
+
+/// The wire's model code.
+pub fn body_model(kind: ModelKind) -> BodyModel {
+    match kind {
+        ModelKind::MassSpring => BodyModel::Msd,
+        ModelKind::Fem => BodyModel::Fem,
+        ModelKind::Gc => BodyModel::Gc,
+    }
+}
+
+/// Logs a body's levels-of-precision transition, if it just made one.
+fn log_switch(b: &mut lop_sim::world::Body) {
+    let Some(sw) = b.lop.as_mut().and_then(|l| l.take_switch()) else {
+        return;
+    };
+    tracing::info!(
+        "{}: {} -> {} ({:?}) at t = {:.2} s; jump {:.2e} m, cage fit residual {:.2e} m (blended)",
+        b.name,
+        body_model(sw.from).as_str(),
+        body_model(sw.to).as_str(),
+        sw.reason,
+        sw.time,
+        sw.jump,
+        sw.residual
+    );
 }
 
 fn bounds(p: &[[f64; 3]]) -> ([f32; 3], [f32; 3]) {

@@ -617,13 +617,10 @@ pub fn run_publisher(
     }
 }
 
+/// Both ends of a lock-free ring.
+pub type Ring<T> = (rtrb::Producer<T>, rtrb::Consumer<T>);
+
 /// Creates the two rings between the RT thread and the publisher thread.
-pub fn rings() -> (
-    (rtrb::Producer<ToolState>, rtrb::Consumer<ToolState>),
-    (
-        rtrb::Producer<HapticTelemetry>,
-        rtrb::Consumer<HapticTelemetry>,
-    ),
-) {
+pub fn rings() -> (Ring<ToolState>, Ring<HapticTelemetry>) {
     (rtrb::RingBuffer::new(TOOL_RING), rtrb::RingBuffer::new(16))
 }

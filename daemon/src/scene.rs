@@ -9,6 +9,7 @@ use lop_ipc::{
 };
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::{Fem, FemMode, FemParameters};
+use lop_sim::lop::{CageDynamics, CageShape, GcModel, GcParameters, Lop, LopPolicy, StartLevel};
 use lop_sim::mesh::{read_mesh, TetMesh};
 use lop_sim::model::Model;
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
@@ -26,8 +27,6 @@ pub struct LoadedScene {
     pub topology_indices: Vec<u32>,
     /// Node offset of each body in a frame.
     pub node_offsets: Vec<usize>,
-    /// Scene names of integrators requested but not available yet, for one warning each.
-    pub integrator_notes: Vec<String>,
 }
 
 /// The tool sphere of a scene at `center`.
@@ -54,26 +53,14 @@ pub fn integrator(i: lop_config::Integrator) -> Integrator {
     }
 }
 
-/// The model a body runs until the levels-of-precision controller exists: FEM when the body is
-/// pinned to FEM, or is important and not pinned to something else; mass-spring otherwise (a
-/// body pinned to GC runs mass-spring for now, with a note).
-pub fn body_model(
-    scene: &Scene,
-    spec: &BodySpec,
-    mesh: &TetMesh,
-    notes: &mut Vec<String>,
-) -> Result<Model> {
+/// The precise model of a body: FEM when it is pinned to FEM, or is important and not pinned
+/// to mass-spring; mass-spring otherwise.
+pub fn precise_model(scene: &Scene, spec: &BodySpec, mesh: &TetMesh) -> Result<Model> {
     let wants_fem = match spec.model {
         ModelPin::Fem => true,
-        ModelPin::Auto => spec.importance == lop_config::Importance::Important,
-        ModelPin::Msd | ModelPin::Gc => false,
+        ModelPin::Auto | ModelPin::Gc => spec.importance == lop_config::Importance::Important,
+        ModelPin::Msd => false,
     };
-    if spec.model == ModelPin::Gc {
-        notes.push(format!(
-            "body {:?}: Green-coordinates cages are not available yet; running mass-spring",
-            spec.name
-        ));
-    }
     if let (true, Some(fem)) = (wants_fem, &spec.fem) {
         let params = FemParameters {
             young: fem.young,
@@ -110,6 +97,86 @@ pub fn body_model(
     Ok(Model::MassSpring(MassSpring::new(mesh, params)))
 }
 
+/// Padding of a cage when the scene gives none: 5 % of the body's smallest extent (the cage
+/// must not touch a node, and a snug cage follows the body best).
+pub const DEFAULT_CAGE_PADDING: f64 = 0.05;
+
+/// The GC parameters of a body (`[body.gc]`, or the defaults), for a precise model of step
+/// `precise_dt`.
+pub fn gc_parameters(spec: &BodySpec, mesh: &TetMesh, precise_dt: f64) -> GcParameters {
+    let gc = spec.gc.clone().unwrap_or_default();
+    let padding = gc
+        .padding
+        .unwrap_or_else(|| DEFAULT_CAGE_PADDING * smallest_extent(&mesh.nodes));
+    GcParameters {
+        shape: match gc.cage {
+            lop_config::CageKind::Fitted => CageShape::Fitted,
+            lop_config::CageKind::Box => CageShape::Box,
+            lop_config::CageKind::SubdividedBox => {
+                CageShape::SubdividedBox(gc.subdivisions as usize)
+            }
+        },
+        padding,
+        dynamics: match gc.dynamics {
+            lop_config::GcDynamics::Projected => CageDynamics::Projected,
+            lop_config::GcDynamics::MassSpring => CageDynamics::MassSpring {
+                stiffness: gc.stiffness.unwrap_or(50.0),
+                density: gc.density.unwrap_or(20.0),
+                damping: gc.damping.unwrap_or(0.3),
+            },
+        },
+        dt: gc.dt.unwrap_or(precise_dt),
+    }
+}
+
+/// The controller policy of a scene.
+pub fn lop_policy(scene: &Scene) -> LopPolicy {
+    LopPolicy {
+        rest_speed: scene.lop.rest_speed,
+        hold: scene.lop.hold,
+        blend: scene.lop.blend,
+        start: match scene.lop.start {
+            lop_config::StartLevel::Gc => StartLevel::Gc,
+            lop_config::StartLevel::Precise => StartLevel::Precise,
+        },
+    }
+}
+
+/// Smallest extent of the bounding box of `p`, m.
+pub fn smallest_extent(p: &[[f64; 3]]) -> f64 {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for x in p {
+        for a in 0..3 {
+            lo[a] = lo[a].min(x[a]);
+            hi[a] = hi[a].max(x[a]);
+        }
+    }
+    (0..3).map(|a| hi[a] - lo[a]).fold(f64::INFINITY, f64::min)
+}
+
+/// A body's models: the one to run now and, for `model = "auto"`, the levels-of-precision
+/// controller holding the other. Pinned bodies get no controller.
+pub fn body_models(scene: &Scene, spec: &BodySpec, mesh: &TetMesh) -> Result<(Model, Option<Lop>)> {
+    let precise = precise_model(scene, spec, mesh)?;
+    if matches!(spec.model, ModelPin::Msd | ModelPin::Fem) {
+        return Ok((precise, None));
+    }
+    let params = gc_parameters(spec, mesh, precise.dt());
+    let gc = GcModel::from_precise(mesh, params, &precise).with_context(|| {
+        format!(
+            "{}: body {:?}: Green-coordinates cage",
+            scene.path.display(),
+            spec.name
+        )
+    })?;
+    if spec.model == ModelPin::Gc {
+        return Ok((Model::Gc(Box::new(gc)), None));
+    }
+    let (active, lop) = Lop::new(precise, gc, lop_policy(scene));
+    Ok((active, Some(lop)))
+}
+
 /// Loads every body's mesh, places it, and builds its mass-spring model.
 pub fn load(scene: Scene) -> Result<LoadedScene> {
     if scene.bodies.len() > MAX_BODIES {
@@ -128,7 +195,6 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
     let mut triangles: Vec<u32> = Vec::new();
     let mut tets: Vec<u32> = Vec::new();
     let mut node_offsets = Vec::new();
-    let mut integrator_notes = Vec::new();
     let mut node_offset = 0usize;
     for (i, spec) in scene.bodies.iter().enumerate() {
         let mut mesh = read_mesh(&spec.mesh)
@@ -149,7 +215,7 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
         }
         mesh.fixed.sort_unstable();
         mesh.fixed.dedup();
-        let model = body_model(&scene, spec, &mesh, &mut integrator_notes)?;
+        let (model, lop) = body_models(&scene, spec, &mesh)?;
         let bt = &mut topology.bodies[i];
         bt.set_name(&spec.name);
         bt.node_offset = node_offset as u32;
@@ -168,7 +234,10 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
         tets.extend(mesh.tets.iter().flatten().map(|&k| k + off));
         node_offsets.push(node_offset);
         node_offset += mesh.nodes.len();
-        world.add_model(&spec.name, mesh, model);
+        match lop {
+            Some(lop) => world.add_lop_body(&spec.name, mesh, model, lop),
+            None => world.add_model(&spec.name, mesh, model),
+        };
     }
     topology.node_count = node_offset as u32;
     topology.triangle_count = (triangles.len() / 3) as u32;
@@ -181,6 +250,5 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
         topology,
         topology_indices,
         node_offsets,
-        integrator_notes,
     })
 }

@@ -14,6 +14,7 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use lop_config::Scene;
 use lop_drivers::mock::MockScript;
+use lop_sim::lop::SwitchReason;
 use lop_sim::mesh::{write_vtk, TetMesh};
 use lop_sim::model::Model;
 use serde::Serialize;
@@ -56,6 +57,8 @@ struct BodySummary {
     max_displacement_m: f64,
     settled: bool,
     resets: u32,
+    /// Levels-of-precision transitions (0 for a pinned body).
+    switches: u32,
     static_solve: Option<String>,
 }
 
@@ -90,9 +93,6 @@ pub fn run(opts: SimulateOptions) -> Result<PathBuf> {
     let workspace = opts.scene.workspace.transform();
     let tool_spec = opts.scene.tool.clone();
     let loaded = scene::load(opts.scene)?;
-    for note in &loaded.integrator_notes {
-        tracing::warn!("{note}");
-    }
     let scene_name = loaded.scene.name.clone();
     let scene_path = loaded.scene.path.display().to_string();
     let mut world = loaded.world;
@@ -113,6 +113,10 @@ pub fn run(opts: SimulateOptions) -> Result<PathBuf> {
     if opts.static_solve {
         let gravity = world.gravity;
         for (i, b) in world.bodies.iter_mut().enumerate() {
+            // A body under the controller solves with its precise model.
+            if let Some(lop) = &mut b.lop {
+                lop.to_precise(&mut b.model, b.time, SwitchReason::Requested);
+            }
             let t0 = Instant::now();
             static_results[i] = Some(match &mut b.model {
                 Model::Fem(fem) => {
@@ -217,6 +221,7 @@ pub fn run(opts: SimulateOptions) -> Result<PathBuf> {
             max_displacement_m: max_disp,
             settled: b.model.max_speed() < SETTLED_SPEED,
             resets: b.resets,
+            switches: b.lop.as_ref().map_or(0, |l| l.switches()),
             static_solve: static_results[i].clone(),
         });
     }
@@ -246,7 +251,11 @@ fn print_summary(s: &Summary, out: &Path) {
         println!(
             "{:<12} {:>5} {:>7} {:>11.1} {:>11.1} {:>12.4e} {:>10.2e} {:>8}",
             b.name,
-            if b.model == "Fem" { "FEM" } else { "MSD" },
+            match b.model.as_str() {
+                "Fem" => "FEM",
+                "Gc" => "GC",
+                _ => "MSD",
+            },
             b.steps,
             b.step_us_median,
             b.step_us_p99,

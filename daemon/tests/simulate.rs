@@ -24,15 +24,17 @@ fn offline_run_writes_outputs_and_is_deterministic() {
     let args = ["--steps", "60", "--script", "cylinders-poke"];
     let table = simulate(&a, &args);
     simulate(&b, &args);
-    // cylinder_a is important → FEM; cylinder_b → mass-spring.
-    assert!(
-        table.contains("cylinder_a") && table.contains("FEM"),
-        "{table}"
-    );
-    assert!(
-        table.contains("cylinder_b") && table.contains("MSD"),
-        "{table}"
-    );
+    // Levels of precision: the poked cylinder_a (important) switched from its cage to FEM;
+    // cylinder_b, never touched, still runs as its cage.
+    let row = |name: &str| {
+        table
+            .lines()
+            .find(|l| l.starts_with(name))
+            .unwrap_or_else(|| panic!("no {name} row: {table}"))
+            .to_string()
+    };
+    assert!(row("cylinder_a").contains(" FEM "), "{table}");
+    assert!(row("cylinder_b").contains(" GC "), "{table}");
     let fa = std::fs::read(a.join("final_positions.csv")).unwrap();
     let fb = std::fs::read(b.join("final_positions.csv")).unwrap();
     assert_eq!(fa, fb, "two identical runs differ");
@@ -50,6 +52,7 @@ fn offline_run_writes_outputs_and_is_deterministic() {
     }
     let summary = std::fs::read_to_string(a.join("summary.json")).unwrap();
     assert!(summary.contains("\"steps\": 60"), "{summary}");
+    assert!(summary.contains("\"switches\": 1"), "{summary}");
     // Gravity sags the free cylinders' tops: some node moved.
     assert!(
         !summary.contains("\"max_displacement_m\": 0.0,"),

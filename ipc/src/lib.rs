@@ -19,6 +19,6 @@ pub mod types;
 pub use services::{ServiceNames, SERVICE_PREFIX_DEFAULT};
 pub use types::*;
 
-/// Version of the payload layouts. Bumped whenever a type in [`types`] changes shape or meaning;
+/// Version of the payload layouts (2: `BodyFrame::switches`). Bumped whenever a type in [`types`] changes shape or meaning;
 /// every payload carries it so a reader can refuse data it does not understand.
-pub const CONTRACT_VERSION: u32 = 1;
+pub const CONTRACT_VERSION: u32 = 2;

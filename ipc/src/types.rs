@@ -122,8 +122,8 @@ pub struct BodyFrame {
     pub state: u8,
     /// Padding, zero.
     pub _pad: [u8; 2],
-    /// Padding, zero.
-    pub _pad2: u32,
+    /// Levels-of-precision transitions (cage ↔ precise model) since the scene loaded.
+    pub switches: u32,
 }
 
 /// User header of a scene frame (`PREFIX/scene/frame`); the payload is `[NodeSample]` with

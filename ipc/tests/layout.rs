@@ -10,7 +10,7 @@ use lop_ipc::*;
 
 #[test]
 fn contract_version_is_one() {
-    assert_eq!(CONTRACT_VERSION, 1);
+    assert_eq!(CONTRACT_VERSION, 2);
 }
 
 #[test]
@@ -45,7 +45,7 @@ fn frame_layout() {
     assert_eq!(offset_of!(BodyFrame, resets), 36);
     assert_eq!(offset_of!(BodyFrame, model), 40);
     assert_eq!(offset_of!(BodyFrame, state), 41);
-    assert_eq!(offset_of!(BodyFrame, _pad2), 44);
+    assert_eq!(offset_of!(BodyFrame, switches), 44);
 
     assert_eq!(size_of::<FrameHeader>(), 72 + 48 * MAX_BODIES);
     assert_eq!(align_of::<FrameHeader>(), 8);

@@ -11,6 +11,7 @@
 //!   to rest and returns the cause, so nothing non-finite ever leaves it.
 
 use crate::contact::ToolSphere;
+use crate::lop::{Damping, GcModel};
 use crate::msd::MassSpring;
 
 /// The tool's contact with a body during one step: the penalty spring is integrated inside the
@@ -56,6 +57,8 @@ pub enum ModelKind {
     MassSpring,
     /// Finite elements.
     Fem,
+    /// Green-coordinates cage.
+    Gc,
 }
 
 /// A body's deformation model.
@@ -65,6 +68,8 @@ pub enum Model {
     MassSpring(MassSpring),
     /// Finite elements (linear or corotational).
     Fem(crate::fem::Fem),
+    /// Green-coordinates cage (boxed: it is large and rarely moved).
+    Gc(Box<GcModel>),
 }
 
 macro_rules! dispatch {
@@ -72,6 +77,7 @@ macro_rules! dispatch {
         match $self {
             Model::MassSpring($m) => $e,
             Model::Fem($m) => $e,
+            Model::Gc($m) => $e,
         }
     };
 }
@@ -82,6 +88,7 @@ impl Model {
         match self {
             Model::MassSpring(_) => ModelKind::MassSpring,
             Model::Fem(_) => ModelKind::Fem,
+            Model::Gc(_) => ModelKind::Gc,
         }
     }
     /// Node positions, m.
@@ -123,6 +130,45 @@ impl Model {
     }
     /// Sub-steps (or solver iterations) per step, for logs.
     pub fn substeps(&self) -> usize {
-        dispatch!(self, m => m.substeps())
+        match self {
+            Model::MassSpring(m) => m.substeps(),
+            Model::Fem(m) => m.substeps(),
+            Model::Gc(_) => 1,
+        }
+    }
+    /// Replaces positions and velocities (state transfer between levels of precision). Held
+    /// nodes stay at rest. A cage fits itself to the shape (see [`GcModel::take_over`]).
+    pub fn set_state(&mut self, x: &[[f64; 3]], v: &[[f64; 3]]) {
+        match self {
+            Model::MassSpring(m) => m.set_state(x, v),
+            Model::Fem(m) => m.set_state(x, v),
+            Model::Gc(m) => {
+                m.take_over(x, v, 0.0);
+            }
+        }
+    }
+    /// `K u` of the model at rest (precise models), for reduced models built on it.
+    pub fn rest_stiffness_product(&self, u: &[[f64; 3]]) -> Option<Vec<[f64; 3]>> {
+        match self {
+            Model::MassSpring(m) => Some(m.rest_stiffness_product(u)),
+            Model::Fem(m) => Some(m.rest_stiffness_product(u)),
+            Model::Gc(_) => None,
+        }
+    }
+    /// How the model damps (precise models).
+    pub fn damping(&self) -> Option<Damping> {
+        match self {
+            Model::MassSpring(m) => Some(Damping::PerNode(m.params().damping)),
+            Model::Fem(m) => Some(Damping::MassProportional(m.parameters().damping)),
+            Model::Gc(_) => None,
+        }
+    }
+    /// Whether node `i` never moves.
+    pub fn is_held(&self, i: usize) -> bool {
+        match self {
+            Model::MassSpring(m) => m.is_held(i),
+            Model::Fem(m) => m.is_held(i),
+            Model::Gc(_) => false,
+        }
     }
 }

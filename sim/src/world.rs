@@ -6,6 +6,7 @@
 //! wall clock, while benchmarks and tests step as fast as they like, deterministically.
 
 use crate::contact::{closest_on_surface, scale, ToolSphere};
+use crate::lop::Lop;
 use crate::mesh::TetMesh;
 use crate::model::{BlowUp, ContactReport, Model, ToolContact};
 use crate::msd::{MassSpring, MsdParameters};
@@ -13,6 +14,10 @@ use crate::msd::{MassSpring, MsdParameters};
 /// How far beyond the tool radius a body's bounding box is still checked for contact, m. Covers
 /// the tissue's motion during one step.
 const CONTACT_MARGIN: f64 = 0.01;
+/// A body running as a cage switches to its precise model when the tool comes this close to
+/// touching it, m: one step early rather than one step late (a tool at 0.2 m/s covers 2 mm in a
+/// 10 ms step).
+pub const SWITCH_MARGIN: f64 = 0.002;
 
 /// One deformable body.
 #[derive(Debug, Clone)]
@@ -21,8 +26,10 @@ pub struct Body {
     pub name: String,
     /// Rest mesh, placed in scene coordinates.
     pub mesh: TetMesh,
-    /// The model that moves it.
+    /// The model that moves it now.
     pub model: Model,
+    /// The levels-of-precision controller (`None`: pinned to `model`).
+    pub lop: Option<Lop>,
     /// External nodal loads for the next step, N. Filled by the caller between steps, cleared
     /// by [`World::clear_loads`].
     pub loads: Vec<[f64; 3]>,
@@ -78,6 +85,7 @@ impl World {
             name: name.to_string(),
             mesh,
             model,
+            lop: None,
             loads: vec![[0.0; 3]; n],
             time: 0.0,
             resets: 0,
@@ -87,6 +95,14 @@ impl World {
             candidates: Vec::with_capacity(64),
         });
         self.bodies.len() - 1
+    }
+
+    /// Adds a body under a levels-of-precision controller: `model` is the one to run first (as
+    /// returned by [`Lop::new`]); returns its index.
+    pub fn add_lop_body(&mut self, name: &str, mesh: TetMesh, model: Model, lop: Lop) -> usize {
+        let i = self.add_model(name, mesh, model);
+        self.bodies[i].lop = Some(lop);
+        i
     }
 
     /// Zeroes every body's external loads.
@@ -138,13 +154,14 @@ impl World {
     pub fn step_body(&mut self, i: usize, tool: Option<&ToolSphere>) -> Result<(), BlowUp> {
         let gravity = self.gravity;
         let b = &mut self.bodies[i];
-        b.time += b.model.dt();
         b.candidates.clear();
+        let mut touching = false;
         if let Some(t) = tool {
             if near_bounds(b.model.positions(), t.center, t.radius + CONTACT_MARGIN) {
                 if let Some(hit) =
                     closest_on_surface(b.model.positions(), &b.mesh.surface, t.center)
                 {
+                    touching = hit.signed_distance() < t.radius + SWITCH_MARGIN;
                     if hit.distance < t.radius + CONTACT_MARGIN || hit.inside {
                         for &node in &b.mesh.surface[hit.triangle] {
                             for &tri in &b.node_triangles[node as usize] {
@@ -157,6 +174,11 @@ impl World {
                 }
             }
         }
+        if let Some(lop) = &mut b.lop {
+            lop.before_step(&mut b.model, touching, b.time);
+        }
+        let dt = b.model.dt();
+        b.time += dt;
         let contact = match tool {
             Some(t) if !b.candidates.is_empty() => Some(ToolContact {
                 tool: *t,
@@ -169,6 +191,10 @@ impl World {
         match r {
             Ok(report) => {
                 b.last_contact = report;
+                if let Some(lop) = &mut b.lop {
+                    let touched = touching || report.depth > 0.0;
+                    lop.after_step(&mut b.model, touched, dt, b.time);
+                }
                 Ok(())
             }
             Err(cause) => {

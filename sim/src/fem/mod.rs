@@ -580,6 +580,32 @@ impl Fem {
         out
     }
 
+    /// `K u`: the rest (linear) stiffness applied to a displacement field `u` (m, one per
+    /// node), N — what a linear body would push back with, `−f_int(X + u)`. The same in both
+    /// modes (corotational elements linearise to it at rest). For reduced models built on top of
+    /// this one, such as the cage dynamics of `crate::lop`. Allocates; not for the real-time
+    /// path.
+    ///
+    /// # Panics
+    /// If `u` does not have one entry per node.
+    pub fn rest_stiffness_product(&self, u: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        assert_eq!(u.len(), self.x.len(), "one displacement per node");
+        let mut out = vec![[0.0; 3]; u.len()];
+        for el in &self.elements {
+            let mut q = QUAT_IDENTITY;
+            let (f, _) = element_forces(el, u, FemMode::Linear, self.lambda, self.mu, &mut q);
+            for (k, &n) in el.nodes.iter().enumerate() {
+                out[n as usize] = sub(out[n as usize], f[k]);
+            }
+        }
+        out
+    }
+
+    /// Whether node `i` is held (fixed by the mesh, or used by no tetrahedron).
+    pub fn is_held(&self, i: usize) -> bool {
+        self.held[i]
+    }
+
     /// Advances by `dt` under `gravity` (m/s²), the nodal loads `external` (N, one per node;
     /// missing entries count as zero) and the tool. On a blow-up the body is reset to rest and
     /// the cause returned. Allocation-free.

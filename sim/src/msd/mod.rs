@@ -121,7 +121,7 @@ mod explicit;
 mod forces;
 mod implicit;
 
-use crate::contact::{dot, norm, sub};
+use crate::contact::{add, dot, norm, scale, sub};
 use crate::mesh::TetMesh;
 use crate::model::{BlowUp, ContactReport, ToolContact, RUNAWAY_SPEED};
 
@@ -472,6 +472,37 @@ impl MassSpring {
     /// Largest nodal speed, m/s.
     pub fn max_speed(&self) -> f64 {
         self.v.iter().map(|v| norm(*v)).fold(0.0, f64::max)
+    }
+
+    /// `K u`: the springs' stiffness at rest applied to a displacement field `u` (m, one per
+    /// node), N. At rest every spring is slack-free and unstretched, so only its axial stiffness
+    /// acts: a spring `a–b` with rest direction `e` adds `k e eᵀ (u_a − u_b)` to `a` and the
+    /// opposite to `b`. For reduced models built on this one (`crate::lop`). Allocates.
+    ///
+    /// # Panics
+    /// If `u` does not have one entry per node.
+    pub fn rest_stiffness_product(&self, u: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        assert_eq!(u.len(), self.x.len(), "one displacement per node");
+        let mut out = vec![[0.0; 3]; u.len()];
+        let k = self.net.stiffness;
+        for s in &self.net.springs {
+            let (a, b) = (s.a as usize, s.b as usize);
+            let d = sub(self.net.rest[b], self.net.rest[a]);
+            let l = norm(d);
+            if !(l > 0.0) {
+                continue;
+            }
+            let e = scale(d, 1.0 / l);
+            let f = scale(e, k * dot(e, sub(u[a], u[b])));
+            out[a] = add(out[a], f);
+            out[b] = sub(out[b], f);
+        }
+        out
+    }
+
+    /// Whether node `i` never moves (fixed, or massless).
+    pub fn is_held(&self, i: usize) -> bool {
+        !(self.net.inv_mass[i] > 0.0)
     }
 
     /// Back to the rest shape, at rest.

@@ -1,0 +1,802 @@
+//! A body run as a Green-coordinates cage: the cheap level of precision.
+
+use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
+use thiserror::Error;
+
+use crate::contact::{closest_on_surface, SurfaceHit, ToolSphere};
+use crate::gc::{
+    box_cage, grid_box_cage, subdivided_box_cage, Cage, CageError, GcBinding, GreenCoordinates,
+};
+use crate::mesh::TetMesh;
+use crate::model::{BlowUp, ContactReport, Model, ToolContact, RUNAWAY_SPEED};
+use crate::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
+use crate::vec3::{add, dot, norm, scale, sub};
+
+use super::kernel::{gemv_acc, Kernel};
+
+/// The cage's shape.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CageShape {
+    /// The thesis' cage: the padded bounding box (8 vertices, 12 triangles).
+    Box,
+    /// The padded bounding box with every edge cut in `n` segments (`6n² + 2` vertices,
+    /// `12n²` triangles): more freedom to follow the body's own deformation.
+    SubdividedBox(usize),
+    /// The padded bounding box cut into roughly cubic cells: each axis gets
+    /// `max(1, round(extent / smallest extent))` segments (a 60 × 120 × 60 mm cylinder gets
+    /// 1 × 2 × 1, 12 vertices). Cheap like the box, but a long body can bend along its length.
+    Fitted,
+}
+
+/// How the cage moves.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CageDynamics {
+    /// Derived from the body's precise model with nothing to tune: the precise model's rest
+    /// stiffness, mass and damping projected onto the cage's deformation space (a Galerkin
+    /// reduced model; see the module docs). The default: it is the more accurate one.
+    Projected,
+    /// The thesis' way (§4.3): a mass-spring system on the cage vertices with its own,
+    /// hand-tuned parameters (the GC columns of Tables 6.1 and 6.2).
+    MassSpring {
+        /// Spring stiffness, N/m.
+        stiffness: f64,
+        /// Density, kg/m³: the cage's volume times this, shared equally by its vertices.
+        density: f64,
+        /// Damping per vertex, N·s/m.
+        damping: f64,
+    },
+}
+
+/// Parameters of a body's GC model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GcParameters {
+    /// Cage shape.
+    pub shape: CageShape,
+    /// Gap between the body's bounding box and the cage, m (> 0: no node may lie on the cage).
+    pub padding: f64,
+    /// Cage dynamics.
+    pub dynamics: CageDynamics,
+    /// Time step, s.
+    pub dt: f64,
+}
+
+/// How the precise model damps, for [`CageDynamics::Projected`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Damping {
+    /// `D = αM` (FEM), α in 1/s.
+    MassProportional(f64),
+    /// `−γ v` on every node (mass-spring, eq. 4.2), γ in N·s/m.
+    PerNode(f64),
+}
+
+/// `u ↦ K u`: a model's rest stiffness applied to a displacement field, N.
+pub type StiffnessProduct<'a> = &'a dyn Fn(&[[f64; 3]]) -> Vec<[f64; 3]>;
+
+/// The precise model's operators at rest, which [`CageDynamics::Projected`] projects.
+pub struct PreciseOperators<'a> {
+    /// Lumped nodal masses, kg.
+    pub masses: &'a [f64],
+    /// Nodes that never move.
+    pub held: &'a [bool],
+    /// Damping.
+    pub damping: Damping,
+    /// `u ↦ K u` at rest, N.
+    pub stiffness: StiffnessProduct<'a>,
+}
+
+/// Why a GC model could not be built.
+#[derive(Debug, Error)]
+pub enum GcModelError {
+    /// The cage is not usable or does not hold the body.
+    #[error("cage: {0}")]
+    Cage(#[from] CageError),
+    /// A parameter is out of range.
+    #[error("{0}")]
+    Parameter(String),
+    /// The projected mass matrix is singular: some cage motion moves no free node.
+    #[error(
+        "the cage has motions that move no free node of the body (projected mass matrix not \
+         positive definite); use a coarser cage"
+    )]
+    Singular,
+}
+
+/// Cage dynamics state.
+#[derive(Debug, Clone)]
+enum Dynamics {
+    Projected(Box<Reduced>),
+    MassSpring(Box<MassSpring>),
+}
+
+/// The reduced (Galerkin) model in cage-vertex displacements `q` (3V).
+///
+/// Implicit scheme of eq. 4.20 on `M_r q̈ + D_r q̇ + K_r q = f_r`, in increment form like the FEM
+/// (`K̃ d = f_r − K_r q + (M_r/Δt − D_r/2) q̇`), with everything that does not change folded
+/// into dense matrices at set-up: `d = A⁻¹f_r − P q + Q q̇`.
+#[derive(Debug, Clone)]
+struct Reduced {
+    /// `A⁻¹ = K̃⁻¹`, column-major 3V × 3V.
+    a_inv: Vec<f64>,
+    /// `[−A⁻¹K_r | A⁻¹(M_r/Δt − D_r/2)]`, column-major 3V × 6V: the step's response to the
+    /// state.
+    response: Vec<f64>,
+    /// `A⁻¹ Gᵀ M 1_a` for gravity along axis `a`, column-major 3V × 3.
+    gravity: Vec<f64>,
+    /// `[q; q̇]`.
+    state: Vec<f64>,
+    /// Static correction `A⁻¹(K_r q* − f_g)` added to every increment after a hand-over, so
+    /// that the shape `q*` the cage took over under gravity `g` is its equilibrium (it would
+    /// otherwise drift to its own, slightly different one). `None` until the first step after
+    /// a hand-over computes it; zero from rest.
+    correction: Vec<f64>,
+    correction_due: bool,
+    /// The step's increment `d`, scratch.
+    d: Vec<f64>,
+}
+
+impl Reduced {
+    fn q(&self) -> &[f64] {
+        &self.state[..self.d.len()]
+    }
+}
+
+/// A body run as a Green-coordinates cage.
+///
+/// The body's nodes are bound to the cage once (φ, ψ per node); a step moves the cage by its
+/// dynamics and re-evaluates every node, `x = Σ φᵢ vᵢ' + Σ ψⱼ sⱼ n(tⱼ')`. Fixed nodes stay at rest.
+#[derive(Debug, Clone)]
+pub struct GcModel {
+    params: GcParameters,
+    gc: GreenCoordinates,
+    binding: GcBinding,
+    rest_cage: Vec<[f64; 3]>,
+    cage: Vec<[f64; 3]>,
+    normals: Vec<[f64; 3]>,
+    rest: Vec<[f64; 3]>,
+    held: Vec<bool>,
+    masses: Vec<f64>,
+    /// `Gᵀ`, with `G = ∂x/∂q` at rest (3N × 3V; column `c` of `G` is cage vertex `c / 3`, axis
+    /// `c % 3`; zero rows on held nodes). Stored transposed so that the row of one node's axis,
+    /// which a load on it needs, is contiguous.
+    jacobian_t: DMatrix<f64>,
+    /// Cholesky factor of `Gᵀ M G`, for fitting the cage to a given shape.
+    fit: Cholesky<f64, Dyn>,
+    dynamics: Dynamics,
+    /// The hot loop, its inputs (cage-vertex displacements, then scaled-normal changes) and
+    /// outputs (node displacements the cage alone gives).
+    kernel: Kernel,
+    rest_normals: Vec<[f64; 3]>,
+    w: Vec<[f32; 3]>,
+    disp: Vec<[f32; 3]>,
+    /// Displayed positions (cage + blend) and velocities, with their energy measures.
+    x: Vec<[f64; 3]>,
+    v: Vec<[f64; 3]>,
+    kinetic: f64,
+    speed: f64,
+    /// Offset faded out after taking over a shape the cage cannot represent exactly.
+    blend: Vec<[f64; 3]>,
+    blend_left: f64,
+    blend_time: f64,
+    /// External loads, scratch (3N), and their cage-space image (3V).
+    load_r: DVector<f64>,
+    cage_loads: Vec<[f64; 3]>,
+}
+
+/// The cage of `shape` around `points`.
+pub fn build_cage(shape: CageShape, points: &[[f64; 3]], padding: f64) -> Cage {
+    match shape {
+        CageShape::Box => box_cage(points, padding),
+        CageShape::SubdividedBox(n) => subdivided_box_cage(points, padding, n.max(1)),
+        CageShape::Fitted => grid_box_cage(points, padding, fitted_cells(points)),
+    }
+}
+
+/// Segments per axis of a [`CageShape::Fitted`] cage around `points`.
+pub fn fitted_cells(points: &[[f64; 3]]) -> [usize; 3] {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let ext = [0, 1, 2].map(|a| hi[a] - lo[a]);
+    let smallest = ext.iter().copied().fold(f64::INFINITY, f64::min);
+    ext.map(|e| {
+        let r = (e / smallest).round();
+        if r.is_finite() && r >= 1.0 {
+            (r as usize).min(8)
+        } else {
+            1
+        }
+    })
+}
+
+impl GcModel {
+    /// Builds the GC model of the body `mesh` (rest shape, fixed nodes), whose precise model
+    /// provides `ops`.
+    pub fn new(
+        mesh: &TetMesh,
+        params: GcParameters,
+        ops: &PreciseOperators<'_>,
+    ) -> Result<GcModel, GcModelError> {
+        if !(params.padding > 0.0 && params.padding.is_finite()) {
+            return Err(GcModelError::Parameter(format!(
+                "cage padding = {} m: must be a positive distance",
+                params.padding
+            )));
+        }
+        if !(params.dt > 0.0 && params.dt <= 1.0) {
+            return Err(GcModelError::Parameter(format!(
+                "cage dt = {} s: must be in (0, 1]",
+                params.dt
+            )));
+        }
+        let n = mesh.nodes.len();
+        assert_eq!(ops.masses.len(), n, "one mass per node");
+        assert_eq!(ops.held.len(), n, "one held flag per node");
+        let cage = build_cage(params.shape, &mesh.nodes, params.padding);
+        let gc = GreenCoordinates::new(&cage.vertices, &cage.triangles)?;
+        let binding = gc.bind(&mesh.nodes)?;
+        let nv = gc.vertex_count();
+        let nt = gc.triangle_count();
+        let m = 3 * nv;
+        let mut held = ops.held.to_vec();
+        for &f in &mesh.fixed {
+            held[f as usize] = true;
+        }
+
+        // Jacobian by central differences of the exact map: the φ part is linear in the cage,
+        // the ψ part (scaled normals) smooth, so the O(h²) error at h = 1e-6 of the cage size
+        // is far below anything that matters.
+        let size = cage_size(&cage.vertices);
+        let h = 1e-6 * size;
+        let mut jacobian = DMatrix::zeros(3 * n, m);
+        let mut deformed = cage.vertices.clone();
+        let mut normals = vec![[0.0; 3]; nt];
+        let mut plus = vec![[0.0; 3]; n];
+        let mut minus = vec![[0.0; 3]; n];
+        for c in 0..m {
+            let (vi, a) = (c / 3, c % 3);
+            deformed[vi][a] = cage.vertices[vi][a] + h;
+            gc.scaled_normals(&deformed, &mut normals);
+            binding.deform_into(&deformed, &normals, &mut plus);
+            deformed[vi][a] = cage.vertices[vi][a] - h;
+            gc.scaled_normals(&deformed, &mut normals);
+            binding.deform_into(&deformed, &normals, &mut minus);
+            deformed[vi][a] = cage.vertices[vi][a];
+            let mut col = jacobian.column_mut(c);
+            for k in 0..n {
+                if held[k] {
+                    continue;
+                }
+                for b in 0..3 {
+                    col[3 * k + b] = (plus[k][b] - minus[k][b]) / (2.0 * h);
+                }
+            }
+        }
+
+        // Gᵀ M G.
+        let mut mg = jacobian.clone();
+        for k in 0..n {
+            for b in 0..3 {
+                mg.row_mut(3 * k + b).scale_mut(ops.masses[k]);
+            }
+        }
+        let m_r = jacobian.transpose() * &mg;
+        let fit = Cholesky::new(m_r.clone()).ok_or(GcModelError::Singular)?;
+
+        let dt = params.dt;
+        let dynamics = match params.dynamics {
+            CageDynamics::Projected => {
+                // K G, column by column, through the precise model.
+                let mut kg = DMatrix::zeros(3 * n, m);
+                let mut u = vec![[0.0; 3]; n];
+                for c in 0..m {
+                    let col = jacobian.column(c);
+                    for k in 0..n {
+                        u[k] = [col[3 * k], col[3 * k + 1], col[3 * k + 2]];
+                    }
+                    let f = (ops.stiffness)(&u);
+                    let mut out = kg.column_mut(c);
+                    for k in 0..n {
+                        if held[k] {
+                            continue;
+                        }
+                        for b in 0..3 {
+                            out[3 * k + b] = f[k][b];
+                        }
+                    }
+                }
+                let mut k_r = jacobian.transpose() * kg;
+                k_r = (&k_r + k_r.transpose()) * 0.5;
+                let d_r = match ops.damping {
+                    Damping::MassProportional(alpha) => &m_r * alpha,
+                    Damping::PerNode(gamma) => jacobian.transpose() * &jacobian * gamma,
+                };
+                let a = &m_r / (dt * dt) + &d_r / (2.0 * dt) + &k_r;
+                let a_inv = Cholesky::new(a).ok_or(GcModelError::Singular)?.inverse();
+                let p = &a_inv * &k_r;
+                let q_mat = &a_inv * (&m_r / dt - &d_r * 0.5);
+                let mut response = (-p).as_slice().to_vec();
+                response.extend_from_slice(q_mat.as_slice());
+                // Gᵀ M 1_a: the generalised gravity load per unit acceleration along axis a.
+                let mut g1 = DMatrix::zeros(m, 3);
+                for a in 0..3 {
+                    for c in 0..m {
+                        let col = mg.column(c);
+                        g1[(c, a)] = (0..n).map(|k| col[3 * k + a]).sum::<f64>();
+                    }
+                }
+                let gravity = &a_inv * g1;
+                Dynamics::Projected(Box::new(Reduced {
+                    a_inv: a_inv.as_slice().to_vec(),
+                    response,
+                    gravity: gravity.as_slice().to_vec(),
+                    state: vec![0.0; 2 * m],
+                    correction: vec![0.0; m],
+                    correction_due: false,
+                    d: vec![0.0; m],
+                }))
+            }
+            CageDynamics::MassSpring {
+                stiffness,
+                density,
+                damping,
+            } => {
+                let volume = cage_volume(&cage);
+                let node_mass = density * volume / nv as f64;
+                // Every pair of cage vertices is a spring: a cage's triangle edges alone are a
+                // shell that folds flat at no cost; the complete graph holds its volume.
+                let mut springs = Vec::new();
+                for a in 0..nv as u32 {
+                    for b in a + 1..nv as u32 {
+                        springs.push([a, b]);
+                    }
+                }
+                // A cage vertex is fixed when it carries the largest weight of some fixed node.
+                let mut fixed = Vec::new();
+                for &f in &mesh.fixed {
+                    let k = f as usize;
+                    let best = (0..nv)
+                        .max_by(|&i, &j| binding.phi(k, i).total_cmp(&binding.phi(k, j)))
+                        .unwrap_or(0) as u32;
+                    fixed.push(best);
+                }
+                fixed.sort_unstable();
+                fixed.dedup();
+                let msd = MassSpring::from_springs(
+                    cage.vertices.clone(),
+                    &springs,
+                    &fixed,
+                    MsdParameters {
+                        stiffness,
+                        mass: NodeMass::PerNode(node_mass),
+                        damping,
+                        dt,
+                        integrator: Integrator::ImplicitEuler,
+                    },
+                );
+                Dynamics::MassSpring(Box::new(msd))
+            }
+        };
+
+        let kernel = Kernel::new(&binding, &held);
+        let mut rest_normals = vec![[0.0; 3]; nt];
+        gc.scaled_normals(&cage.vertices, &mut rest_normals);
+        let mut model = GcModel {
+            params,
+            gc,
+            binding,
+            rest_cage: cage.vertices.clone(),
+            cage: cage.vertices,
+            normals: vec![[0.0; 3]; nt],
+            rest: mesh.nodes.clone(),
+            held,
+            masses: ops.masses.to_vec(),
+            jacobian_t: jacobian.transpose(),
+            fit,
+            dynamics,
+            kernel,
+            rest_normals,
+            w: vec![[0.0; 3]; nv + nt],
+            disp: vec![[0.0; 3]; n],
+            x: mesh.nodes.clone(),
+            v: vec![[0.0; 3]; n],
+            kinetic: 0.0,
+            speed: 0.0,
+            blend: vec![[0.0; 3]; n],
+            blend_left: 0.0,
+            blend_time: 0.0,
+            load_r: DVector::zeros(m),
+            cage_loads: vec![[0.0; 3]; nv],
+        };
+        model.evaluate();
+        Ok(model)
+    }
+
+    /// Builds the GC model of `mesh` from its precise model (`Model::MassSpring` or
+    /// `Model::Fem`): masses, held nodes, damping and rest stiffness come from it.
+    pub fn from_precise(
+        mesh: &TetMesh,
+        params: GcParameters,
+        precise: &Model,
+    ) -> Result<GcModel, GcModelError> {
+        let damping = precise.damping().ok_or_else(|| {
+            GcModelError::Parameter("a cage needs a precise model to stand for".into())
+        })?;
+        let held: Vec<bool> = (0..mesh.nodes.len()).map(|i| precise.is_held(i)).collect();
+        let stiffness = |u: &[[f64; 3]]| precise.rest_stiffness_product(u).unwrap_or_default();
+        GcModel::new(
+            mesh,
+            params,
+            &PreciseOperators {
+                masses: precise.masses(),
+                held: &held,
+                damping,
+                stiffness: &stiffness,
+            },
+        )
+    }
+
+    /// The parameters.
+    pub fn parameters(&self) -> &GcParameters {
+        &self.params
+    }
+    /// The Green coordinates of the rest cage.
+    pub fn coordinates(&self) -> &GreenCoordinates {
+        &self.gc
+    }
+    /// The current (deformed) cage vertices, m.
+    pub fn cage_vertices(&self) -> &[[f64; 3]] {
+        &self.cage
+    }
+    /// Node positions, m.
+    pub fn positions(&self) -> &[[f64; 3]] {
+        &self.x
+    }
+    /// Node velocities, m/s (the change of the displayed positions over the last step).
+    pub fn velocities(&self) -> &[[f64; 3]] {
+        &self.v
+    }
+    /// Nodal masses (the precise model's), kg.
+    pub fn masses(&self) -> &[f64] {
+        &self.masses
+    }
+    /// Time step, s.
+    pub fn dt(&self) -> f64 {
+        self.params.dt
+    }
+    /// Kinetic energy of the nodes, J.
+    pub fn kinetic_energy(&self) -> f64 {
+        self.kinetic
+    }
+    /// Largest nodal speed, m/s.
+    pub fn max_speed(&self) -> f64 {
+        self.speed
+    }
+    /// Seconds of blending left after the last [`GcModel::take_over`].
+    pub fn blending(&self) -> f64 {
+        self.blend_left
+    }
+
+    /// Back to the rest shape, at rest.
+    pub fn reset(&mut self) {
+        match &mut self.dynamics {
+            Dynamics::Projected(r) => {
+                r.state.fill(0.0);
+                r.correction.fill(0.0);
+                r.correction_due = false;
+            }
+            Dynamics::MassSpring(msd) => msd.reset(),
+        }
+        self.cage.copy_from_slice(&self.rest_cage);
+        self.blend_left = 0.0;
+        self.blend.iter_mut().for_each(|b| *b = [0.0; 3]);
+        self.evaluate();
+        for k in 0..self.x.len() {
+            self.x[k] = self.cage_position(k);
+        }
+        self.v.iter_mut().for_each(|v| *v = [0.0; 3]);
+        self.kinetic = 0.0;
+        self.speed = 0.0;
+    }
+
+    /// Where the cage alone puts node `k` (after [`GcModel::evaluate`]).
+    #[inline]
+    fn cage_position(&self, k: usize) -> [f64; 3] {
+        let (r, d) = (self.rest[k], self.disp[k]);
+        [r[0] + d[0] as f64, r[1] + d[1] as f64, r[2] + d[2] as f64]
+    }
+
+    /// Takes over a body's state from its precise model: fits the cage to the positions and
+    /// velocities (mass-weighted least squares over the free nodes), then fades the part the
+    /// cage cannot represent out over `blend` seconds, so the displayed shape starts exactly at
+    /// `x` and nothing pops (with `blend` 0 it snaps to the fitted cage at once). Returns the largest distance between `x` and the fitted cage's
+    /// shape (what would have popped without the blend), m. Allocates a little (set-up path).
+    pub fn take_over(&mut self, x: &[[f64; 3]], v: &[[f64; 3]], blend: f64) -> f64 {
+        let n = self.rest.len();
+        assert_eq!(x.len(), n, "one position per node");
+        assert_eq!(v.len(), n, "one velocity per node");
+        let q = self.fit_field(|k| sub(x[k], self.rest[k]));
+        let qd = self.fit_field(|k| v[k]);
+        match &mut self.dynamics {
+            Dynamics::Projected(r) => {
+                let m = r.d.len();
+                r.state[..m].copy_from_slice(q.as_slice());
+                r.state[m..].copy_from_slice(qd.as_slice());
+                r.correction_due = true;
+            }
+            Dynamics::MassSpring(msd) => {
+                let pos: Vec<[f64; 3]> = (0..self.rest_cage.len())
+                    .map(|i| add(self.rest_cage[i], [q[3 * i], q[3 * i + 1], q[3 * i + 2]]))
+                    .collect();
+                let vel: Vec<[f64; 3]> = (0..self.rest_cage.len())
+                    .map(|i| [qd[3 * i], qd[3 * i + 1], qd[3 * i + 2]])
+                    .collect();
+                msd.set_state(&pos, &vel);
+            }
+        }
+        self.sync_cage();
+        self.evaluate();
+        let mut residual: f64 = 0.0;
+        for (k, xk) in x.iter().enumerate() {
+            self.blend[k] = sub(*xk, self.cage_position(k));
+            residual = residual.max(norm(self.blend[k]));
+        }
+        self.blend_time = blend.max(0.0);
+        self.blend_left = self.blend_time;
+        if self.blend_time == 0.0 {
+            self.blend.iter_mut().for_each(|b| *b = [0.0; 3]);
+        }
+        // Shown now: `x` itself when blending, the fitted cage when snapping (blend 0).
+        for k in 0..n {
+            self.x[k] = add(self.cage_position(k), self.blend[k]);
+        }
+        for (k, vk) in self.v.iter_mut().enumerate() {
+            *vk = if self.held[k] { [0.0; 3] } else { v[k] };
+        }
+        self.kinetic = 0.0;
+        self.speed = 0.0;
+        for (vk, m) in self.v.iter().zip(&self.masses) {
+            let s2 = dot(*vk, *vk);
+            self.kinetic += 0.5 * m * s2;
+            self.speed = self.speed.max(s2);
+        }
+        self.speed = self.speed.sqrt();
+        residual
+    }
+
+    /// Mass-weighted least-squares cage displacement reproducing the nodal field `f`.
+    fn fit_field(&self, f: impl Fn(usize) -> [f64; 3]) -> DVector<f64> {
+        let n = self.rest.len();
+        let mut mu = DVector::zeros(3 * n);
+        for k in 0..n {
+            if self.held[k] {
+                continue;
+            }
+            let fk = f(k);
+            for b in 0..3 {
+                mu[3 * k + b] = self.masses[k] * fk[b];
+            }
+        }
+        let rhs = &self.jacobian_t * mu;
+        self.fit.solve(&rhs)
+    }
+
+    /// One step under gravity, nodal loads and (for a body pinned to GC) the tool.
+    /// Allocation-free.
+    pub fn step(
+        &mut self,
+        gravity: [f64; 3],
+        external: &[[f64; 3]],
+        contact: Option<&ToolContact<'_>>,
+    ) -> Result<ContactReport, BlowUp> {
+        let dt = self.params.dt;
+        // The tool, as a load on the current shape (explicit: a body pinned to GC is the cheap
+        // level; a touched body normally switches to its precise model first).
+        let touch = contact.and_then(|c| touch(c, &self.x));
+        let has_loads = touch.is_some() || external.iter().any(|f| *f != [0.0; 3]);
+        match &mut self.dynamics {
+            Dynamics::Projected(r) => {
+                // f_r = Gᵀ f over the loaded nodes only (gravity is folded in at set-up).
+                if has_loads {
+                    self.load_r.fill(0.0);
+                    let jt = &self.jacobian_t;
+                    let mut add_load = |k: usize, f: [f64; 3]| {
+                        for (b, fb) in f.iter().enumerate() {
+                            if *fb != 0.0 {
+                                self.load_r.axpy(*fb, &jt.column(3 * k + b), 1.0);
+                            }
+                        }
+                    };
+                    for (k, f) in external.iter().enumerate().take(self.rest.len()) {
+                        if *f != [0.0; 3] {
+                            add_load(k, *f);
+                        }
+                    }
+                    if let Some(t) = &touch {
+                        for (j, &node) in t.tri.iter().enumerate() {
+                            add_load(node as usize, scale(t.on_tissue, t.weights[j]));
+                        }
+                    }
+                }
+                r.d.fill(0.0);
+                if has_loads {
+                    gemv_acc(&r.a_inv, self.load_r.as_slice(), &mut r.d);
+                }
+                if r.correction_due {
+                    // A⁻¹(K_r q* − f_g) = −(response_q · q*) − A⁻¹ f_g.
+                    let m = r.d.len();
+                    r.correction.fill(0.0);
+                    gemv_acc(&r.response[..m * m], &r.state[..m], &mut r.correction);
+                    gemv_acc(&r.gravity, &gravity, &mut r.correction);
+                    r.correction.iter_mut().for_each(|c| *c = -*c);
+                    r.correction_due = false;
+                }
+                gemv_acc(&r.gravity, &gravity, &mut r.d);
+                gemv_acc(&r.response, &r.state, &mut r.d);
+                r.d.iter_mut().zip(&r.correction).for_each(|(d, c)| *d += c);
+                let m = r.d.len();
+                let (q, qd) = r.state.split_at_mut(m);
+                for ((q, qd), d) in q.iter_mut().zip(qd).zip(&r.d) {
+                    *q += d;
+                    *qd = d / dt;
+                }
+            }
+            Dynamics::MassSpring(msd) => {
+                // Each load goes to the cage vertices by the node's φ weights (thesis §6.3.4.1).
+                self.cage_loads.iter_mut().for_each(|f| *f = [0.0; 3]);
+                if has_loads {
+                    let nv = self.cage_loads.len();
+                    let mut add_load = |k: usize, f: [f64; 3]| {
+                        for i in 0..nv {
+                            let w = self.binding.phi(k, i);
+                            self.cage_loads[i] = add(self.cage_loads[i], scale(f, w));
+                        }
+                    };
+                    for (k, f) in external.iter().enumerate().take(self.rest.len()) {
+                        if *f != [0.0; 3] {
+                            add_load(k, *f);
+                        }
+                    }
+                    if let Some(t) = &touch {
+                        for (j, &node) in t.tri.iter().enumerate() {
+                            add_load(node as usize, scale(t.on_tissue, t.weights[j]));
+                        }
+                    }
+                }
+                msd.step(gravity, &self.cage_loads, None)?;
+            }
+        }
+        self.sync_cage();
+        self.evaluate();
+        // Displayed = cage + fading offset; velocities from the displayed motion. One pass.
+        let w = if self.blend_left > 0.0 {
+            self.blend_left = (self.blend_left - dt).max(0.0);
+            self.blend_left / self.blend_time
+        } else {
+            0.0
+        };
+        let inv_dt = 1.0 / dt;
+        let (mut kinetic, mut speed2) = (0.0, 0.0f64);
+        for k in 0..self.x.len() {
+            let mut new = self.cage_position(k);
+            if w > 0.0 {
+                new = add(new, scale(self.blend[k], w));
+            }
+            let vk = scale(sub(new, self.x[k]), inv_dt);
+            let s2 = dot(vk, vk);
+            kinetic += 0.5 * self.masses[k] * s2;
+            speed2 = speed2.max(s2);
+            self.x[k] = new;
+            self.v[k] = vk;
+        }
+        self.kinetic = kinetic;
+        self.speed = speed2.sqrt();
+        // A NaN anywhere makes the energy NaN (max() would skip it).
+        if !kinetic.is_finite() || !self.speed.is_finite() {
+            self.reset();
+            return Err(BlowUp::NonFinite);
+        }
+        if self.speed > RUNAWAY_SPEED {
+            self.reset();
+            return Err(BlowUp::Runaway);
+        }
+        Ok(
+            touch.map_or_else(ContactReport::default, |t| ContactReport {
+                force_on_tissue: t.on_tissue,
+                depth: t.depth,
+            }),
+        )
+    }
+
+    /// Copies the dynamics' cage into `self.cage`.
+    fn sync_cage(&mut self) {
+        match &self.dynamics {
+            Dynamics::Projected(r) => {
+                for (i, c) in self.cage.iter_mut().enumerate() {
+                    *c = add(
+                        self.rest_cage[i],
+                        [r.q()[3 * i], r.q()[3 * i + 1], r.q()[3 * i + 2]],
+                    );
+                }
+            }
+            Dynamics::MassSpring(msd) => self.cage.copy_from_slice(msd.positions()),
+        }
+    }
+
+    /// Node displacements (`disp`) from the current cage; held nodes have none.
+    fn evaluate(&mut self) {
+        self.gc.scaled_normals(&self.cage, &mut self.normals);
+        let nv = self.cage.len();
+        for (i, w) in self.w[..nv].iter_mut().enumerate() {
+            let d = sub(self.cage[i], self.rest_cage[i]);
+            *w = [d[0] as f32, d[1] as f32, d[2] as f32];
+        }
+        for (j, w) in self.w[nv..].iter_mut().enumerate() {
+            let d = sub(self.normals[j], self.rest_normals[j]);
+            *w = [d[0] as f32, d[1] as f32, d[2] as f32];
+        }
+        self.kernel.apply(&self.w, &mut self.disp);
+    }
+}
+
+/// The tool pressing on positions `x`: closest candidate triangle, if penetrated.
+struct Touch {
+    tri: [u32; 3],
+    weights: [f64; 3],
+    depth: f64,
+    on_tissue: [f64; 3],
+}
+
+fn touch(c: &ToolContact<'_>, x: &[[f64; 3]]) -> Option<Touch> {
+    let mut best: Option<(usize, SurfaceHit)> = None;
+    for &t in c.candidates {
+        let Some(tri) = c.surface.get(t as usize) else {
+            continue;
+        };
+        if let Some(hit) = closest_on_surface(x, std::slice::from_ref(tri), c.tool.center) {
+            if best.is_none_or(|(_, b)| hit.distance < b.distance) {
+                best = Some((t as usize, hit));
+            }
+        }
+    }
+    let (t, hit) = best?;
+    let tool: &ToolSphere = &c.tool;
+    let depth = tool.depth(&hit);
+    if !(depth > 0.0) {
+        return None;
+    }
+    Some(Touch {
+        tri: c.surface[t],
+        weights: hit.barycentric,
+        depth,
+        on_tissue: scale(tool.force_on_tool(&hit), -1.0),
+    })
+}
+
+/// Largest extent of a point set's bounding box.
+fn cage_size(v: &[[f64; 3]]) -> f64 {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in v {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max)
+}
+
+/// Volume enclosed by an outward cage (divergence theorem).
+fn cage_volume(c: &Cage) -> f64 {
+    c.triangles
+        .iter()
+        .map(|t| {
+            let (a, b, d) = (c.vertices[t[0]], c.vertices[t[1]], c.vertices[t[2]]);
+            dot(a, crate::vec3::cross(b, d)) / 6.0
+        })
+        .sum()
+}
