@@ -11,8 +11,6 @@
 //! - detection is deterministic and independent of history (tree refits and rebuilds);
 //! - detection and penalty loads allocate nothing, from the first call on.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::path::PathBuf;
 
 use lop_sim::collide::{CollisionBody, CollisionParams, Collisions, Penetration};
@@ -21,50 +19,9 @@ use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 
 /// Counts the allocations of the current thread while tracking is on (other tests' threads
 /// cannot disturb the count), as in `msd_alloc.rs`.
-struct Counting;
-
-thread_local! {
-    static TRACKING: Cell<bool> = const { Cell::new(false) };
-    static COUNT: Cell<usize> = const { Cell::new(0) };
-}
-
-fn note() {
-    let _ = TRACKING.try_with(|t| {
-        if t.get() {
-            let _ = COUNT.try_with(|c| c.set(c.get() + 1));
-        }
-    });
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        note();
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        note();
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        note();
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
-#[global_allocator]
-static ALLOCATOR: Counting = Counting;
-
-/// Allocations made by `f` on this thread.
-fn allocations(f: impl FnOnce()) -> usize {
-    COUNT.with(|c| c.set(0));
-    TRACKING.with(|t| t.set(true));
-    f();
-    TRACKING.with(|t| t.set(false));
-    COUNT.with(|c| c.get())
-}
+#[path = "common/alloc.rs"]
+mod alloc;
+use alloc::allocations;
 
 /// A box `[lo, hi]` split into `n³` cells of six tetrahedra each (Kuhn subdivision along the
 /// cell diagonal, conforming across cells). Node `(i, j, k)` has index `(k (n+1) + j)(n+1) + i`

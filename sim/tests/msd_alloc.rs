@@ -4,8 +4,6 @@
 //! A counting global allocator (this test binary only) counts the allocations made by the
 //! current thread while tracking is on, so other tests' threads cannot disturb the count.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::path::PathBuf;
 
 use lop_sim::contact::{ForceLaw, ToolSphere};
@@ -13,51 +11,9 @@ use lop_sim::mesh::read_mesh;
 use lop_sim::model::ToolContact;
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 
-struct Counting;
-
-thread_local! {
-    static TRACKING: Cell<bool> = const { Cell::new(false) };
-    static COUNT: Cell<usize> = const { Cell::new(0) };
-}
-
-fn note() {
-    // `try_with`: the thread's locals may already be gone while it exits.
-    let _ = TRACKING.try_with(|t| {
-        if t.get() {
-            let _ = COUNT.try_with(|c| c.set(c.get() + 1));
-        }
-    });
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        note();
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        note();
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        note();
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
-#[global_allocator]
-static ALLOCATOR: Counting = Counting;
-
-/// Allocations made by `f` on this thread.
-fn allocations(f: impl FnOnce()) -> usize {
-    COUNT.with(|c| c.set(0));
-    TRACKING.with(|t| t.set(true));
-    f();
-    TRACKING.with(|t| t.set(false));
-    COUNT.with(|c| c.get())
-}
+#[path = "common/alloc.rs"]
+mod alloc;
+use alloc::allocations;
 
 #[test]
 fn step_is_allocation_free_after_the_first_step() {

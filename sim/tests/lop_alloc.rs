@@ -1,0 +1,113 @@
+//! A cage step allocates nothing after warm-up: gravity, nodal loads and the tool (a body
+//! pinned to its cage), with either cage dynamics; nor does a controller that does not switch.
+
+#[path = "common/alloc.rs"]
+mod alloc;
+mod common;
+
+use alloc::allocations;
+use common::cylinder;
+use lop_sim::contact::{ForceLaw, ToolSphere};
+use lop_sim::fem::{Fem, FemMode, FemParameters};
+use lop_sim::lop::{CageDynamics, CageShape, GcModel, GcParameters, Lop, LopPolicy};
+use lop_sim::model::{Model, ModelKind};
+use lop_sim::world::World;
+
+fn precise(mesh: &lop_sim::mesh::TetMesh) -> Model {
+    Model::Fem(
+        Fem::new(
+            mesh,
+            FemParameters {
+                young: 600.0,
+                poisson: 0.0023,
+                density: 30.0,
+                damping: 1.0,
+                dt: 0.02,
+                mode: FemMode::Corotational,
+            },
+        )
+        .unwrap(),
+    )
+}
+
+#[test]
+fn cage_steps_are_allocation_free() {
+    let mesh = cylinder();
+    let dynamics = [
+        CageDynamics::Projected,
+        CageDynamics::MassSpring {
+            stiffness: 50.0,
+            density: 20.0,
+            damping: 0.3,
+        },
+    ];
+    for dynamics in dynamics {
+        let params = GcParameters {
+            shape: CageShape::Fitted,
+            padding: 0.003,
+            dynamics,
+            dt: 0.02,
+        };
+        let gc = GcModel::from_precise(&mesh, params, &precise(&mesh)).unwrap();
+        let mut world = World::new([0.0, -9.81, 0.0]);
+        let i = world.add_model("cyl", mesh.clone(), Model::Gc(Box::new(gc)));
+        // The tool 2 mm into the side, a load on the top.
+        let tool = ToolSphere {
+            center: [0.031, 0.08, 0.0],
+            radius: 0.003,
+            stiffness: 300.0,
+            law: ForceLaw::Linear,
+        };
+        let top = (0..mesh.nodes.len())
+            .max_by(|&a, &b| mesh.nodes[a][1].total_cmp(&mesh.nodes[b][1]))
+            .unwrap();
+        world.bodies[i].loads[top] = [0.001, 0.0, 0.0];
+        for _ in 0..5 {
+            world.step_body(i, Some(&tool)).unwrap();
+        }
+        let mut touched = 0;
+        let n = allocations(|| {
+            for _ in 0..500 {
+                world.step_body(i, Some(&tool)).unwrap();
+                touched += (world.bodies[i].last_contact.depth > 0.0) as usize;
+            }
+        });
+        assert!(
+            touched >= 10,
+            "{dynamics:?}: in contact in only {touched} steps"
+        );
+        assert_eq!(n, 0, "{dynamics:?}: {n} allocations in 500 steps");
+    }
+}
+
+#[test]
+fn an_untouched_controlled_body_is_allocation_free() {
+    let mesh = cylinder();
+    let p = precise(&mesh);
+    let params = GcParameters {
+        shape: CageShape::Fitted,
+        padding: 0.003,
+        dynamics: CageDynamics::Projected,
+        dt: 0.02,
+    };
+    let gc = GcModel::from_precise(&mesh, params, &p).unwrap();
+    let (active, lop) = Lop::new(p, gc, LopPolicy::default());
+    let mut world = World::new([0.0, -9.81, 0.0]);
+    let i = world.add_lop_body("cyl", mesh, active, lop);
+    let far = ToolSphere {
+        center: [0.2, 0.2, 0.2],
+        radius: 0.003,
+        stiffness: 300.0,
+        law: ForceLaw::Linear,
+    };
+    for _ in 0..5 {
+        world.step_body(i, Some(&far)).unwrap();
+    }
+    let n = allocations(|| {
+        for _ in 0..500 {
+            world.step_body(i, Some(&far)).unwrap();
+        }
+    });
+    assert_eq!(world.bodies[i].model.kind(), ModelKind::Gc);
+    assert_eq!(n, 0, "{n} allocations in 500 steps");
+}
