@@ -1,6 +1,7 @@
-//! `lop-bench`: benchmarks of the lop pipeline. One module per subcommand; shared helpers in
-//! `table` (percentile rows, table printing), `pipeline` (spawning `lopd` with a guard) and
-//! `cyclictest` (the machine's own wake-up latency, as a yardstick).
+//! `lop-bench`: benchmarks of the lop pipeline. One module per subcommand (`latency`, `models`,
+//! `lop`); shared helpers in `table` (percentile rows, table printing), `plot` (SVG charts),
+//! `pipeline` (spawning `lopd` with a guard) and `cyclictest` (the machine's own wake-up
+//! latency, as a yardstick).
 
 use std::process::ExitCode;
 
@@ -8,6 +9,7 @@ use clap::{Parser, Subcommand};
 
 mod cyclictest;
 mod latency;
+mod lop;
 mod models;
 mod pipeline;
 mod plot;
@@ -28,6 +30,9 @@ enum Command {
     /// Deformation models: time per step on the shipped meshes, scaling with mesh size, and the
     /// thesis' chapter-3 integrator study (CSV + SVG plots).
     Models(models::ModelsArgs),
+    /// Levels of precision, the thesis' §6.3–6.4: time per iteration per body with and without
+    /// the GC cage, the cage's speed-up over FEM, and its approximation error (CSV + SVG plots).
+    Lop(lop::LopArgs),
 }
 
 fn main() -> ExitCode {
@@ -36,6 +41,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Latency(a) => latency::run(a),
         Command::Models(a) => models::run(a),
+        Command::Lop(a) => lop::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -803,7 +803,7 @@ pub struct ModelsReport {
     pub files: Vec<String>,
 }
 
-fn cpu_model() -> Option<String> {
+pub fn cpu_model() -> Option<String> {
     let text = std::fs::read_to_string("/proc/cpuinfo").ok()?;
     text.lines()
         .find(|l| l.starts_with("model name"))

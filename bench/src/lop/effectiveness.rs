@@ -1,0 +1,652 @@
+//! Part 3 of `lop-bench lop`: how far a Green-coordinates cage is from the precise model it
+//! stands for, under the same loads (thesis §6.4, Fig. 6.13). See the parent module's docs for
+//! the set-up; this file runs it and writes the CSV and SVG files.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::{anyhow, bail, Context, Result};
+use lop_config::{BodySpec, ModelPin, Scene};
+use lop_daemon::scene::smallest_extent;
+use lop_sim::lop::{CageShape, GcModel};
+use lop_sim::mesh::TetMesh;
+use lop_sim::model::Model;
+use serde::Serialize;
+
+use super::{
+    dist3, gc_variant, listed, placed_bodies, shape_key, shape_label, shipped_scene, write_file,
+    Target, SHAPES,
+};
+use crate::models::{table, Align};
+use crate::pipeline;
+use crate::plot::{self, Panel, Series};
+
+/// The load ramps up over this long, s, …
+const RAMP_END: f64 = 0.5;
+/// … is held until this time, then released, s …
+const HOLD_END: f64 = 1.5;
+/// … and the run lasts this long, s (`--quick`: [`QUICK_SECONDS`]).
+const SECONDS: f64 = 5.0;
+const QUICK_SECONDS: f64 = 0.5;
+/// Direction of the lateral load.
+const LOAD_DIRECTION: [f64; 3] = [1.0, 0.0, 0.0];
+
+/// The thesis' bounds (§6.4): box cage with mass-spring dynamics, max error over the run, % of
+/// the smallest dimension, against FEM and against MSD; and the projected dynamics' bound
+/// against FEM.
+const TARGET_BOX_MS_FEM: f64 = 4.0;
+const TARGET_BOX_MS_MSD: f64 = 8.0;
+const TARGET_PROJECTED_FEM: f64 = 2.0;
+
+/// One body of the study.
+struct Case {
+    name: &'static str,
+    scene: &'static str,
+    body: &'static str,
+    /// Total lateral load while held, N: a few mm of lateral deflection of the corotational FEM
+    /// (this cylinder, E = 600 Pa, bends by about 0.1 m under 0.05 N; the liver moves about
+    /// 11 mm under 0.02 N).
+    force: f64,
+}
+
+const CASES: [Case; 2] = [
+    Case {
+        name: "cylinder",
+        scene: "cylinders",
+        body: "cylinder_a",
+        force: 0.002,
+    },
+    Case {
+        name: "liver",
+        scene: "organs",
+        body: "liver",
+        force: 0.01,
+    },
+];
+
+/// The two references.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Reference {
+    Fem,
+    Msd,
+}
+
+impl Reference {
+    fn key(self) -> &'static str {
+        match self {
+            Reference::Fem => "fem",
+            Reference::Msd => "msd",
+        }
+    }
+    fn label(self) -> &'static str {
+        match self {
+            Reference::Fem => "FEM (corotational)",
+            Reference::Msd => "MSD (implicit Euler)",
+        }
+    }
+}
+
+/// A reference run.
+#[derive(Debug, Clone, Serialize)]
+pub struct ReferenceRow {
+    /// "fem" or "msd".
+    pub reference: String,
+    pub label: String,
+    pub dt: f64,
+    pub steps: usize,
+    /// Largest nodal displacement from rest over the run, mm and % of the smallest extent.
+    pub max_displacement_mm: f64,
+    pub max_displacement_pct: f64,
+    /// Largest nodal displacement at the end of the hold (just before the release), mm.
+    pub hold_end_displacement_mm: f64,
+    /// Largest nodal displacement at the end of the run, mm.
+    pub final_displacement_mm: f64,
+    pub blow_ups: usize,
+    /// The per-iteration CSV of this reference and its approximations.
+    pub csv: String,
+}
+
+/// One approximation of one reference.
+#[derive(Debug, Clone, Serialize)]
+pub struct VariantRow {
+    /// "fem" or "msd".
+    pub reference: String,
+    /// Stable machine name: `gc-<shape>-projected`, `gc-<shape>-mass-spring`, `rest`.
+    pub variant: String,
+    pub label: String,
+    /// Cage shape key, dynamics ("projected", "mass-spring"); `None` for the rest shape.
+    pub shape: Option<String>,
+    pub dynamics: Option<String>,
+    pub cage_vertices: Option<usize>,
+    /// Max over the run of the per-iteration max error, % of the smallest extent, and when.
+    pub max_error_pct: f64,
+    pub max_error_at_s: f64,
+    /// `max_error_pct` over the reference's largest displacement (also % of the smallest
+    /// extent): the error relative to the motion it approximates (1 = no better than the rest
+    /// shape at its worst).
+    pub max_error_relative: f64,
+    /// Mean over the run of the per-iteration mean error, %.
+    pub mean_error_pct: f64,
+    /// Max error at the end of the hold (just before the release), %.
+    pub hold_end_max_error_pct: f64,
+    /// Max error at the end of the run, %.
+    pub final_max_error_pct: f64,
+    pub blow_ups: usize,
+}
+
+/// One body's study.
+#[derive(Debug, Clone, Serialize)]
+pub struct CaseReport {
+    /// "cylinder" or "liver".
+    pub case: String,
+    pub scene: String,
+    pub body: String,
+    pub nodes: usize,
+    pub tets: usize,
+    /// The error's yardstick: the body's smallest rest extent, m.
+    pub smallest_extent_m: f64,
+    pub gravity: [f64; 3],
+    /// Nodes sharing the lateral load, its direction and its total while held, N.
+    pub loaded_nodes: usize,
+    pub load_direction: [f64; 3],
+    pub total_force_n: f64,
+    pub ramp_end_s: f64,
+    pub hold_end_s: f64,
+    pub simulated_s: f64,
+    pub references: Vec<ReferenceRow>,
+    pub variants: Vec<VariantRow>,
+    pub svg: String,
+}
+
+/// The free surface nodes on the body's −x side and upper half (relative to its bounding box
+/// centre).
+fn side_nodes(mesh: &TetMesh) -> Vec<usize> {
+    let info = mesh.info();
+    let c: [f64; 3] = std::array::from_fn(|a| 0.5 * (info.bbox_min[a] + info.bbox_max[a]));
+    let mut fixed = vec![false; mesh.nodes.len()];
+    for &f in &mesh.fixed {
+        fixed[f as usize] = true;
+    }
+    let mut out: Vec<usize> = mesh
+        .surface
+        .iter()
+        .flatten()
+        .map(|&k| k as usize)
+        .filter(|&k| !fixed[k] && mesh.nodes[k][0] < c[0] && mesh.nodes[k][1] > c[1])
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+/// Total lateral load at time `t`, as a fraction of its held value.
+fn load_factor(t: f64) -> f64 {
+    if t < RAMP_END {
+        t / RAMP_END
+    } else if t < HOLD_END {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// One approximation being stepped.
+struct Runner {
+    row: VariantRow,
+    model: Option<Model>,
+    /// Per iteration: mean and max error, %.
+    mean: Vec<f64>,
+    max: Vec<f64>,
+}
+
+/// Runs both cases; writes a CSV per case × reference and an SVG per case.
+pub fn run(quick: bool, out: &Path, files: &mut Vec<String>) -> Result<Vec<CaseReport>> {
+    let seconds = if quick { QUICK_SECONDS } else { SECONDS };
+    let mut reports = Vec::new();
+    for case in &CASES {
+        let scene = shipped_scene(case.scene)?;
+        let (spec, mesh) = placed_bodies(&scene)?
+            .into_iter()
+            .find(|(s, _)| s.name == case.body)
+            .with_context(|| format!("scene {} has no body {}", case.scene, case.body))?;
+        let smallest = smallest_extent(&mesh.nodes);
+        let nodes = side_nodes(&mesh);
+        if nodes.is_empty() {
+            bail!("{}: no free surface node on the loaded side", case.body);
+        }
+        let mut references = Vec::new();
+        let mut variants = Vec::new();
+        let mut panels = Vec::new();
+        for reference in [Reference::Fem, Reference::Msd] {
+            let (rrow, runners, disp) = run_reference(
+                &scene, case, &spec, &mesh, reference, &nodes, smallest, seconds,
+            )?;
+            let csv = rrow.csv.clone();
+            write_csv(&out.join(&csv), rrow.dt, &disp, &runners)?;
+            files.push(listed(out, &csv));
+            panels.push(panel(reference, rrow.dt, &disp, &runners, seconds));
+            references.push(rrow);
+            variants.extend(runners.into_iter().map(|r| r.row));
+        }
+        let svg = format!("part3-{}.svg", case.name);
+        plot::line_grid(
+            &out.join(&svg),
+            &format!(
+                "Fig. 6.13 analogue: {}, max error per iteration (% of {:.0} mm), {} mN load",
+                case.body,
+                smallest * 1e3,
+                case.force * 1e3
+            ),
+            &panels,
+            2,
+            (620, 380),
+        )?;
+        files.push(listed(out, &svg));
+        reports.push(CaseReport {
+            case: case.name.into(),
+            scene: case.scene.into(),
+            body: case.body.into(),
+            nodes: mesh.nodes.len(),
+            tets: mesh.tets.len(),
+            smallest_extent_m: smallest,
+            gravity: scene.gravity,
+            loaded_nodes: nodes.len(),
+            load_direction: LOAD_DIRECTION,
+            total_force_n: case.force,
+            ramp_end_s: RAMP_END,
+            hold_end_s: HOLD_END,
+            simulated_s: seconds,
+            references,
+            variants,
+            svg,
+        });
+    }
+    Ok(reports)
+}
+
+/// The reference model's displacement per iteration (max over nodes, %), with index 0 = rest.
+type Displacements = Vec<f64>;
+
+#[allow(clippy::too_many_arguments)]
+fn run_reference(
+    scene: &Scene,
+    case: &Case,
+    spec: &BodySpec,
+    mesh: &TetMesh,
+    reference: Reference,
+    nodes: &[usize],
+    smallest: f64,
+    seconds: f64,
+) -> Result<(ReferenceRow, Vec<Runner>, Displacements)> {
+    let mut ref_spec = spec.clone();
+    ref_spec.model = match reference {
+        Reference::Fem => ModelPin::Fem,
+        Reference::Msd => ModelPin::Msd,
+    };
+    if let Some(f) = ref_spec.fem.as_mut() {
+        f.mode = lop_config::FemMode::Corotational;
+    }
+    let mut precise = lop_daemon::scene::precise_model(scene, &ref_spec, mesh)?;
+    let dt = precise.dt();
+    let steps = (seconds / dt).round() as usize;
+
+    // The approximations: every cage shape × dynamics, at the reference's dt, then the rest
+    // shape.
+    let mut runners = Vec::new();
+    for shape in SHAPES {
+        for mass_spring in [false, true] {
+            let params = gc_variant(spec, mesh, shape, mass_spring, dt);
+            let gc = GcModel::from_precise(mesh, params, &precise).map_err(|e| {
+                anyhow!(
+                    "{}: {} cage{}: {e}",
+                    case.body,
+                    shape_label(shape),
+                    if mass_spring { ", mass-spring" } else { "" }
+                )
+            })?;
+            let vertices = gc.coordinates().vertex_count();
+            let (variant, label) = variant_names(shape, mass_spring);
+            runners.push(Runner {
+                row: VariantRow {
+                    reference: reference.key().into(),
+                    variant,
+                    label,
+                    shape: Some(shape_key(shape)),
+                    dynamics: Some(dynamics_key(mass_spring).into()),
+                    cage_vertices: Some(vertices),
+                    max_error_pct: 0.0,
+                    max_error_at_s: 0.0,
+                    max_error_relative: 0.0,
+                    mean_error_pct: 0.0,
+                    hold_end_max_error_pct: 0.0,
+                    final_max_error_pct: 0.0,
+                    blow_ups: 0,
+                },
+                model: Some(Model::Gc(Box::new(gc))),
+                mean: vec![0.0],
+                max: vec![0.0],
+            });
+        }
+    }
+    runners.push(Runner {
+        row: VariantRow {
+            reference: reference.key().into(),
+            variant: "rest".into(),
+            label: "no deformation (rest shape)".into(),
+            shape: None,
+            dynamics: None,
+            cage_vertices: None,
+            max_error_pct: 0.0,
+            max_error_at_s: 0.0,
+            max_error_relative: 0.0,
+            mean_error_pct: 0.0,
+            hold_end_max_error_pct: 0.0,
+            final_max_error_pct: 0.0,
+            blow_ups: 0,
+        },
+        model: None,
+        mean: vec![0.0],
+        max: vec![0.0],
+    });
+
+    eprintln!(
+        "lop: part 3: {} vs {} ({} steps of {} s, {} approximations)",
+        case.body,
+        reference.label(),
+        steps,
+        dt,
+        runners.len()
+    );
+    let per_node = case.force / nodes.len() as f64;
+    let mut loads = vec![[0.0; 3]; mesh.nodes.len()];
+    let mut disp: Displacements = vec![0.0];
+    let mut ref_blow_ups = 0;
+    let mut hold_end_disp = 0.0;
+    let hold_end_step = (HOLD_END / dt).round() as usize;
+    let pct = 100.0 / smallest;
+    for k in 1..=steps {
+        let t = k as f64 * dt;
+        let f = per_node * load_factor(t);
+        for &i in nodes {
+            loads[i] = LOAD_DIRECTION.map(|d| d * f);
+        }
+        if precise.step(scene.gravity, &loads, None).is_err() {
+            ref_blow_ups += 1;
+        }
+        let xr = precise.positions();
+        let d = xr
+            .iter()
+            .zip(&mesh.nodes)
+            .map(|(p, q)| dist3(*p, *q))
+            .fold(0.0, f64::max);
+        disp.push(d * pct);
+        if k == hold_end_step {
+            hold_end_disp = d;
+        }
+        for r in &mut runners {
+            let x: &[[f64; 3]] = match &mut r.model {
+                Some(m) => {
+                    if m.step(scene.gravity, &loads, None).is_err() {
+                        r.row.blow_ups += 1;
+                    }
+                    m.positions()
+                }
+                None => &mesh.nodes,
+            };
+            let (mut sum, mut max) = (0.0, 0.0f64);
+            for (p, q) in x.iter().zip(xr) {
+                let e = dist3(*p, *q);
+                sum += e;
+                max = max.max(e);
+            }
+            r.mean.push(sum / xr.len() as f64 * pct);
+            r.max.push(max * pct);
+        }
+        if pipeline::interrupted() {
+            bail!("interrupted");
+        }
+    }
+    let ref_max = disp.iter().copied().fold(0.0, f64::max);
+    for r in &mut runners {
+        let (at, max) =
+            r.max
+                .iter()
+                .enumerate()
+                .fold((0, 0.0f64), |b, (k, &v)| if v > b.1 { (k, v) } else { b });
+        r.row.max_error_pct = max;
+        r.row.max_error_at_s = at as f64 * dt;
+        r.row.max_error_relative = if ref_max > 0.0 { max / ref_max } else { 0.0 };
+        r.row.mean_error_pct = r.mean[1..].iter().sum::<f64>() / steps.max(1) as f64;
+        r.row.hold_end_max_error_pct = r.max.get(hold_end_step).copied().unwrap_or(0.0);
+        r.row.final_max_error_pct = *r.max.last().unwrap_or(&0.0);
+    }
+    let final_disp = disp.last().copied().unwrap_or(0.0) / pct;
+    let row = ReferenceRow {
+        reference: reference.key().into(),
+        label: reference.label().into(),
+        dt,
+        steps,
+        max_displacement_mm: disp.iter().copied().fold(0.0, f64::max) / pct * 1e3,
+        max_displacement_pct: disp.iter().copied().fold(0.0, f64::max),
+        hold_end_displacement_mm: hold_end_disp * 1e3,
+        final_displacement_mm: final_disp * 1e3,
+        blow_ups: ref_blow_ups,
+        csv: format!("part3-{}-vs-{}.csv", case.name, reference.key()),
+    };
+    Ok((row, runners, disp))
+}
+
+fn dynamics_key(mass_spring: bool) -> &'static str {
+    if mass_spring {
+        "mass-spring"
+    } else {
+        "projected"
+    }
+}
+
+fn variant_names(shape: CageShape, mass_spring: bool) -> (String, String) {
+    (
+        format!("gc-{}-{}", shape_key(shape), dynamics_key(mass_spring)),
+        format!(
+            "GC {}, {}",
+            shape_label(shape),
+            if mass_spring {
+                "mass-spring (thesis)"
+            } else {
+                "projected"
+            }
+        ),
+    )
+}
+
+fn write_csv(path: &Path, dt: f64, disp: &[f64], runners: &[Runner]) -> Result<()> {
+    let mut s = String::from("iteration,time_s,reference_displacement_max_pct");
+    for r in runners {
+        let k = r.row.variant.replace('-', "_");
+        let _ = write!(s, ",{k}_mean_pct,{k}_max_pct");
+    }
+    s.push('\n');
+    for (n, d) in disp.iter().enumerate() {
+        let _ = write!(s, "{n},{:.6},{d:.6}", n as f64 * dt);
+        for r in runners {
+            let _ = write!(s, ",{:.6},{:.6}", r.mean[n], r.max[n]);
+        }
+        s.push('\n');
+    }
+    write_file(path, &s)
+}
+
+/// Colour of an approximation: one per cage shape, the mass-spring line one step along.
+fn variant_color(row: &VariantRow) -> usize {
+    match (row.shape.as_deref(), row.dynamics.as_deref()) {
+        (Some("box"), Some("projected")) => 1,
+        (Some("box"), _) => 3,
+        (Some("fitted"), Some("projected")) => 2,
+        (Some("fitted"), _) => 5,
+        (Some(_), Some("projected")) => 6,
+        (Some(_), _) => 7,
+        (None, _) => 4,
+    }
+}
+
+fn panel(reference: Reference, dt: f64, disp: &[f64], runners: &[Runner], seconds: f64) -> Panel {
+    let mut top: f64 = disp.iter().copied().fold(0.0, f64::max);
+    for r in runners {
+        top = top.max(r.row.max_error_pct);
+    }
+    // Headroom for the legend (upper left).
+    let top = if top > 0.0 { top * 1.8 } else { 1.0 };
+    let series = runners
+        .iter()
+        .map(|r| Series {
+            label: if r.row.blow_ups > 0 {
+                format!("{} ({} blow-ups)", r.row.label, r.row.blow_ups)
+            } else {
+                r.row.label.clone()
+            },
+            points: r
+                .max
+                .iter()
+                .enumerate()
+                .map(|(n, &v)| (n as f64 * dt, v.min(top)))
+                .collect(),
+            color: variant_color(&r.row),
+        })
+        .collect();
+    Panel {
+        title: format!(
+            "GC vs {} (the rest shape's error = its displacement)",
+            reference.label()
+        ),
+        x_desc: "time (s)".into(),
+        y_desc: "max error (% of smallest dimension)".into(),
+        x_range: (0.0, seconds),
+        y_range: (0.0, top),
+        series,
+    }
+}
+
+/// Part 3's tables for stdout.
+pub fn render(reports: &[CaseReport]) -> String {
+    let mut s = String::from(
+        "Part 3: effectiveness, GC approximation error (per iteration over all nodes: |x_gc - \
+         x_ref|, % of the body's smallest rest extent)\n",
+    );
+    for c in reports {
+        let _ = writeln!(
+            s,
+            "\n{} ({}): {} nodes, {} tets, smallest extent {:.1} mm, gravity {:?}; {} N along \
+             {:?} on {} surface nodes (-x side, upper half), ramped over {} s, released at {} s, \
+             {} s simulated",
+            c.body,
+            c.scene,
+            c.nodes,
+            c.tets,
+            c.smallest_extent_m * 1e3,
+            c.gravity,
+            c.total_force_n,
+            c.load_direction,
+            c.loaded_nodes,
+            c.ramp_end_s,
+            c.hold_end_s,
+            c.simulated_s
+        );
+        for r in &c.references {
+            let _ = writeln!(
+                s,
+                "\nvs {} (dt {} s, {} steps): reference max displacement {:.2} mm = {:.2} % \
+                 (at the end of the hold {:.2} mm, at the end {:.2} mm){}",
+                r.label,
+                r.dt,
+                r.steps,
+                r.max_displacement_mm,
+                r.max_displacement_pct,
+                r.hold_end_displacement_mm,
+                r.final_displacement_mm,
+                if r.blow_ups > 0 {
+                    format!("; {} BLOW-UPS", r.blow_ups)
+                } else {
+                    String::new()
+                }
+            );
+            let cells: Vec<Vec<String>> = c
+                .variants
+                .iter()
+                .filter(|v| v.reference == r.reference)
+                .map(|v| {
+                    vec![
+                        v.label.clone(),
+                        v.cage_vertices.map_or("-".into(), |n| n.to_string()),
+                        format!("{:.2}", v.max_error_pct),
+                        format!("{:.2}", v.max_error_at_s),
+                        format!("{:.2}", v.max_error_relative),
+                        format!("{:.2}", v.mean_error_pct),
+                        format!("{:.2}", v.hold_end_max_error_pct),
+                        format!("{:.2}", v.final_max_error_pct),
+                        v.blow_ups.to_string(),
+                    ]
+                })
+                .collect();
+            s += &table(
+                &[
+                    ("approximation", Align::Left),
+                    ("cage V", Align::Right),
+                    ("max err %", Align::Right),
+                    ("at s", Align::Right),
+                    ("/ ref disp", Align::Right),
+                    ("mean err %", Align::Right),
+                    ("max at hold end %", Align::Right),
+                    ("max at end %", Align::Right),
+                    ("blow-ups", Align::Right),
+                ],
+                &cells,
+            );
+        }
+    }
+    s
+}
+
+/// The error targets, on both bodies (the thesis measured the cylinder).
+pub fn targets(reports: &[CaseReport]) -> Vec<Target> {
+    let mut out = Vec::new();
+    for c in reports {
+        let find = |reference: &str, variant: &str| {
+            c.variants
+                .iter()
+                .find(|v| v.reference == reference && v.variant == variant)
+        };
+        let (box_ms, _) = variant_names(CageShape::Box, true);
+        for (reference, limit) in [("fem", TARGET_BOX_MS_FEM), ("msd", TARGET_BOX_MS_MSD)] {
+            if let Some(v) = find(reference, &box_ms) {
+                out.push(Target {
+                    target: format!(
+                        "{}: box cage + mass-spring (thesis) vs {} max error ≤ {limit} %",
+                        c.case,
+                        reference.to_uppercase()
+                    ),
+                    measured: format!("{:.2} % (at {:.2} s)", v.max_error_pct, v.max_error_at_s),
+                    value: v.max_error_pct,
+                    limit,
+                    met: v.max_error_pct <= limit,
+                });
+            }
+        }
+        for shape in SHAPES {
+            let (variant, _) = variant_names(shape, false);
+            if let Some(v) = find("fem", &variant) {
+                out.push(Target {
+                    target: format!(
+                        "{}: {} cage + projected vs FEM max error ≤ {TARGET_PROJECTED_FEM} %",
+                        c.case,
+                        shape_label(shape)
+                    ),
+                    measured: format!("{:.2} % (at {:.2} s)", v.max_error_pct, v.max_error_at_s),
+                    value: v.max_error_pct,
+                    limit: TARGET_PROJECTED_FEM,
+                    met: v.max_error_pct <= TARGET_PROJECTED_FEM,
+                });
+            }
+        }
+    }
+    out
+}
