@@ -3,9 +3,10 @@
 //! anything: the rate is counted over the window by the haptic loop's own telemetry, and the
 //! tolerance is wide (±50 %) for small, noisy CI machines.
 
+mod common;
+
 use std::path::PathBuf;
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// The `lopd` of the same build: cargo puts every workspace binary into the same target dir.
 fn lopd_beside_bench() -> PathBuf {
@@ -25,39 +26,20 @@ fn latency_two_seconds_reports_every_row() {
     }
     let json = std::env::temp_dir().join(format!("lopbench-smoke-{}.json", std::process::id()));
     let _ = std::fs::remove_file(&json);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_lop-bench"))
-        .args(["latency", "--seconds", "2", "--no-cyclictest", "--json"])
-        .arg(&json)
-        .arg("--lopd")
-        .arg(&lopd)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn lop-bench");
-
-    // Watchdog: the bench stops its own lopd (and lopd's children follow their parent), so
-    // killing a hung bench leaves nothing behind.
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().expect("wait lop-bench") {
-            break Some(s);
-        }
-        if start.elapsed() > Duration::from_secs(90) {
-            let _ = child.kill();
-            let _ = child.wait();
-            break None;
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let out = child.wait_with_output().expect("lop-bench output");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let status =
-        status.unwrap_or_else(|| panic!("lop-bench hung; stdout:\n{stdout}\nstderr:\n{stderr}"));
-    assert!(
-        status.success(),
-        "lop-bench failed ({status}); stdout:\n{stdout}\nstderr:\n{stderr}"
+    // The bench stops its own lopd (and lopd's children follow their parent), so killing a
+    // hung bench leaves nothing behind.
+    let stdout = common::run_bench(
+        &[
+            "latency".as_ref(),
+            "--seconds".as_ref(),
+            "2".as_ref(),
+            "--no-cyclictest".as_ref(),
+            "--json".as_ref(),
+            json.as_os_str(),
+            "--lopd".as_ref(),
+            lopd.as_os_str(),
+        ],
+        Duration::from_secs(90),
     );
     assert!(stdout.contains("haptic period jitter"), "{stdout}");
 

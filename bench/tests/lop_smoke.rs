@@ -4,9 +4,10 @@
 //! numbers, and every CSV/SVG file it lists exists. No wall-clock bound on any figure (speed
 //! goes in `docs/benchmarks.md`, not in tests).
 
+mod common;
+
 use std::path::PathBuf;
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serde_json::Value;
 
@@ -96,49 +97,16 @@ fn lop_quick_reports_every_run_and_writes_its_files() {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("temp dir");
     let json = dir.join("lop.json");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_lop-bench"))
-        .args(["lop", "--quick", "--out"])
-        .arg(&dir)
-        .arg("--json")
-        .arg(&json)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn lop-bench");
-    // Watchdog (generous: a slow debug build on a busy 2-core machine). Drain the pipes in
-    // threads so a chatty child can never block on a full pipe.
-    let mut out_pipe = child.stdout.take().unwrap();
-    let mut err_pipe = child.stderr.take().unwrap();
-    let out_reader = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = std::io::Read::read_to_string(&mut out_pipe, &mut s);
-        s
-    });
-    let err_reader = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = std::io::Read::read_to_string(&mut err_pipe, &mut s);
-        s
-    });
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().expect("wait lop-bench") {
-            break Some(s);
-        }
-        if start.elapsed() > Duration::from_secs(900) {
-            let _ = child.kill();
-            let _ = child.wait();
-            break None;
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let stdout = out_reader.join().unwrap_or_default();
-    let stderr = err_reader.join().unwrap_or_default();
-    let status =
-        status.unwrap_or_else(|| panic!("lop-bench hung; stdout:\n{stdout}\nstderr:\n{stderr}"));
-    assert!(
-        status.success(),
-        "lop-bench failed ({status}); stdout:\n{stdout}\nstderr:\n{stderr}"
+    let stdout = common::run_bench(
+        &[
+            "lop".as_ref(),
+            "--quick".as_ref(),
+            "--out".as_ref(),
+            dir.as_os_str(),
+            "--json".as_ref(),
+            json.as_os_str(),
+        ],
+        Duration::from_secs(900),
     );
 
     let text = std::fs::read_to_string(&json).expect("JSON written");

@@ -2,9 +2,10 @@
 //! median, the scaling series and the chapter-3 study ran, and every CSV/SVG file it lists
 //! exists. No wall-clock bound on any figure (speed goes in `docs/benchmarks.md`, not in tests).
 
+mod common;
+
 use std::path::PathBuf;
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 const MESHES: [&str; 3] = ["beam", "cylinder", "liver"];
 const MODELS: [&str; 7] = [
@@ -23,37 +24,16 @@ fn models_quick_reports_every_row_and_writes_the_study() {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("temp dir");
     let json = dir.join("m.json");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_lop-bench"))
-        .args(["models", "--quick", "--out"])
-        .arg(&dir)
-        .arg("--json")
-        .arg(&json)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn lop-bench");
-    // Watchdog (generous: a slow debug build on a busy 2-core machine).
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().expect("wait lop-bench") {
-            break Some(s);
-        }
-        if start.elapsed() > Duration::from_secs(600) {
-            let _ = child.kill();
-            let _ = child.wait();
-            break None;
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let out = child.wait_with_output().expect("lop-bench output");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let status =
-        status.unwrap_or_else(|| panic!("lop-bench hung; stdout:\n{stdout}\nstderr:\n{stderr}"));
-    assert!(
-        status.success(),
-        "lop-bench failed ({status}); stdout:\n{stdout}\nstderr:\n{stderr}"
+    let stdout = common::run_bench(
+        &[
+            "models".as_ref(),
+            "--quick".as_ref(),
+            "--out".as_ref(),
+            dir.as_os_str(),
+            "--json".as_ref(),
+            json.as_os_str(),
+        ],
+        Duration::from_secs(600),
     );
 
     let text = std::fs::read_to_string(&json).expect("JSON written");
