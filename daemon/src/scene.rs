@@ -10,6 +10,7 @@ use lop_ipc::{
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::{Fem, FemMode, FemParameters};
 use lop_sim::lop::{CageDynamics, CageShape, GcModel, GcParameters, Lop, LopPolicy, StartLevel};
+pub use lop_sim::mesh::smallest_extent;
 use lop_sim::mesh::{read_mesh, TetMesh};
 use lop_sim::model::Model;
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
@@ -140,19 +141,6 @@ pub fn lop_policy(scene: &Scene) -> LopPolicy {
             lop_config::StartLevel::Precise => StartLevel::Precise,
         },
     }
-}
-
-/// Smallest extent of the bounding box of `p`, m.
-pub fn smallest_extent(p: &[[f64; 3]]) -> f64 {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for x in p {
-        for a in 0..3 {
-            lo[a] = lo[a].min(x[a]);
-            hi[a] = hi[a].max(x[a]);
-        }
-    }
-    (0..3).map(|a| hi[a] - lo[a]).fold(f64::INFINITY, f64::min)
 }
 
 /// A body's models: the one to run now and, for `model = "auto"`, the levels-of-precision

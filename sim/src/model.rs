@@ -10,7 +10,7 @@
 //! - on a blow-up (a non-finite value, or a node faster than [`RUNAWAY_SPEED`]) the model resets
 //!   to rest and returns the cause, so nothing non-finite ever leaves it.
 
-use crate::contact::ToolSphere;
+use crate::contact::{closest_on_surface, scale, ToolSphere};
 use crate::lop::{Damping, GcModel};
 use crate::msd::MassSpring;
 
@@ -171,4 +171,50 @@ impl Model {
             Model::Gc(_) => false,
         }
     }
+}
+
+/// The tool touching the body: where, how deep, how hard.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Touch {
+    /// Nodes of the touched triangle.
+    pub tri: [u32; 3],
+    /// Barycentric weights of the contact point on it.
+    pub weights: [f64; 3],
+    /// Unit outward normal.
+    pub normal: [f64; 3],
+    /// Penetration, m (> 0).
+    pub depth: f64,
+    /// Force the tissue receives, N.
+    pub on_tissue: [f64; 3],
+    /// `dF/dd` of the force law at this depth, N/m.
+    pub stiffness: f64,
+}
+
+/// The tool's contact on positions `x`: the closest candidate triangle, if the tool penetrates
+/// it. Allocation-free.
+pub(crate) fn touch(c: &ToolContact<'_>, x: &[[f64; 3]]) -> Option<Touch> {
+    let mut best: Option<(usize, crate::contact::SurfaceHit)> = None;
+    for &t in c.candidates {
+        let Some(tri) = c.surface.get(t as usize) else {
+            continue;
+        };
+        if let Some(hit) = closest_on_surface(x, std::slice::from_ref(tri), c.tool.center) {
+            if best.is_none_or(|(_, b)| hit.distance < b.distance) {
+                best = Some((t as usize, hit));
+            }
+        }
+    }
+    let (t, hit) = best?;
+    let depth = c.tool.depth(&hit);
+    if !(depth > 0.0) {
+        return None;
+    }
+    Some(Touch {
+        tri: c.surface[t],
+        weights: hit.barycentric,
+        normal: hit.normal,
+        depth,
+        on_tissue: scale(c.tool.force_on_tool(&hit), -1.0),
+        stiffness: c.tool.max_stiffness(depth),
+    })
 }

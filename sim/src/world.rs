@@ -209,13 +209,6 @@ impl World {
 
 /// Whether `p` is within `margin` of the bounding box of `positions`.
 fn near_bounds(positions: &[[f64; 3]], p: [f64; 3], margin: f64) -> bool {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for x in positions {
-        for k in 0..3 {
-            lo[k] = lo[k].min(x[k]);
-            hi[k] = hi[k].max(x[k]);
-        }
-    }
+    let (lo, hi) = crate::mesh::bounds(positions);
     (0..3).all(|k| p[k] >= lo[k] - margin && p[k] <= hi[k] + margin)
 }

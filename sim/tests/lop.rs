@@ -3,9 +3,9 @@
 
 mod common;
 
-use common::cylinder;
+use common::{cylinder, cylinder_fem_params};
 use lop_sim::contact::{ForceLaw, ToolSphere};
-use lop_sim::fem::{Fem, FemMode, FemParameters};
+use lop_sim::fem::Fem;
 use lop_sim::lop::{
     CageDynamics, CageShape, GcModel, GcParameters, Lop, LopPolicy, StartLevel, SwitchReason,
 };
@@ -17,18 +17,7 @@ const GRAVITY: [f64; 3] = [0.0, -9.81, 0.0];
 
 /// Table 6.1's FEM column on the shipped cylinder (radius 30 mm, height 120 mm, base fixed).
 fn fem(mesh: &TetMesh) -> Fem {
-    Fem::new(
-        mesh,
-        FemParameters {
-            young: 600.0,
-            poisson: 0.0023,
-            density: 30.0,
-            damping: 1.0,
-            dt: 0.02,
-            mode: FemMode::Corotational,
-        },
-    )
-    .unwrap()
+    Fem::new(mesh, cylinder_fem_params()).unwrap()
 }
 
 fn gc_params(shape: CageShape, dynamics: CageDynamics) -> GcParameters {

@@ -6,28 +6,15 @@ mod alloc;
 mod common;
 
 use alloc::allocations;
-use common::cylinder;
+use common::{cylinder, cylinder_fem_params};
 use lop_sim::contact::{ForceLaw, ToolSphere};
-use lop_sim::fem::{Fem, FemMode, FemParameters};
+use lop_sim::fem::Fem;
 use lop_sim::lop::{CageDynamics, CageShape, GcModel, GcParameters, Lop, LopPolicy};
 use lop_sim::model::{Model, ModelKind};
 use lop_sim::world::World;
 
 fn precise(mesh: &lop_sim::mesh::TetMesh) -> Model {
-    Model::Fem(
-        Fem::new(
-            mesh,
-            FemParameters {
-                young: 600.0,
-                poisson: 0.0023,
-                density: 30.0,
-                damping: 1.0,
-                dt: 0.02,
-                mode: FemMode::Corotational,
-            },
-        )
-        .unwrap(),
-    )
+    Model::Fem(Fem::new(mesh, cylinder_fem_params()).unwrap())
 }
 
 #[test]

@@ -3,12 +3,11 @@
 use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
 use thiserror::Error;
 
-use crate::contact::{closest_on_surface, SurfaceHit, ToolSphere};
 use crate::gc::{
     box_cage, grid_box_cage, subdivided_box_cage, Cage, CageError, GcBinding, GreenCoordinates,
 };
-use crate::mesh::TetMesh;
-use crate::model::{BlowUp, ContactReport, Model, ToolContact, RUNAWAY_SPEED};
+use crate::mesh::{extents, smallest_extent, TetMesh};
+use crate::model::{touch, BlowUp, ContactReport, Model, ToolContact, Touch, RUNAWAY_SPEED};
 use crate::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 use crate::vec3::{add, dot, norm, scale, sub};
 
@@ -193,16 +192,8 @@ pub fn build_cage(shape: CageShape, points: &[[f64; 3]], padding: f64) -> Cage {
 
 /// Segments per axis of a [`CageShape::Fitted`] cage around `points`.
 pub fn fitted_cells(points: &[[f64; 3]]) -> [usize; 3] {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in points {
-        for a in 0..3 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
-        }
-    }
-    let ext = [0, 1, 2].map(|a| hi[a] - lo[a]);
-    let smallest = ext.iter().copied().fold(f64::INFINITY, f64::min);
+    let ext = extents(points);
+    let smallest = smallest_extent(points);
     ext.map(|e| {
         let r = (e / smallest).round();
         if r.is_finite() && r >= 1.0 {
@@ -250,7 +241,7 @@ impl GcModel {
         // Jacobian by central differences of the exact map: the φ part is linear in the cage,
         // the ψ part (scaled normals) smooth, so the O(h²) error at h = 1e-6 of the cage size
         // is far below anything that matters.
-        let size = cage_size(&cage.vertices);
+        let size = extents(&cage.vertices).into_iter().fold(0.0, f64::max);
         let h = 1e-6 * size;
         let mut jacobian = DMatrix::zeros(3 * n, m);
         let mut deformed = cage.vertices.clone();
@@ -598,6 +589,7 @@ impl GcModel {
         // level; a touched body normally switches to its precise model first).
         let touch = contact.and_then(|c| touch(c, &self.x));
         let has_loads = touch.is_some() || external.iter().any(|f| *f != [0.0; 3]);
+        let n = self.rest.len();
         match &mut self.dynamics {
             Dynamics::Projected(r) => {
                 // f_r = Gᵀ f over the loaded nodes only (gravity is folded in at set-up).
@@ -611,16 +603,7 @@ impl GcModel {
                             }
                         }
                     };
-                    for (k, f) in external.iter().enumerate().take(self.rest.len()) {
-                        if *f != [0.0; 3] {
-                            add_load(k, *f);
-                        }
-                    }
-                    if let Some(t) = &touch {
-                        for (j, &node) in t.tri.iter().enumerate() {
-                            add_load(node as usize, scale(t.on_tissue, t.weights[j]));
-                        }
-                    }
+                    each_load(external, n, touch.as_ref(), &mut add_load);
                 }
                 r.d.fill(0.0);
                 if has_loads {
@@ -656,16 +639,7 @@ impl GcModel {
                             self.cage_loads[i] = add(self.cage_loads[i], scale(f, w));
                         }
                     };
-                    for (k, f) in external.iter().enumerate().take(self.rest.len()) {
-                        if *f != [0.0; 3] {
-                            add_load(k, *f);
-                        }
-                    }
-                    if let Some(t) = &touch {
-                        for (j, &node) in t.tri.iter().enumerate() {
-                            add_load(node as usize, scale(t.on_tissue, t.weights[j]));
-                        }
-                    }
+                    each_load(external, n, touch.as_ref(), &mut add_load);
                 }
                 msd.step(gravity, &self.cage_loads, None)?;
             }
@@ -743,51 +717,24 @@ impl GcModel {
     }
 }
 
-/// The tool pressing on positions `x`: closest candidate triangle, if penetrated.
-struct Touch {
-    tri: [u32; 3],
-    weights: [f64; 3],
-    depth: f64,
-    on_tissue: [f64; 3],
-}
-
-fn touch(c: &ToolContact<'_>, x: &[[f64; 3]]) -> Option<Touch> {
-    let mut best: Option<(usize, SurfaceHit)> = None;
-    for &t in c.candidates {
-        let Some(tri) = c.surface.get(t as usize) else {
-            continue;
-        };
-        if let Some(hit) = closest_on_surface(x, std::slice::from_ref(tri), c.tool.center) {
-            if best.is_none_or(|(_, b)| hit.distance < b.distance) {
-                best = Some((t as usize, hit));
-            }
+/// Calls `add` with every non-zero nodal load: the first `n` of `external`, then the tool's
+/// force spread on the touched triangle's nodes by its barycentric weights.
+fn each_load(
+    external: &[[f64; 3]],
+    n: usize,
+    touch: Option<&Touch>,
+    add: &mut impl FnMut(usize, [f64; 3]),
+) {
+    for (k, f) in external.iter().enumerate().take(n) {
+        if *f != [0.0; 3] {
+            add(k, *f);
         }
     }
-    let (t, hit) = best?;
-    let tool: &ToolSphere = &c.tool;
-    let depth = tool.depth(&hit);
-    if !(depth > 0.0) {
-        return None;
-    }
-    Some(Touch {
-        tri: c.surface[t],
-        weights: hit.barycentric,
-        depth,
-        on_tissue: scale(tool.force_on_tool(&hit), -1.0),
-    })
-}
-
-/// Largest extent of a point set's bounding box.
-fn cage_size(v: &[[f64; 3]]) -> f64 {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in v {
-        for a in 0..3 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
+    if let Some(t) = touch {
+        for (j, &node) in t.tri.iter().enumerate() {
+            add(node as usize, scale(t.on_tissue, t.weights[j]));
         }
     }
-    (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max)
 }
 
 /// Volume enclosed by an outward cage (divergence theorem).

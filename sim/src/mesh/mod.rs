@@ -169,14 +169,7 @@ impl TetMesh {
     /// Counts, bounding box, volume and quality.
     #[must_use]
     pub fn info(&self) -> MeshInfo {
-        let mut bbox_min = [f64::INFINITY; 3];
-        let mut bbox_max = [f64::NEG_INFINITY; 3];
-        for p in &self.nodes {
-            for k in 0..3 {
-                bbox_min[k] = bbox_min[k].min(p[k]);
-                bbox_max[k] = bbox_max[k].max(p[k]);
-            }
-        }
+        let (mut bbox_min, mut bbox_max) = bounds(&self.nodes);
         if self.nodes.is_empty() {
             bbox_min = [0.0; 3];
             bbox_max = [0.0; 3];
@@ -304,6 +297,32 @@ impl fmt::Display for MeshInfo {
 /// # Errors
 /// [`MeshReadError::Io`] if the file (or, for TetGen, `X.node`) does not exist,
 /// [`MeshReadError::UnsupportedFormat`] for an unknown extension, and whatever the reader for
+
+/// Axis-aligned bounding box `(min, max)` of `points`, m (infinite and inverted when empty).
+pub fn bounds(points: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Extent of the bounding box of `points` along each axis, m.
+pub fn extents(points: &[[f64; 3]]) -> [f64; 3] {
+    let (lo, hi) = bounds(points);
+    [0, 1, 2].map(|k| hi[k] - lo[k])
+}
+
+/// Smallest extent of the bounding box of `points`, m: the "smallest dimension" that errors
+/// and jumps are measured against.
+pub fn smallest_extent(points: &[[f64; 3]]) -> f64 {
+    extents(points).into_iter().fold(f64::INFINITY, f64::min)
+}
+
 /// the format reports.
 pub fn read_mesh(path: &Path) -> Result<TetMesh, MeshReadError> {
     match text::extension(path).as_deref() {

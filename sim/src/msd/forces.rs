@@ -1,8 +1,9 @@
 //! Forces of the mass-spring model shared by every integrator: springs, gravity and external
 //! loads (position-only), and the tool's penalty contact.
 
-use crate::contact::{add, closest_on_surface, dot, norm, scale, sub};
+use crate::contact::{add, dot, norm, scale, sub};
 use crate::model::ToolContact;
+pub(super) use crate::model::{touch, Touch};
 
 /// A spring between nodes `a < b`.
 #[derive(Debug, Clone, Copy)]
@@ -35,52 +36,6 @@ pub(super) struct Loads<'a, 'c> {
     /// N, one per node; missing entries are zero.
     pub external: &'a [[f64; 3]],
     pub contact: Option<&'a ToolContact<'c>>,
-}
-
-/// The tool touching the body: where, how deep, how hard.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct Touch {
-    /// Nodes of the touched triangle.
-    pub tri: [u32; 3],
-    /// Barycentric weights of the contact point on it.
-    pub weights: [f64; 3],
-    /// Unit outward normal.
-    pub normal: [f64; 3],
-    /// Penetration, m (> 0).
-    pub depth: f64,
-    /// Force the tissue receives, N.
-    pub on_tissue: [f64; 3],
-    /// `dF/dd` of the force law at this depth, N/m.
-    pub stiffness: f64,
-}
-
-/// The tool's contact on positions `x`: the closest candidate triangle, if the tool penetrates
-/// it. Allocation-free.
-pub(super) fn touch(c: &ToolContact<'_>, x: &[[f64; 3]]) -> Option<Touch> {
-    let mut best: Option<(usize, crate::contact::SurfaceHit)> = None;
-    for &t in c.candidates {
-        let Some(tri) = c.surface.get(t as usize) else {
-            continue;
-        };
-        if let Some(hit) = closest_on_surface(x, std::slice::from_ref(tri), c.tool.center) {
-            if best.is_none_or(|(_, b)| hit.distance < b.distance) {
-                best = Some((t as usize, hit));
-            }
-        }
-    }
-    let (t, hit) = best?;
-    let depth = c.tool.depth(&hit);
-    if !(depth > 0.0) {
-        return None;
-    }
-    Some(Touch {
-        tri: c.surface[t],
-        weights: hit.barycentric,
-        normal: hit.normal,
-        depth,
-        on_tissue: scale(c.tool.force_on_tool(&hit), -1.0),
-        stiffness: c.tool.max_stiffness(depth),
-    })
 }
 
 impl Network {

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use lop_sim::fem::{FemMode, FemParameters};
 use lop_sim::mesh::{read_mesh, TetMesh};
 
 /// A mesh from `assets/meshes`.
@@ -16,6 +17,18 @@ pub fn shipped_mesh(name: &str) -> TetMesh {
 /// The shipped §6.1 cylinder (base fixed).
 pub fn cylinder() -> TetMesh {
     shipped_mesh("cylinder")
+}
+
+/// Table 6.1's FEM column (the §6.1 cylinders), corotational.
+pub fn cylinder_fem_params() -> FemParameters {
+    FemParameters {
+        young: 600.0,
+        poisson: 0.0023,
+        density: 30.0,
+        damping: 1.0,
+        dt: 0.02,
+        mode: FemMode::Corotational,
+    }
 }
 
 /// Sum of spring forces acting on the fixed nodes (recomputed from positions).
