@@ -40,6 +40,7 @@ fn series_round_trips_geometry_and_index() {
             .map(|i| NodeSample {
                 position: [i as f32 * 0.5, k as f32, 0.25],
                 temperature: 37.0 + k as f32,
+                flags: 0,
             })
             .collect();
         let frame = Frame {

@@ -249,6 +249,7 @@ pub fn run(opts: DeformOptions) -> Result<()> {
                 payload[off + k].write(NodeSample {
                     position: [p[0] as f32, p[1] as f32, p[2] as f32],
                     temperature: BODY_TEMPERATURE,
+                    flags: 0,
                 });
             }
         }

@@ -117,6 +117,7 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
                 s.payload_mut()[k] = NodeSample {
                     position: [p[0] as f32, p[1] as f32, p[2] as f32],
                     temperature: 37.0,
+                    flags: 0,
                 };
                 k += 1;
             }

@@ -19,6 +19,7 @@ pub mod types;
 pub use services::{ServiceNames, SERVICE_PREFIX_DEFAULT};
 pub use types::*;
 
-/// Version of the payload layouts (2: `BodyFrame::switches`). Bumped whenever a type in [`types`] changes shape or meaning;
+/// Version of the payload layouts (2: `BodyFrame::switches`; 3: `NodeSample::flags` with
+/// burned tissue, `TOOL_FLAG_GRAB` / `TOOL_FLAG_HEAT`). Bumped whenever a type in [`types`] changes shape or meaning;
 /// every payload carries it so a reader can refuse data it does not understand.
-pub const CONTRACT_VERSION: u32 = 2;
+pub const CONTRACT_VERSION: u32 = 3;

@@ -22,6 +22,12 @@ pub const TOOL_FLAG_RAMPING: u32 = 1 << 1;
 pub const TOOL_FLAG_STALE_FRAME: u32 = 1 << 2;
 /// `ToolState::flags` bit: the device reported an error or an invalid sample this tick.
 pub const TOOL_FLAG_DEVICE_ERROR: u32 = 1 << 3;
+/// `ToolState::flags` bit: the grab button holds a piece of tissue (picking); the contact fields
+/// name the grabbed point.
+pub const TOOL_FLAG_GRAB: u32 = 1 << 4;
+/// `ToolState::flags` bit: the heat button is pressed while touching: the contact point is being
+/// cauterised.
+pub const TOOL_FLAG_HEAT: u32 = 1 << 5;
 
 /// The haptic loop's state after one tick: where the hand is, what it touches, what it feels.
 /// Written every tick (1 kHz) to `PREFIX/tool` (publish–subscribe, for viewers) and to the
@@ -168,7 +174,12 @@ pub struct NodeSample {
     pub position: [f32; 3],
     /// Temperature, °C.
     pub temperature: f32,
+    /// `NODE_FLAG_*` bits.
+    pub flags: u32,
 }
+
+/// `NodeSample::flags` bit: the tissue at this node has coagulated (burned).
+pub const NODE_FLAG_BURNED: u32 = 1 << 0;
 
 /// `BodyTopology::importance`: switches to FEM when touched.
 pub const IMPORTANCE_IMPORTANT: u8 = 1;

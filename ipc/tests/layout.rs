@@ -10,7 +10,7 @@ use lop_ipc::*;
 
 #[test]
 fn contract_version_is_one() {
-    assert_eq!(CONTRACT_VERSION, 2);
+    assert_eq!(CONTRACT_VERSION, 3);
 }
 
 #[test]
@@ -61,9 +61,10 @@ fn frame_layout() {
     assert_eq!(offset_of!(FrameHeader, node_count), 64);
     assert_eq!(offset_of!(FrameHeader, bodies), 72);
 
-    assert_eq!(size_of::<NodeSample>(), 16);
+    assert_eq!(size_of::<NodeSample>(), 20);
     assert_eq!(align_of::<NodeSample>(), 4);
     assert_eq!(offset_of!(NodeSample, temperature), 12);
+    assert_eq!(offset_of!(NodeSample, flags), 16);
 }
 
 #[test]
