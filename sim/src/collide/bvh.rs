@@ -40,7 +40,7 @@ struct Node {
 
 /// Closest point of a surface to a query, as found by [`Bvh::nearest`].
 #[derive(Debug, Clone, Copy)]
-pub(super) struct Nearest {
+pub(crate) struct Nearest {
     /// Triangle index in the surface.
     pub triangle: u32,
     /// Barycentric coordinates of the closest point on it.
@@ -54,7 +54,7 @@ pub(super) struct Nearest {
 
 /// The hierarchy of one surface. All buffers are sized at construction.
 #[derive(Debug, Clone)]
-pub(super) struct Bvh {
+pub(crate) struct Bvh {
     nodes: Vec<Node>,
     /// Triangle indices; every leaf owns a contiguous range.
     order: Vec<u32>,
@@ -321,6 +321,35 @@ impl Bvh {
             }
         }
         (best, tested)
+    }
+}
+
+impl Bvh {
+    /// Calls `f` with every triangle whose box overlaps the box `[lo, hi]` (each once, in tree
+    /// order). Allocation-free.
+    pub fn overlapping(&self, lo: [f64; 3], hi: [f64; 3], mut f: impl FnMut(u32)) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let overlaps = |n: &Node| (0..3).all(|k| n.lo[k] <= hi[k] && n.hi[k] >= lo[k]);
+        let mut stack = [0u32; STACK];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let i = stack[top] as usize;
+            let n = &self.nodes[i];
+            if !overlaps(n) {
+                continue;
+            }
+            if n.count > 0 {
+                let (s, e) = (n.first as usize, (n.first + n.count) as usize);
+                self.order[s..e].iter().for_each(|&t| f(t));
+            } else {
+                stack[top] = n.first;
+                stack[top + 1] = i as u32 + 1;
+                top += 2;
+            }
+        }
     }
 }
 

@@ -70,7 +70,7 @@
 //! triangles), release build: ~0.45 ms per detection with no depth limit, ~0.09 ms with a 5 mm
 //! one.
 
-mod bvh;
+pub(crate) mod bvh;
 
 use bvh::{Bvh, Nearest};
 

@@ -1,0 +1,373 @@
+//! The god-object (thesis §5.2.1): a proxy of the tool tip that stays on the tissue surface while
+//! the device penetrates, and the force law between the two (§5.2.2).
+//!
+//! The tool tip is a sphere of radius `r`; the proxy is that sphere's centre. Each tick the
+//! proxy moves *from where it was* towards the device, Zilles–Salisbury style:
+//!
+//! 1. constraints: every triangle within `r` of the proxy that the device is pushing into gives a
+//!    plane through the proxy (normal from the closest point to the proxy's centre);
+//! 2. target: the device position projected onto the active planes — one plane: the projection,
+//!    two: the crease line, three: stay;
+//! 3. the sphere is swept from the proxy to the target against the surface (plane, edge and
+//!    corner contacts, `sweep`); at the first contact it stops there and that contact becomes a
+//!    plane; repeat (at most three planes).
+//!
+//! Because the proxy is never teleported to the closest surface point, a device moving fast
+//! through a thin part cannot pull it out the far side: the force keeps pointing back out of the
+//! face it went in through (tested at 0.5 m/s into a 1 cm slab).
+//!
+//! The surface deforms between frames. While in contact the proxy is anchored to the material
+//! point it rests on (triangle + barycentric weights, plus its offset from that point), so a new
+//! frame carries the proxy along with the tissue; then it is pushed out of any triangle that
+//! moved into it.
+//!
+//! **Picking** (§5.2.3): with the grab button pressed while touching, the anchor becomes a grip:
+//! the proxy is glued to the grabbed material point, the hand feels the spring between it and
+//! the device in every direction (it pulls too), and the deformation process pulls that point
+//! of the tissue towards the device with the opposite force. Releasing the button lets go.
+//!
+//! Everything is allocation-free after [`GodObject::new`].
+
+use super::surface::SurfaceSet;
+use super::sweep::{crease, sweep_sphere_triangle};
+use crate::contact::{closest_point_on_triangle, ForceLaw};
+use crate::vec3::{add, dot, norm, scale, sub};
+
+/// Gap kept between the proxy sphere and a surface it rests on, m: keeps the next sweep from
+/// starting in contact because of rounding.
+const SKIN: f64 = 1e-7;
+/// Most planes that constrain the proxy at once.
+const MAX_PLANES: usize = 3;
+/// Sweeps per tick (each adds a plane or ends the motion).
+const MAX_ITERATIONS: usize = 6;
+
+/// A material point of the surface: where the proxy rests or what it holds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Anchor {
+    /// Body index.
+    pub body: usize,
+    /// Global triangle index (in the [`SurfaceSet`]).
+    pub triangle: usize,
+    /// Barycentric weights of the point on the triangle.
+    pub bary: [f64; 3],
+    /// Proxy centre minus the point, m (length `r` while resting on a face).
+    pub offset: [f64; 3],
+}
+
+/// The god-object after a tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GodState {
+    /// Proxy (tool sphere centre), m.
+    pub proxy: [f64; 3],
+    /// Where the proxy rests or what it holds; `None` in free space.
+    pub anchor: Option<Anchor>,
+    /// Holding tissue (grab button).
+    pub grabbing: bool,
+    /// `|proxy − device|` while in contact or grabbing, m.
+    pub depth: f64,
+    /// Unit direction of the force on the hand (device → proxy), zero without contact.
+    pub direction: [f64; 3],
+}
+
+/// The proxy of the tool tip.
+#[derive(Debug, Clone)]
+pub struct GodObject {
+    radius: f64,
+    proxy: [f64; 3],
+    started: bool,
+    anchor: Option<Anchor>,
+    grab: Option<Anchor>,
+    planes: [[f64; 3]; MAX_PLANES],
+    nplanes: usize,
+    candidates: Vec<u32>,
+}
+
+impl GodObject {
+    /// A proxy for a tip of `radius` m over a surface set of `triangles` triangles.
+    pub fn new(radius: f64, triangles: usize) -> GodObject {
+        GodObject {
+            radius,
+            proxy: [0.0; 3],
+            started: false,
+            anchor: None,
+            grab: None,
+            planes: [[0.0; 3]; MAX_PLANES],
+            nplanes: 0,
+            candidates: Vec::with_capacity(triangles),
+        }
+    }
+
+    /// Tip radius, m.
+    pub fn radius(&self) -> f64 {
+        self.radius
+    }
+
+    /// The proxy, m.
+    pub fn proxy(&self) -> [f64; 3] {
+        self.proxy
+    }
+
+    /// Forgets the surface: the next update puts the proxy on the device.
+    pub fn reset(&mut self) {
+        self.started = false;
+        self.anchor = None;
+        self.grab = None;
+    }
+
+    /// Moves an anchored proxy with the tissue after the surface's positions changed.
+    pub fn follow_surface(&mut self, set: &SurfaceSet) {
+        if let Some(a) = self.grab.or(self.anchor) {
+            if a.triangle < set.triangles().len() {
+                self.proxy = add(set.point_on(a.triangle, a.bary), a.offset);
+            }
+        }
+    }
+
+    /// One tick: the device is at `device` (m) and the grab button is `grab`. Allocation-free.
+    pub fn update(&mut self, set: &mut SurfaceSet, device: [f64; 3], grab: bool) -> GodState {
+        if !device.iter().all(|c| c.is_finite()) {
+            // Broken sample: nothing to render; keep the proxy where it was.
+            return self.state(device, false);
+        }
+        if !self.started {
+            self.started = true;
+            self.proxy = device;
+            self.anchor = None;
+            self.grab = None;
+        }
+        // Picking.
+        if let Some(g) = self.grab {
+            if grab && g.triangle < set.triangles().len() {
+                self.proxy = add(set.point_on(g.triangle, g.bary), g.offset);
+                return self.state(device, true);
+            }
+            self.grab = None;
+        }
+        if grab {
+            if let Some(a) = self.anchor {
+                self.grab = Some(a);
+                return self.state(device, true);
+            }
+        }
+
+        self.depenetrate(set);
+        self.gather_planes(set, device);
+        for _ in 0..MAX_ITERATIONS {
+            let target = self.project(device);
+            let d = sub(target, self.proxy);
+            if norm(d) < 1e-12 {
+                break;
+            }
+            match self.sweep(set, d) {
+                Some((s, n)) => {
+                    self.proxy = add(add(self.proxy, scale(d, s)), scale(n, SKIN));
+                    if self.nplanes == MAX_PLANES || self.has_plane(n) {
+                        break;
+                    }
+                    self.planes[self.nplanes] = n;
+                    self.nplanes += 1;
+                }
+                None => {
+                    self.proxy = target;
+                    break;
+                }
+            }
+        }
+        // Contact: the proxy rests on the surface and the device is behind it.
+        self.anchor = None;
+        let r = self.radius;
+        if let Some(c) = set.closest(self.proxy, r + 4.0 * SKIN) {
+            let offset = sub(self.proxy, c.hit.point);
+            let pushing = dot(sub(device, self.proxy), offset) < 0.0;
+            if !c.hit.inside && pushing && norm(sub(device, self.proxy)) > 0.0 {
+                self.anchor = Some(Anchor {
+                    body: c.body,
+                    triangle: c.hit.triangle,
+                    bary: c.hit.barycentric,
+                    offset,
+                });
+            }
+        }
+        self.state(device, false)
+    }
+
+    fn state(&self, device: [f64; 3], grabbing: bool) -> GodState {
+        let anchor = if grabbing { self.grab } else { self.anchor };
+        let gap = sub(self.proxy, device);
+        let depth = norm(gap);
+        let touching = anchor.is_some() && depth > 0.0 && depth.is_finite();
+        GodState {
+            proxy: self.proxy,
+            anchor,
+            grabbing,
+            depth: if touching { depth } else { 0.0 },
+            direction: if touching {
+                scale(gap, 1.0 / depth)
+            } else {
+                [0.0; 3]
+            },
+        }
+    }
+
+    /// Pushes the proxy out of triangles that moved into it (the surface deforms between
+    /// frames). A proxy whose centre ended up behind the surface is left alone: it passes out
+    /// freely (faces are one-sided) rather than being thrown through the tissue.
+    fn depenetrate(&mut self, set: &mut SurfaceSet) {
+        let r = self.radius;
+        for _ in 0..3 {
+            let Some(c) = set.closest(self.proxy, r) else {
+                return;
+            };
+            if c.hit.inside || c.hit.distance >= r {
+                return;
+            }
+            let out = if c.hit.distance > 1e-12 {
+                scale(sub(self.proxy, c.hit.point), 1.0 / c.hit.distance)
+            } else {
+                c.hit.normal
+            };
+            self.proxy = add(c.hit.point, scale(out, r + SKIN));
+        }
+    }
+
+    fn has_plane(&self, n: [f64; 3]) -> bool {
+        self.planes[..self.nplanes]
+            .iter()
+            .any(|p| dot(*p, n) > 0.9999)
+    }
+
+    /// The planes of the surface the proxy rests on that the device pushes into.
+    fn gather_planes(&mut self, set: &mut SurfaceSet, device: [f64; 3]) {
+        self.nplanes = 0;
+        let r = self.radius;
+        let reach = r + 4.0 * SKIN;
+        let p = self.proxy;
+        self.candidates.clear();
+        let lo = p.map(|c| c - reach);
+        let hi = p.map(|c| c + reach);
+        let cands = &mut self.candidates;
+        set.triangles_in_box(lo, hi, |t| {
+            if cands.len() < cands.capacity() {
+                cands.push(t as u32);
+            }
+        });
+        let goal = sub(device, p);
+        for i in 0..self.candidates.len() {
+            let t = self.candidates[i] as usize;
+            let [a, b, c] = set.corners(t);
+            let w = closest_point_on_triangle(p, a, b, c);
+            let q = add(add(scale(a, w[0]), scale(b, w[1])), scale(c, w[2]));
+            let off = sub(p, q);
+            let l = norm(off);
+            if !(l > 1e-12) || l > reach || dot(off, set.normal_of(t)) < 0.0 {
+                continue;
+            }
+            let n = scale(off, 1.0 / l);
+            if dot(goal, n) < 0.0 && !self.has_plane(n) && self.nplanes < MAX_PLANES {
+                self.planes[self.nplanes] = n;
+                self.nplanes += 1;
+            }
+        }
+    }
+
+    /// The device projected onto the active planes (all through the proxy).
+    fn project(&self, device: [f64; 3]) -> [f64; 3] {
+        let g = sub(device, self.proxy);
+        match self.nplanes {
+            0 => device,
+            1 => {
+                let n = self.planes[0];
+                let gn = dot(g, n);
+                if gn >= 0.0 {
+                    device
+                } else {
+                    sub(device, scale(n, gn))
+                }
+            }
+            2 => {
+                // Leave a plane if moving along the other one's projection leaves it.
+                for k in 0..2 {
+                    let (n, m) = (self.planes[k], self.planes[1 - k]);
+                    let t = sub(g, scale(n, dot(g, n).min(0.0)));
+                    if dot(t, m) >= 0.0 {
+                        return add(self.proxy, t);
+                    }
+                }
+                let u = crease(self.planes[0], self.planes[1]);
+                add(self.proxy, scale(u, dot(g, u)))
+            }
+            _ => self.proxy,
+        }
+    }
+
+    /// The first contact of the proxy sphere moving by `d`: fraction and contact normal.
+    fn sweep(&mut self, set: &mut SurfaceSet, d: [f64; 3]) -> Option<(f64, [f64; 3])> {
+        let r = self.radius + 2.0 * SKIN;
+        let p = self.proxy;
+        let end = add(p, d);
+        let lo = [0, 1, 2].map(|k| p[k].min(end[k]) - r);
+        let hi = [0, 1, 2].map(|k| p[k].max(end[k]) + r);
+        self.candidates.clear();
+        let cands = &mut self.candidates;
+        set.triangles_in_box(lo, hi, |t| {
+            if cands.len() < cands.capacity() {
+                cands.push(t as u32);
+            }
+        });
+        let len = norm(d);
+        let mut best: Option<(f64, [f64; 3])> = None;
+        for &t in &self.candidates {
+            if let Some(hit) = sweep_sphere_triangle(p, d, self.radius, set.corners(t as usize)) {
+                // Sliding along a plane already in contact is not an impact.
+                if dot(d, hit.normal) > -1e-9 * len {
+                    continue;
+                }
+                if best.is_none_or(|(s, _)| hit.s < s) {
+                    best = Some((hit.s, hit.normal));
+                }
+            }
+        }
+        best
+    }
+}
+
+/// The force law between proxy and device: magnitude at depth `d` (m), N.
+pub fn law_magnitude(law: ForceLaw, stiffness: f64, d: f64) -> f64 {
+    if !(d > 0.0) {
+        return 0.0;
+    }
+    match law {
+        ForceLaw::Linear => stiffness * d,
+        ForceLaw::Quadratic => stiffness * d * d,
+    }
+}
+
+/// The force on the hand for a god-object state: the law along device → proxy, plus damping
+/// `−b (v · u) u` on the device velocity `v` (m/s) along that direction. While pressing (not
+/// grabbing) the damped force never pulls the hand into the tissue. Finite for finite input;
+/// zero without contact. The caller clamps to the device's limits.
+pub fn hand_force(
+    state: &GodState,
+    law: ForceLaw,
+    stiffness: f64,
+    damping: f64,
+    velocity: [f64; 3],
+) -> [f64; 3] {
+    if state.anchor.is_none() || !(state.depth > 0.0) {
+        return [0.0; 3];
+    }
+    let u = state.direction;
+    let mut f = law_magnitude(law, stiffness, state.depth);
+    if damping > 0.0 && velocity.iter().all(|c| c.is_finite()) {
+        f -= damping * dot(velocity, u);
+    }
+    if !state.grabbing {
+        f = f.max(0.0);
+    }
+    let out = scale(u, f);
+    if out.iter().all(|c| c.is_finite()) {
+        out
+    } else {
+        [0.0; 3]
+    }
+}

@@ -1,0 +1,353 @@
+//! The surfaces the tool can touch: every body's outward triangles over one shared node array,
+//! with what the contact queries need — vertex adjacency for the greedy walk, vertex → triangle
+//! incidence, and one refittable bounding-volume hierarchy per body.
+//!
+//! Built once per topology ([`SurfaceSet::new`] allocates everything); after that, updating the
+//! positions and every query are allocation-free, so the 1 kHz loop can own one.
+
+use crate::collide::bvh::Bvh;
+use crate::contact::{closest_point_on_triangle, triangle_normal, SurfaceHit};
+use crate::vec3::{add, dot, scale, sub};
+
+/// A surface query's answer: the body, the triangle (index into [`SurfaceSet::triangles`]) and
+/// the closest point on it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Closest {
+    /// Body index.
+    pub body: usize,
+    /// The closest point; `hit.triangle` is the global triangle index.
+    pub hit: SurfaceHit,
+    /// The surface vertex the walk ended on (the warm start of the next query).
+    pub vertex: u32,
+}
+
+/// What the last queries cost, for benchmarks and tests.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct QueryStats {
+    /// Greedy-walk queries run.
+    pub walks: u64,
+    /// Vertices visited by the walks.
+    pub walk_steps: u64,
+    /// Queries where the hierarchy found a closer triangle than the walk (the walk was stuck in
+    /// a local minimum).
+    pub fallbacks: u64,
+    /// Hierarchy refits.
+    pub refits: u64,
+}
+
+/// Every body's surface over one node array.
+#[derive(Debug, Clone)]
+pub struct SurfaceSet {
+    tris: Vec<[u32; 3]>,
+    /// Per body: its triangles are `tris[start..end]`.
+    body_tris: Vec<(usize, usize)>,
+    /// Per body: bounding box of its nodes (updated with the positions).
+    body_box: Vec<([f64; 3], [f64; 3])>,
+    /// Per body: a surface vertex to start walks from.
+    warm: Vec<u32>,
+    /// Surface-vertex adjacency (CSR over all nodes; non-surface nodes have none).
+    adj_ptr: Vec<u32>,
+    adj: Vec<u32>,
+    /// Vertex → incident global triangles (CSR).
+    vtri_ptr: Vec<u32>,
+    vtri: Vec<u32>,
+    bvh: Vec<Bvh>,
+    dirty: Vec<bool>,
+    x: Vec<[f64; 3]>,
+    stats: QueryStats,
+}
+
+impl SurfaceSet {
+    /// The surfaces of bodies whose triangles are `body_triangles[b]` (global node indices into a
+    /// node array of `node_count` nodes). Indices out of range are dropped.
+    pub fn new(node_count: usize, body_triangles: &[&[[u32; 3]]]) -> SurfaceSet {
+        let mut tris: Vec<[u32; 3]> = Vec::new();
+        let mut body_tris = Vec::new();
+        for bt in body_triangles {
+            let start = tris.len();
+            tris.extend(
+                bt.iter()
+                    .filter(|t| t.iter().all(|&v| (v as usize) < node_count)),
+            );
+            body_tris.push((start, tris.len()));
+        }
+        // Vertex → triangles.
+        let mut count = vec![0u32; node_count + 1];
+        for t in &tris {
+            for &v in t {
+                count[v as usize + 1] += 1;
+            }
+        }
+        for i in 0..node_count {
+            count[i + 1] += count[i];
+        }
+        let vtri_ptr = count.clone();
+        let mut fill = count;
+        let mut vtri = vec![0u32; tris.len() * 3];
+        for (t, tri) in tris.iter().enumerate() {
+            for &v in tri {
+                vtri[fill[v as usize] as usize] = t as u32;
+                fill[v as usize] += 1;
+            }
+        }
+        // Vertex adjacency from triangle edges, deduplicated.
+        let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); node_count];
+        for t in &tris {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                neighbours[a as usize].push(b);
+                neighbours[b as usize].push(a);
+            }
+        }
+        let mut adj_ptr = Vec::with_capacity(node_count + 1);
+        let mut adj = Vec::new();
+        adj_ptr.push(0);
+        for n in &mut neighbours {
+            n.sort_unstable();
+            n.dedup();
+            adj.extend_from_slice(n);
+            adj_ptr.push(adj.len() as u32);
+        }
+        let warm = body_tris
+            .iter()
+            .map(|&(s, e)| if s < e { tris[s][0] } else { 0 })
+            .collect();
+        let bvh = body_tris.iter().map(|&(s, e)| Bvh::new(e - s)).collect();
+        let bodies = body_tris.len();
+        SurfaceSet {
+            tris,
+            body_tris,
+            body_box: vec![([0.0; 3], [0.0; 3]); bodies],
+            warm,
+            adj_ptr,
+            adj,
+            vtri_ptr,
+            vtri,
+            bvh,
+            dirty: vec![true; bodies],
+            x: vec![[0.0; 3]; node_count],
+            stats: QueryStats::default(),
+        }
+    }
+
+    /// Number of bodies.
+    pub fn bodies(&self) -> usize {
+        self.body_tris.len()
+    }
+
+    /// All triangles, bodies concatenated (global node indices).
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.tris
+    }
+
+    /// The global triangle range of body `b`.
+    pub fn body_triangles(&self, b: usize) -> std::ops::Range<usize> {
+        let (s, e) = self.body_tris[b];
+        s..e
+    }
+
+    /// The body owning global triangle `t`.
+    pub fn body_of(&self, t: usize) -> Option<usize> {
+        self.body_tris.iter().position(|&(s, e)| t >= s && t < e)
+    }
+
+    /// Current positions.
+    pub fn positions(&self) -> &[[f64; 3]] {
+        &self.x
+    }
+
+    /// Query statistics since creation.
+    pub fn stats(&self) -> QueryStats {
+        self.stats
+    }
+
+    /// Number of nodes.
+    pub fn node_count(&self) -> usize {
+        self.x.len()
+    }
+
+    /// Replaces the positions: `at(i)` for every node `i`. Hierarchies are refitted lazily, only
+    /// for bodies a query reaches. Allocation-free.
+    pub fn set_positions(&mut self, mut at: impl FnMut(usize) -> [f64; 3]) {
+        for (i, x) in self.x.iter_mut().enumerate() {
+            *x = at(i);
+        }
+        for b in 0..self.body_tris.len() {
+            let (s, e) = self.body_tris[b];
+            let mut lo = [f64::INFINITY; 3];
+            let mut hi = [f64::NEG_INFINITY; 3];
+            for t in &self.tris[s..e] {
+                for &v in t {
+                    let p = self.x[v as usize];
+                    for k in 0..3 {
+                        lo[k] = lo[k].min(p[k]);
+                        hi[k] = hi[k].max(p[k]);
+                    }
+                }
+            }
+            self.body_box[b] = (lo, hi);
+            self.dirty[b] = true;
+        }
+    }
+
+    /// Whether `p` is within `margin` of body `b`'s bounding box.
+    pub fn near_body(&self, b: usize, p: [f64; 3], margin: f64) -> bool {
+        let (lo, hi) = self.body_box[b];
+        (0..3).all(|k| p[k] >= lo[k] - margin && p[k] <= hi[k] + margin)
+    }
+
+    fn refit(&mut self, b: usize) {
+        if self.dirty[b] {
+            let (s, e) = self.body_tris[b];
+            self.bvh[b].update(&self.x, &self.tris[s..e]);
+            self.dirty[b] = false;
+            self.stats.refits += 1;
+        }
+    }
+
+    /// The greedy walk of thesis Algorithm 1: from `start`, move to the neighbour closest to `p`
+    /// while one is closer. Returns the vertex it stops on and its squared distance.
+    fn walk(&mut self, start: u32, p: [f64; 3]) -> (u32, f64) {
+        let d2 = |x: [f64; 3]| {
+            let d = sub(p, x);
+            dot(d, d)
+        };
+        let mut v = start;
+        let mut best = d2(self.x[v as usize]);
+        loop {
+            let (s, e) = (
+                self.adj_ptr[v as usize] as usize,
+                self.adj_ptr[v as usize + 1] as usize,
+            );
+            let mut next = v;
+            for &w in &self.adj[s..e] {
+                let dw = d2(self.x[w as usize]);
+                if dw < best {
+                    best = dw;
+                    next = w;
+                }
+            }
+            self.stats.walk_steps += 1;
+            if next == v {
+                return (v, best);
+            }
+            v = next;
+        }
+    }
+
+    fn hit(&self, t: usize, p: [f64; 3]) -> SurfaceHit {
+        let [a, b, c] = self.tris[t].map(|v| self.x[v as usize]);
+        let w = closest_point_on_triangle(p, a, b, c);
+        let q = add(add(scale(a, w[0]), scale(b, w[1])), scale(c, w[2]));
+        let n = triangle_normal(a, b, c);
+        let d = sub(p, q);
+        SurfaceHit {
+            triangle: t,
+            point: q,
+            barycentric: w,
+            normal: n,
+            distance: dot(d, d).sqrt(),
+            inside: dot(d, n) < 0.0,
+        }
+    }
+
+    /// The closest point of body `b`'s surface to `p`, if within `reach`:
+    /// 1. the greedy vertex walk from the body's last answer (thesis Algorithm 1);
+    /// 2. the closest of the triangles around the vertex it stops on (thesis §5.2);
+    /// 3. a check in the body's hierarchy for anything strictly closer — the walk can stop in a
+    ///    local minimum on a non-convex surface, or the closest point can lie on a triangle that
+    ///    does not touch the closest vertex. The walk's answer bounds the search, so the check
+    ///    usually opens a handful of boxes; when it finds something closer, that is the answer
+    ///    (counted in [`QueryStats::fallbacks`]).
+    ///
+    /// Exact (the same triangle as a brute-force search up to ties), allocation-free.
+    pub fn closest_in_body(&mut self, b: usize, p: [f64; 3], reach: f64) -> Option<Closest> {
+        let (s, e) = self.body_tris[b];
+        if s == e || !p.iter().all(|c| c.is_finite()) {
+            return None;
+        }
+        self.stats.walks += 1;
+        let (v, _) = self.walk(self.warm[b], p);
+        self.warm[b] = v;
+        let mut best: Option<SurfaceHit> = None;
+        let (ts, te) = (
+            self.vtri_ptr[v as usize] as usize,
+            self.vtri_ptr[v as usize + 1] as usize,
+        );
+        for i in ts..te {
+            let t = self.vtri[i] as usize;
+            let h = self.hit(t, p);
+            if best.is_none_or(|bh| h.distance < bh.distance) {
+                best = Some(h);
+            }
+        }
+        let walk_d = best.map_or(f64::INFINITY, |h| h.distance);
+        let bound = walk_d.min(reach);
+        self.refit(b);
+        let (found, _) = self.bvh[b].nearest(&self.x, &self.tris[s..e], p, bound * bound);
+        if let Some(n) = found {
+            if n.d2.sqrt() < walk_d {
+                if walk_d <= reach {
+                    self.stats.fallbacks += 1;
+                }
+                best = Some(self.hit(s + n.triangle as usize, p));
+            }
+        }
+        let h = best?;
+        if h.distance > reach {
+            return None;
+        }
+        Some(Closest {
+            body: b,
+            hit: h,
+            vertex: v,
+        })
+    }
+
+    /// The closest surface point over every body whose box is within `reach` of `p`.
+    pub fn closest(&mut self, p: [f64; 3], reach: f64) -> Option<Closest> {
+        let mut best: Option<Closest> = None;
+        for b in 0..self.body_tris.len() {
+            if !self.near_body(b, p, reach) {
+                continue;
+            }
+            if let Some(c) = self.closest_in_body(b, p, reach) {
+                if best.is_none_or(|bc| c.hit.distance < bc.hit.distance) {
+                    best = Some(c);
+                }
+            }
+        }
+        best
+    }
+
+    /// Calls `f(global triangle)` for every triangle of every body whose box overlaps
+    /// `[lo, hi]` (refitting those bodies' hierarchies first).
+    pub fn triangles_in_box(&mut self, lo: [f64; 3], hi: [f64; 3], mut f: impl FnMut(usize)) {
+        for b in 0..self.body_tris.len() {
+            let (blo, bhi) = self.body_box[b];
+            if !(0..3).all(|k| blo[k] <= hi[k] && bhi[k] >= lo[k]) {
+                continue;
+            }
+            self.refit(b);
+            let s = self.body_tris[b].0;
+            self.bvh[b].overlapping(lo, hi, |t| f(s + t as usize));
+        }
+    }
+
+    /// The point with barycentric weights `w` on global triangle `t`.
+    pub fn point_on(&self, t: usize, w: [f64; 3]) -> [f64; 3] {
+        let [a, b, c] = self.tris[t].map(|v| self.x[v as usize]);
+        add(add(scale(a, w[0]), scale(b, w[1])), scale(c, w[2]))
+    }
+
+    /// Unit outward normal of global triangle `t`.
+    pub fn normal_of(&self, t: usize) -> [f64; 3] {
+        let [a, b, c] = self.tris[t].map(|v| self.x[v as usize]);
+        triangle_normal(a, b, c)
+    }
+
+    /// The corners of global triangle `t`.
+    pub fn corners(&self, t: usize) -> [[f64; 3]; 3] {
+        self.tris[t].map(|v| self.x[v as usize])
+    }
+}
