@@ -548,6 +548,7 @@ fn step_times(quick: bool) -> Result<(Vec<MeshRow>, Vec<StepRow>)> {
             tool: *tool,
             surface: &mesh.surface,
             candidates: cand,
+            anchor: None,
         });
         meshes.push(MeshRow {
             mesh: case.mesh.into(),

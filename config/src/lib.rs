@@ -153,6 +153,7 @@
 //! | `translate` | `[x, y, z]` | `[0, 0, 0]` | m, applied last: `p' = R·(scale·p) + translate` |
 //! | `fixed_nodes` | array of integers | `[]` | 0-based node indices held fixed, in addition to the `.bnd` file |
 //! | `color` | `[r, g, b]` | by body index | sRGB, each in 0..=1, for viewers |
+//! | `tool_stiffness` | float | `[tool] stiffness` | stiffness of the tool against this body (> 0; N/m for the linear law, N/m² for the quadratic one): a firm organ feels firmer |
 //!
 //! A body needs the parameter tables of every model it can run:
 //! - `[body.fem]` if `importance = "important"` or `model = "fem"`;

@@ -88,6 +88,7 @@ pub(crate) struct RawBody {
     pub scale: Option<f64>,
     pub fixed_nodes: Option<Vec<u32>>,
     pub color: Option<[f32; 3]>,
+    pub tool_stiffness: Option<f64>,
     pub fem: Option<RawFem>,
     pub msd: Option<RawMsd>,
     pub gc: Option<RawGc>,

@@ -133,6 +133,9 @@ pub struct BodySpec {
     pub fixed_nodes: Vec<u32>,
     /// sRGB colour in 0..=1 for viewers.
     pub color: [f32; 3],
+    /// Tool stiffness against this body (units of `[tool] force_law`), or `None` for the
+    /// tool's own `stiffness`.
+    pub tool_stiffness: Option<f64>,
     /// FEM parameters (present if important or pinned to FEM).
     pub fem: Option<FemParams>,
     /// Mass-spring parameters (present unless pinned to FEM).
@@ -658,6 +661,16 @@ fn validate_body(
             }
         }
     };
+    let tool_stiffness = rb
+        .tool_stiffness
+        .map(|k| {
+            c.positive(
+                &key.key("tool_stiffness"),
+                k,
+                "tool stiffness against the body",
+            )
+        })
+        .transpose()?;
     let fem = rb
         .fem
         .map(|f| validate_fem(&c, &key.key("fem"), f))
@@ -682,6 +695,7 @@ fn validate_body(
         scale,
         fixed_nodes: rb.fixed_nodes.unwrap_or_default(),
         color,
+        tool_stiffness,
         fem,
         msd,
         gc,

@@ -10,9 +10,10 @@
 //! - on a blow-up (a non-finite value, or a node faster than [`RUNAWAY_SPEED`]) the model resets
 //!   to rest and returns the cause, so nothing non-finite ever leaves it.
 
-use crate::contact::{closest_on_surface, scale, ToolSphere};
+use crate::contact::{closest_on_surface, ToolSphere};
 use crate::lop::{Damping, GcModel};
 use crate::msd::MassSpring;
+use crate::vec3::{add, dot, norm, scale, sub};
 
 /// The tool's contact with a body during one step: the penalty spring is integrated inside the
 /// sub-steps (the tool position is a kinematic boundary condition), which keeps a stiff tool on
@@ -24,8 +25,64 @@ pub struct ToolContact<'a> {
     /// The body's outward surface triangles.
     pub surface: &'a [[u32; 3]],
     /// Indices into `surface` that may be touched this step (found by the caller around the
-    /// closest triangle); only these are tested in each sub-step.
+    /// closest triangle); only these are tested in each sub-step. Unused with an `anchor`.
     pub candidates: &'a [u32],
+    /// Where the god-object holds the body, if it decides the contact (see [`ToolAnchor`]);
+    /// `None`: the sphere presses on the closest candidate triangle.
+    pub anchor: Option<ToolAnchor>,
+}
+
+/// The god-object's hold on a body for one step (the haptic loop's contact, thesis §5.2.1).
+///
+/// The god-object (the proxy of the tool tip, resting on the surface or holding it) sits at
+/// `p + offset`, `p` the material point `bary` of `triangle`. The hand feels the law's force
+/// along the gap `g = p + offset − c` (`c` the device/tool centre); the tissue receives exactly
+/// the opposite at `p`, with `p` moving during the step — so the coupling is implicit in the
+/// models (stable for a stiff tool on light tissue) and action equals reaction.
+/// - Pressing (`grab: false`): only while the device is behind the proxy (`g · offset > 0`).
+/// - Grabbing (`grab: true`): in every direction, pulling too.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ToolAnchor {
+    /// Index into the body's surface triangles.
+    pub triangle: u32,
+    /// Barycentric weights of the material point.
+    pub bary: [f64; 3],
+    /// The god-object minus the material point, m.
+    pub offset: [f64; 3],
+    /// Holding the tissue (picking).
+    pub grab: bool,
+}
+
+impl ToolAnchor {
+    /// The anchor of a god-object at `proxy` on the material point `bary` of `triangle` of a
+    /// surface at positions `x` (the offset from the point's current position). `None` if the
+    /// triangle or weights are invalid.
+    pub fn from_proxy(
+        surface: &[[u32; 3]],
+        x: &[[f64; 3]],
+        triangle: u32,
+        bary: [f64; 3],
+        proxy: [f64; 3],
+        grab: bool,
+    ) -> Option<ToolAnchor> {
+        let tri = surface.get(triangle as usize)?;
+        if tri.iter().any(|&k| k as usize >= x.len())
+            || !bary.iter().chain(proxy.iter()).all(|v| v.is_finite())
+        {
+            return None;
+        }
+        let [p0, p1, p2] = tri.map(|k| x[k as usize]);
+        let p = add(
+            add(scale(p0, bary[0]), scale(p1, bary[1])),
+            scale(p2, bary[2]),
+        );
+        Some(ToolAnchor {
+            triangle,
+            bary,
+            offset: sub(proxy, p),
+            grab,
+        })
+    }
 }
 
 /// What the tool did to a body over a step.
@@ -188,11 +245,17 @@ pub(crate) struct Touch {
     pub on_tissue: [f64; 3],
     /// `dF/dd` of the force law at this depth, N/m.
     pub stiffness: f64,
+    /// The stiffness acts in every direction (the god-object's spring: `F = −k g` is linear in
+    /// the point for the linear law, so its exact Jacobian is `k I`), not only along `normal`.
+    pub isotropic: bool,
 }
 
 /// The tool's contact on positions `x`: the closest candidate triangle, if the tool penetrates
 /// it. Allocation-free.
 pub(crate) fn touch(c: &ToolContact<'_>, x: &[[f64; 3]]) -> Option<Touch> {
+    if let Some(a) = c.anchor {
+        return anchored_touch(c, a, x);
+    }
     let mut best: Option<(usize, crate::contact::SurfaceHit)> = None;
     for &t in c.candidates {
         let Some(tri) = c.surface.get(t as usize) else {
@@ -216,5 +279,36 @@ pub(crate) fn touch(c: &ToolContact<'_>, x: &[[f64; 3]]) -> Option<Touch> {
         depth,
         on_tissue: scale(c.tool.force_on_tool(&hit), -1.0),
         stiffness: c.tool.max_stiffness(depth),
+        isotropic: false,
+    })
+}
+
+/// The tool's contact on positions `x` at the god-object's anchor (see [`ToolAnchor`]).
+pub(crate) fn anchored_touch(c: &ToolContact<'_>, a: ToolAnchor, x: &[[f64; 3]]) -> Option<Touch> {
+    let tri = *c.surface.get(a.triangle as usize)?;
+    if tri.iter().any(|&k| k as usize >= x.len()) || !a.bary.iter().all(|w| w.is_finite()) {
+        return None;
+    }
+    let [p0, p1, p2] = tri.map(|k| x[k as usize]);
+    let w = a.bary;
+    let p = add(add(scale(p0, w[0]), scale(p1, w[1])), scale(p2, w[2]));
+    let g = sub(add(p, a.offset), c.tool.center);
+    let depth = norm(g);
+    if !(depth > 1e-12) || (!a.grab && !(dot(g, a.offset) > 0.0)) {
+        return None;
+    }
+    let normal = scale(g, 1.0 / depth);
+    let f = c.tool.force_magnitude(depth);
+    if !(depth > 0.0) || !(f > 0.0) || !f.is_finite() {
+        return None;
+    }
+    Some(Touch {
+        tri,
+        weights: w,
+        normal,
+        depth,
+        on_tissue: scale(normal, -f),
+        stiffness: c.tool.max_stiffness(depth),
+        isotropic: true,
     })
 }

@@ -8,7 +8,7 @@
 use crate::contact::{closest_on_surface, scale, ToolSphere};
 use crate::lop::Lop;
 use crate::mesh::TetMesh;
-use crate::model::{BlowUp, ContactReport, Model, ToolContact};
+use crate::model::{BlowUp, ContactReport, Model, ToolAnchor, ToolContact};
 use crate::msd::{MassSpring, MsdParameters};
 
 /// How far beyond the tool radius a body's bounding box is still checked for contact, m. Covers
@@ -47,6 +47,18 @@ pub struct Body {
     candidates: Vec<u32>,
 }
 
+/// How the tool acts on the bodies.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Coupling {
+    /// The tool sphere presses on the closest surface of any body it reaches: no god-object
+    /// (tests and tools that move the tool tip directly).
+    #[default]
+    Nearest,
+    /// A god-object decides (the haptic loop's, or [`crate::haptic::GodObject`] offline): only
+    /// the named body is touched, at the anchor; `None`: no body is.
+    GodObject(Option<(usize, ToolAnchor)>),
+}
+
 /// All bodies of a scene.
 #[derive(Debug, Clone)]
 pub struct World {
@@ -54,6 +66,8 @@ pub struct World {
     pub bodies: Vec<Body>,
     /// Gravity, m/s².
     pub gravity: [f64; 3],
+    /// How the tool given to [`World::step_body`] acts on the bodies.
+    pub coupling: Coupling,
 }
 
 impl World {
@@ -62,6 +76,7 @@ impl World {
         World {
             bodies: Vec::new(),
             gravity,
+            coupling: Coupling::Nearest,
         }
     }
 
@@ -153,6 +168,11 @@ impl World {
     /// stays valid either way. Allocation-free after the first steps.
     pub fn step_body(&mut self, i: usize, tool: Option<&ToolSphere>) -> Result<(), BlowUp> {
         let gravity = self.gravity;
+        let (god, anchor) = match self.coupling {
+            Coupling::Nearest => (false, None),
+            Coupling::GodObject(Some((body, a))) if body == i => (true, Some(a)),
+            Coupling::GodObject(_) => (true, None),
+        };
         let b = &mut self.bodies[i];
         b.candidates.clear();
         let mut touching = false;
@@ -162,7 +182,7 @@ impl World {
                     closest_on_surface(b.model.positions(), &b.mesh.surface, t.center)
                 {
                     touching = hit.signed_distance() < t.radius + SWITCH_MARGIN;
-                    if hit.distance < t.radius + CONTACT_MARGIN || hit.inside {
+                    if !god && (hit.distance < t.radius + CONTACT_MARGIN || hit.inside) {
                         for &node in &b.mesh.surface[hit.triangle] {
                             for &tri in &b.node_triangles[node as usize] {
                                 if !b.candidates.contains(&tri) {
@@ -174,16 +194,18 @@ impl World {
                 }
             }
         }
+        touching |= anchor.is_some();
         if let Some(lop) = &mut b.lop {
             lop.before_step(&mut b.model, touching, b.time);
         }
         let dt = b.model.dt();
         b.time += dt;
         let contact = match tool {
-            Some(t) if !b.candidates.is_empty() => Some(ToolContact {
+            Some(t) if anchor.is_some() || !b.candidates.is_empty() => Some(ToolContact {
                 tool: *t,
                 surface: &b.mesh.surface,
                 candidates: &b.candidates,
+                anchor,
             }),
             _ => None,
         };

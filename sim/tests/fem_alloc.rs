@@ -76,6 +76,7 @@ fn step_is_allocation_free() {
                 tool,
                 surface: &mesh.surface,
                 candidates: &candidates,
+                anchor: None,
             };
             let c = (s % 40 < 30).then_some(&contact);
             let report = fem.step(g, &loads, c).unwrap();

@@ -78,6 +78,7 @@ fn press(
         tool,
         surface: &mesh.surface,
         candidates: &candidates,
+        anchor: None,
     };
     let mut speeds = Vec::with_capacity(steps);
     let mut report = ContactReport::default();

@@ -100,6 +100,7 @@ fn deterministic_bit_for_bit() {
         tool,
         surface: &mesh.surface,
         candidates: &candidates,
+        anchor: None,
     };
     for mode in [FemMode::Linear, FemMode::Corotational] {
         let run = || {

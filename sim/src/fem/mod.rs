@@ -139,7 +139,7 @@ use thiserror::Error;
 
 use crate::contact::{closest_on_surface, SurfaceHit};
 use crate::mesh::TetMesh;
-use crate::model::{BlowUp, ContactReport, ToolContact, RUNAWAY_SPEED};
+use crate::model::{BlowUp, ContactReport, ToolAnchor, ToolContact, RUNAWAY_SPEED};
 
 use element::{
     add, apply_stiffness, cross, dot, lame, mat_mul_t, mat_t_mul, mat_t_vec, mat_vec, norm, scale,
@@ -334,12 +334,12 @@ struct Scratch {
     /// Per DOF: the right-hand side `b`, written by `step`/`solve_static`; the direct
     /// solves overwrite it with the increment `d`.
     rhs: Vec<f64>,
-    /// Per DOF: the contact vector `c` (written by `contact_setup`); the linear mode's
-    /// Sherman–Morrison solve overwrites it with `z = K̃⁻¹ c`.
-    contact_dir: Vec<f64>,
-    /// Scratch, per DOF: `P⁻¹ c` for the preconditioner's contact term, written by
-    /// `solve_pcg` / `cg_with_refactor`, read by `precondition`.
-    contact_pc: Vec<f64>,
+    /// Per DOF, one per contact direction: the contact vectors `c_a` (written by
+    /// `contact_setup`); the direct solves overwrite them with `z_a = K̃⁻¹ c_a`.
+    contact_dir: [Vec<f64>; 3],
+    /// Scratch, per DOF and direction: `P⁻¹ c_a` for the preconditioner's contact term,
+    /// written by `solve_pcg` / `cg_with_refactor`, read by `precondition`.
+    contact_pc: [Vec<f64>; 3],
     /// Per DOF: CG's iterate (the increment `d`), residual, preconditioned residual,
     /// search direction and matrix product; written and read by `cg` only (and `sol` by
     /// `apply_increment`).
@@ -438,8 +438,8 @@ impl Fem {
             node_turn: vec![rotation::IDENTITY; n_dof / 3],
             force: vec![[0.0; 3]; n],
             rhs: vec![0.0; n_dof],
-            contact_dir: vec![0.0; n_dof],
-            contact_pc: vec![0.0; n_dof],
+            contact_dir: [vec![0.0; n_dof], vec![0.0; n_dof], vec![0.0; n_dof]],
+            contact_pc: [vec![0.0; n_dof], vec![0.0; n_dof], vec![0.0; n_dof]],
             sol: vec![0.0; n_dof],
             cg_r: vec![0.0; n_dof],
             cg_z: vec![0.0; n_dof],
@@ -655,84 +655,95 @@ impl Fem {
         self.check().map(|()| report)
     }
 
-    /// Linear mode: the scene's factor of `K̃`, contact by Sherman–Morrison (module docs).
-    /// Leaves the increment in `sol`.
+    /// Linear mode: the scene's factor of `K̃`, contact by Sherman–Morrison–Woodbury (module
+    /// docs). Leaves the increment in `sol`.
     fn solve_linear(&mut self, pressed: Option<Pressed>) -> Result<ContactReport, Failed> {
         if self.factor != Factor::RestDynamic {
             self.factor_dynamic(false)?;
         }
         self.system.solve_in_place(&mut self.s.rhs);
-        let mut report = ContactReport::default();
-        if let Some(p) = pressed {
-            let cy = p.dot(&self.s.rhs);
-            self.system.solve_in_place(&mut self.s.contact_dir);
-            let cz = p.dot(&self.s.contact_dir);
-            let lambda = (p.force + p.stiffness * cy) / (1.0 + p.stiffness * cz);
-            if lambda > 0.0 {
-                for (d, z) in self.s.rhs.iter_mut().zip(&self.s.contact_dir) {
-                    *d -= lambda * z;
-                }
-                report = p.report(lambda, &self.s.rhs);
-            }
-        }
         self.s.sol.copy_from_slice(&self.s.rhs);
         self.last_iterations = 0;
-        Ok(report)
+        Ok(match pressed {
+            Some(p) => self.woodbury(&p),
+            None => ContactReport::default(),
+        })
     }
 
-    /// Corotational, direct: refactorise the warped `K̃` (plus the contact stiffness), solve,
-    /// and drop the contact if it would pull.
+    /// Corotational, direct: refactorise the warped `K̃`, solve, and add the tool by
+    /// Sherman–Morrison–Woodbury (dropping a push that would pull).
     fn solve_refactor(&mut self, pressed: Option<Pressed>) -> Result<ContactReport, Failed> {
         self.factor_dynamic(true)?;
         self.last_iterations = 0;
         self.s.sol.copy_from_slice(&self.s.rhs);
         self.system.solve_in_place(&mut self.s.sol);
-        let Some(p) = pressed else {
-            return Ok(ContactReport::default());
-        };
-        // Same Sherman–Morrison update as the linear mode.
-        let cy = p.dot(&self.s.sol);
-        self.system.solve_in_place(&mut self.s.contact_dir);
-        let cz = p.dot(&self.s.contact_dir);
-        let lambda = (p.force + p.stiffness * cy) / (1.0 + p.stiffness * cz);
-        if !(lambda > 0.0) {
-            return Ok(ContactReport::default());
-        }
-        for (d, z) in self.s.sol.iter_mut().zip(&self.s.contact_dir) {
-            *d -= lambda * z;
-        }
-        Ok(p.report(lambda, &self.s.sol))
+        Ok(match pressed {
+            Some(p) => self.woodbury(&p),
+            None => ContactReport::default(),
+        })
     }
 
-    /// Corotational, iterative: CG on `K̃_w + k' c cᵀ` with the lagged factor as
+    /// With `sol = K̃⁻¹ b`: the increment of `(K̃ + k' C Cᵀ) d = b − C F` is
+    /// `d = sol − Z λ`, `Z = K̃⁻¹ C`, `(I + k' Cᵀ Z) λ = F + k' Cᵀ sol`; `λ` is the contact
+    /// force after the step. A press whose `λ` would pull is dropped.
+    fn woodbury(&mut self, p: &Pressed) -> ContactReport {
+        let m = p.m;
+        for a in 0..m {
+            self.system.solve_in_place(&mut self.s.contact_dir[a]);
+        }
+        let mut sm = [[0.0; 3]; 3];
+        let mut r = [0.0; 3];
+        for a in 0..m {
+            for b in 0..m {
+                sm[a][b] = (a == b) as u8 as f64 + p.stiffness * p.dot(a, &self.s.contact_dir[b]);
+            }
+            r[a] = p.force[a] + p.stiffness * p.dot(a, &self.s.sol);
+        }
+        let Some(lambda) = solve_small(sm, r, m) else {
+            return ContactReport::default();
+        };
+        if !p.admissible(lambda) {
+            return ContactReport::default();
+        }
+        for a in 0..m {
+            for (d, z) in self.s.sol.iter_mut().zip(&self.s.contact_dir[a]) {
+                *d -= lambda[a] * z;
+            }
+        }
+        p.report(lambda, &self.s.sol)
+    }
+
+    /// Corotational, iterative: CG on `K̃_w + k' C Cᵀ` with the lagged factor as
     /// preconditioner (module docs).
     fn solve_pcg(&mut self, pressed: Option<Pressed>) -> Result<ContactReport, Failed> {
         self.update_node_rotations();
         if self.factor != Factor::WarpedDynamic && self.factor != Factor::RestDynamic {
             self.factor_dynamic(true)?;
         }
-        // With contact: (K̃ + k' c cᵀ) d = b − F c.
+        // With contact: (K̃ + k' C Cᵀ) d = b − C F.
         if let Some(p) = pressed {
-            turned_solve(
-                &mut self.system,
-                &self.s.node_turn,
-                &self.s.contact_dir,
-                &mut self.s.contact_pc,
-            );
-            for (b, c) in self.s.rhs.iter_mut().zip(&self.s.contact_dir) {
-                *b -= p.force * c;
+            self.prepare_contact_pc(&p);
+            for a in 0..p.m {
+                for (b, c) in self.s.rhs.iter_mut().zip(&self.s.contact_dir[a]) {
+                    *b -= p.force[a] * c;
+                }
             }
         }
         let (mut iterations, run) = self.cg_with_refactor(pressed)?;
         let mut report = ContactReport::default();
         if let Some(p) = pressed {
-            let lambda = p.force + p.stiffness * p.dot(&self.s.sol);
-            if lambda > 0.0 {
+            let mut lambda = [0.0; 3];
+            for (a, l) in lambda.iter_mut().enumerate().take(p.m) {
+                *l = p.force[a] + p.stiffness * p.dot(a, &self.s.sol);
+            }
+            if p.admissible(lambda) {
                 report = p.report(lambda, &self.s.sol);
             } else {
                 // The linearised penalty would pull: solve again without the tool.
-                for (b, c) in self.s.rhs.iter_mut().zip(&self.s.contact_dir) {
-                    *b += p.force * c;
+                for a in 0..p.m {
+                    for (b, c) in self.s.rhs.iter_mut().zip(&self.s.contact_dir[a]) {
+                        *b += p.force[a] * c;
+                    }
                 }
                 iterations += self.cg_with_refactor(None)?.0;
             }
@@ -751,6 +762,18 @@ impl Fem {
         Ok(report)
     }
 
+    /// `contact_pc[a] = (Q K̃_lag Qᵀ)⁻¹ c_a`, for the preconditioner.
+    fn prepare_contact_pc(&mut self, p: &Pressed) {
+        for a in 0..p.m {
+            turned_solve(
+                &mut self.system,
+                &self.s.node_turn,
+                &self.s.contact_dir[a],
+                &mut self.s.contact_pc[a],
+            );
+        }
+    }
+
     /// CG from zero; if it has not converged in [`CG_MAX_ITERATIONS`], refactorise with the
     /// current matrix and run it again (then it converges in one or two iterations). Returns
     /// the iterations done in all, and those of the run that converged.
@@ -759,13 +782,8 @@ impl Fem {
             return Ok((it, it));
         }
         self.factor_dynamic(true)?;
-        if pressed.is_some() {
-            turned_solve(
-                &mut self.system,
-                &self.s.node_turn,
-                &self.s.contact_dir,
-                &mut self.s.contact_pc,
-            );
+        if let Some(p) = pressed {
+            self.prepare_contact_pc(&p);
         }
         self.cg(pressed, CG_MAX_ITERATIONS)
             .map(|it| (it + CG_MAX_ITERATIONS, it))
@@ -830,10 +848,23 @@ impl Fem {
             &mut self.s.cg_z,
         );
         if let Some(p) = pressed {
-            let s =
-                p.stiffness * p.dot(&self.s.cg_z) / (1.0 + p.stiffness * p.dot(&self.s.contact_pc));
-            for (z, y) in self.s.cg_z.iter_mut().zip(&self.s.contact_pc) {
-                *z -= s * y;
+            // Woodbury: z −= PC (I + k' Cᵀ PC)⁻¹ k' Cᵀ z.
+            let m = p.m;
+            let mut sm = [[0.0; 3]; 3];
+            let mut r = [0.0; 3];
+            for a in 0..m {
+                for b in 0..m {
+                    sm[a][b] =
+                        (a == b) as u8 as f64 + p.stiffness * p.dot(a, &self.s.contact_pc[b]);
+                }
+                r[a] = p.stiffness * p.dot(a, &self.s.cg_z);
+            }
+            if let Some(s) = solve_small(sm, r, m) {
+                for a in 0..m {
+                    for (z, y) in self.s.cg_z.iter_mut().zip(&self.s.contact_pc[a]) {
+                        *z -= s[a] * y;
+                    }
+                }
             }
         }
     }
@@ -906,12 +937,14 @@ impl Fem {
             }
         }
         if let Some(p) = pressed {
-            let s = p.stiffness * p.dot(&self.s.cg_p);
-            for k in 0..3 {
-                if p.dofs[k] != NONE {
-                    let d = p.dofs[k] as usize;
-                    for c in 0..3 {
-                        self.s.cg_q[d + c] += s * p.weights[k] * p.normal[c];
+            for a in 0..p.m {
+                let s = p.stiffness * p.dot(a, &self.s.cg_p);
+                for k in 0..3 {
+                    if p.dofs[k] != NONE {
+                        let d = p.dofs[k] as usize;
+                        for c in 0..3 {
+                            self.s.cg_q[d + c] += s * p.weights[k] * p.dirs[a][c];
+                        }
                     }
                 }
             }
@@ -1114,6 +1147,9 @@ impl Fem {
     /// Finds the tool's contact at the current positions (closest candidate triangle, as the
     /// mass-spring model does); if the tool presses, fills `contact_dir` with `c`.
     fn contact_setup(&mut self, c: &ToolContact<'_>) -> Option<Pressed> {
+        if let Some(a) = c.anchor {
+            return self.anchored_setup(c, a);
+        }
         let mut best: Option<(u32, SurfaceHit)> = None;
         for &t in c.candidates {
             let Some(tri) = c.surface.get(t as usize) else {
@@ -1139,22 +1175,55 @@ impl Fem {
         let tri = c.surface[t as usize];
         let dofs = tri.map(|k| self.system.dof[k as usize]);
         let normal = self.contact_normal(c.surface, t as usize, &hit);
-        self.s.contact_dir.fill(0.0);
-        for k in 0..3 {
-            if dofs[k] != NONE {
-                for a in 0..3 {
-                    self.s.contact_dir[dofs[k] as usize + a] = hit.barycentric[k] * normal[a];
-                }
-            }
-        }
-        Some(Pressed {
+        let p = Pressed::press(
             dofs,
-            weights: hit.barycentric,
+            hit.barycentric,
             normal,
             depth,
             force,
-            stiffness: c.tool.max_stiffness(depth),
-        })
+            c.tool.max_stiffness(depth),
+        );
+        self.fill_contact_dirs(&p);
+        Some(p)
+    }
+
+    /// The god-object's contact (see [`ToolAnchor`]): the spring between god-object and device
+    /// that the hand feels, `−k g` on the tissue, with its stiffness in every direction
+    /// (rank three: along the gap only, the sideways stiffness `F/|g|` of the turning spring
+    /// would be explicit, and with the small gaps of soft tissue the point rings). A press
+    /// may only push (`outward`), a grab pulls too. The Phong normal below is not used: the
+    /// direction is the god-object's, so the tissue receives what the hand feels.
+    fn anchored_setup(&mut self, c: &ToolContact<'_>, a: ToolAnchor) -> Option<Pressed> {
+        let t = crate::model::anchored_touch(c, a, &self.x)?;
+        let dofs = t.tri.map(|k| self.system.dof[k as usize]);
+        // The tissue receives on_tissue = Σ −λ_a n_a with n_a = −e_a: λ = on_tissue.
+        let p = Pressed {
+            dofs,
+            weights: t.weights,
+            dirs: [[-1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]],
+            m: 3,
+            force: t.on_tissue,
+            stiffness: t.stiffness,
+            depth: t.depth,
+            outward: (!a.grab).then_some(a.offset),
+        };
+        self.fill_contact_dirs(&p);
+        Some(p)
+    }
+
+    /// Writes the contact vectors `c_a = (w₀ n_a, w₁ n_a, w₂ n_a)` into `contact_dir`.
+    fn fill_contact_dirs(&mut self, p: &Pressed) {
+        for a in 0..p.m {
+            let v = &mut self.s.contact_dir[a];
+            v.fill(0.0);
+            for k in 0..3 {
+                if p.dofs[k] != NONE {
+                    for d in 0..3 {
+                        v[p.dofs[k] as usize + d] = p.weights[k] * p.dirs[a][d];
+                    }
+                }
+            }
+        }
     }
 
     /// Direction of the tool's push on the contact point: the vertex normals of the triangle
@@ -1336,42 +1405,126 @@ fn validate(p: &FemParameters) -> Result<(), FemError> {
     Ok(())
 }
 
-/// The tool pressing on a triangle during one step: `c = (w₀n, w₁n, w₂n)` on its nodes.
+/// The tool on a triangle during one step: `m` contact vectors `c_a = (w₀n_a, w₁n_a, w₂n_a)`
+/// on its nodes — one along the normal for a press, three (the axes) for a grab.
 #[derive(Debug, Clone, Copy)]
 struct Pressed {
     /// First DOF of each triangle node, or `NONE` if held.
     dofs: [u32; 3],
     /// Barycentric weights of the contact point.
     weights: [f64; 3],
-    /// Outward unit normal of the triangle.
-    normal: [f64; 3],
-    /// Penetration depth at the start of the step, m.
-    depth: f64,
-    /// Force magnitude `F(depth)`, N.
-    force: f64,
-    /// `dF/d depth`, N/m.
+    /// Unit directions `n_a`; the tissue receives `−λ_a n_a`.
+    dirs: [[f64; 3]; 3],
+    /// Directions in use: 1 (press) or 3 (grab).
+    m: usize,
+    /// `λ_a` at the start of the step, N.
+    force: [f64; 3],
+    /// `dF/d depth`, N/m (the same along every direction).
     stiffness: f64,
+    /// Press: penetration at the start of the step; god-object: the gap's length, m.
+    depth: f64,
+    /// For a contact that may only push: its outward direction (the force on the tissue must
+    /// point against it). `None`: a grab, which pulls too.
+    outward: Option<[f64; 3]>,
 }
 
 impl Pressed {
-    /// What the step applied: force `λ` along `−n`, depth grown by `cᵀd`.
-    fn report(&self, lambda: f64, d: &[f64]) -> ContactReport {
-        ContactReport {
-            force_on_tissue: scale(self.normal, -lambda),
-            depth: (self.depth + self.dot(d)).max(0.0),
+    /// A press along `normal` with force `force` at `depth`.
+    fn press(
+        dofs: [u32; 3],
+        weights: [f64; 3],
+        normal: [f64; 3],
+        depth: f64,
+        force: f64,
+        stiffness: f64,
+    ) -> Pressed {
+        Pressed {
+            dofs,
+            weights,
+            dirs: [normal, [0.0; 3], [0.0; 3]],
+            m: 1,
+            force: [force, 0.0, 0.0],
+            stiffness,
+            depth,
+            outward: Some(normal),
         }
     }
 
-    /// `cᵀ v` for a DOF vector `v`.
-    fn dot(&self, v: &[f64]) -> f64 {
+    /// The force on the tissue for contact forces `λ`.
+    fn on_tissue(&self, lambda: [f64; 3]) -> [f64; 3] {
+        let mut f = [0.0; 3];
+        for a in 0..self.m {
+            f = add(f, scale(self.dirs[a], -lambda[a]));
+        }
+        f
+    }
+
+    /// Whether forces `λ` are allowed: a press must push.
+    fn admissible(&self, lambda: [f64; 3]) -> bool {
+        match self.outward {
+            None => true,
+            Some(o) => dot(self.on_tissue(lambda), o) < 0.0,
+        }
+    }
+
+    /// What the step applied: forces `λ_a` along `−n_a`; the press's depth grown by `c₀ᵀd`
+    /// (a grab's gap: `|λ| / k'`).
+    fn report(&self, lambda: [f64; 3], d: &[f64]) -> ContactReport {
+        let f = self.on_tissue(lambda);
+        let depth = if self.m == 3 {
+            if self.stiffness > 0.0 {
+                norm(lambda) / self.stiffness
+            } else {
+                self.depth
+            }
+        } else {
+            (self.depth + self.dot(0, d)).max(0.0)
+        };
+        ContactReport {
+            force_on_tissue: f,
+            depth,
+        }
+    }
+
+    /// `c_aᵀ v` for a DOF vector `v`.
+    fn dot(&self, a: usize, v: &[f64]) -> f64 {
         let mut s = 0.0;
         for k in 0..3 {
             let d = self.dofs[k];
             if d != NONE {
                 let d = d as usize;
-                s += self.weights[k] * dot(self.normal, [v[d], v[d + 1], v[d + 2]]);
+                s += self.weights[k] * dot(self.dirs[a], [v[d], v[d + 1], v[d + 2]]);
             }
         }
         s
     }
+}
+
+/// Solves the leading `m × m` block of `a x = b` (m ≤ 3) by Gaussian elimination with partial
+/// pivoting; `None` if singular or not finite.
+fn solve_small(mut a: [[f64; 3]; 3], mut b: [f64; 3], m: usize) -> Option<[f64; 3]> {
+    for col in 0..m {
+        let piv = (col..m).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
+        if !(a[piv][col].abs() > 1e-300) {
+            return None;
+        }
+        a.swap(col, piv);
+        b.swap(col, piv);
+        for row in col + 1..m {
+            let f = a[row][col] / a[col][col];
+            for k in col..m {
+                a[row][k] -= f * a[col][k];
+            }
+            b[row] -= f * b[col];
+        }
+    }
+    let mut x = [0.0; 3];
+    for row in (0..m).rev() {
+        let mut s = b[row];
+        for k in row + 1..m {
+            s -= a[row][k] * x[k];
+        }
+        x[row] = s / a[row][row];
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
 }

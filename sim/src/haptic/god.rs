@@ -36,6 +36,8 @@ use crate::vec3::{add, dot, norm, scale, sub};
 /// Gap kept between the proxy sphere and a surface it rests on, m: keeps the next sweep from
 /// starting in contact because of rounding.
 const SKIN: f64 = 1e-7;
+/// How far the proxy may be from its anchor triangle and still rest on it, m.
+const STICK: f64 = 2e-5;
 /// Most planes that constrain the proxy at once.
 const MAX_PLANES: usize = 3;
 /// Sweeps per tick (each adds a plane or ends the motion).
@@ -150,7 +152,14 @@ impl GodObject {
             }
         }
 
-        self.depenetrate(set);
+        // An anchored proxy moved with its material point (`follow_surface`), exactly where
+        // the deformation process puts it when it applies the hand's force to the tissue;
+        // pushing it out of the faces around a dimple that force made would make the two
+        // disagree (and the load hop between faces every frame). A free proxy the surface
+        // moved into is pushed out.
+        if self.anchor.is_none() {
+            self.depenetrate(set);
+        }
         self.gather_planes(set, device);
         for _ in 0..MAX_ITERATIONS {
             let target = self.project(device);
@@ -173,13 +182,33 @@ impl GodObject {
                 }
             }
         }
-        // Contact: the proxy rests on the surface and the device is behind it.
-        self.anchor = None;
+        // Contact: the proxy rests on the surface and the device is behind it. The anchor stays
+        // on its triangle while the proxy still rests on it (within `STICK`): a proxy held by
+        // two faces at once (in a dimple its push has made) would otherwise hand the anchor
+        // back and forth between them, and the tissue's load with it, every frame.
+        let previous = self.anchor.take();
         let r = self.radius;
+        let pushing = |offset: [f64; 3]| dot(sub(device, self.proxy), offset) < 0.0;
+        if let Some(prev) = previous {
+            if prev.triangle < set.triangles().len() {
+                let [a, b, c] = set.corners(prev.triangle);
+                let w = closest_point_on_triangle(self.proxy, a, b, c);
+                let q = add(add(scale(a, w[0]), scale(b, w[1])), scale(c, w[2]));
+                let offset = sub(self.proxy, q);
+                let outside = dot(offset, set.normal_of(prev.triangle)) > 0.0;
+                if outside && norm(offset) <= r + STICK && pushing(offset) {
+                    self.anchor = Some(Anchor {
+                        bary: w,
+                        offset,
+                        ..prev
+                    });
+                    return self.state(device, false);
+                }
+            }
+        }
         if let Some(c) = set.closest(self.proxy, r + 4.0 * SKIN) {
             let offset = sub(self.proxy, c.hit.point);
-            let pushing = dot(sub(device, self.proxy), offset) < 0.0;
-            if !c.hit.inside && pushing && norm(sub(device, self.proxy)) > 0.0 {
+            if !c.hit.inside && pushing(offset) && norm(sub(device, self.proxy)) > 0.0 {
                 self.anchor = Some(Anchor {
                     body: c.body,
                     triangle: c.hit.triangle,

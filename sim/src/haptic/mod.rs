@@ -13,9 +13,11 @@
 //! benchmarks), so what the hand feels and what the tissue receives are computed one way.
 
 mod god;
+mod offline;
 mod surface;
 mod sweep;
 
 pub use god::{hand_force, law_magnitude, Anchor, GodObject, GodState};
+pub use offline::WorldProbe;
 pub use surface::{Closest, QueryStats, SurfaceSet};
 pub use sweep::{sweep_sphere_triangle, Impact};

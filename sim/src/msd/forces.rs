@@ -77,7 +77,13 @@ impl Network {
         let Some(t) = touch(c, x) else {
             return;
         };
-        let n = t.normal;
+        // Implicit along the normal; along every axis for a grab's isotropic spring.
+        let axes = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let dirs: &[[f64; 3]] = if t.isotropic {
+            &axes
+        } else {
+            std::slice::from_ref(&t.normal)
+        };
         for k in 0..3 {
             let i = t.tri[k] as usize;
             let w = t.weights[k];
@@ -87,10 +93,12 @@ impl Network {
                 continue;
             }
             let kn = t.stiffness * w * w;
-            let f_n = dot(sub(force[i], scale(v[i], self.damping)), n);
-            let v_n = dot(v[i], n);
-            let implicit = (f_n - h * kn * v_n) / (1.0 + h * h * kn * inv_m);
-            force[i] = add(force[i], scale(n, implicit - f_n));
+            for &n in dirs {
+                let f_n = dot(sub(force[i], scale(v[i], self.damping)), n);
+                let v_n = dot(v[i], n);
+                let implicit = (f_n - h * kn * v_n) / (1.0 + h * h * kn * inv_m);
+                force[i] = add(force[i], scale(n, implicit - f_n));
+            }
         }
     }
 

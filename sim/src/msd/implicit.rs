@@ -295,15 +295,25 @@ impl ImplicitSolver {
     /// positive semi-definite.
     fn add_tool_jacobian(&mut self, net: &Network, t: &forces::Touch, v: &[[f64; 3]], h2: f64) {
         let n = t.normal;
-        let nn = block(1.0, n, 0.0);
-        let vn: f64 = (0..3)
-            .map(|k| t.weights[k] * dot(v[t.tri[k] as usize], n))
-            .sum();
+        // A grab's spring is isotropic: `dF/dd (w wᵀ) ⊗ I`.
+        let nn = if t.isotropic {
+            block(0.0, n, 1.0)
+        } else {
+            block(1.0, n, 0.0)
+        };
+        let vw = (0..3).fold([0.0; 3], |acc, k| {
+            add(acc, scale(v[t.tri[k] as usize], t.weights[k]))
+        });
+        let kvw = if t.isotropic {
+            vw
+        } else {
+            scale(n, dot(vw, n))
+        };
         let vals = self.a.val_mut();
         for p in 0..3 {
             let i = t.tri[p] as usize;
             let wi = t.weights[p];
-            self.kv[i] = add(self.kv[i], scale(n, t.stiffness * wi * vn));
+            self.kv[i] = add(self.kv[i], scale(kvw, t.stiffness * wi));
             add_diag(
                 vals,
                 &self.diag,
