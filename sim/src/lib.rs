@@ -12,6 +12,7 @@ pub mod collide;
 pub mod contact;
 pub mod fem;
 pub mod gc;
+pub mod heat;
 pub mod lop;
 pub mod mesh;
 pub mod model;
