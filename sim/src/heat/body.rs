@@ -81,16 +81,28 @@ impl HeatParameters {
         let positive = |v: f64| v.is_finite() && v > 0.0;
         let temperature = |v: f64| v > ABSOLUTE_ZERO && v <= MAX_TEMPERATURE;
         if !positive(self.conductivity) {
-            return bad("conductivity", self.conductivity, "a finite number > 0 (W/m/K)");
+            return bad(
+                "conductivity",
+                self.conductivity,
+                "a finite number > 0 (W/m/K)",
+            );
         }
         if !positive(self.specific_heat) {
-            return bad("specific_heat", self.specific_heat, "a finite number > 0 (J/kg/K)");
+            return bad(
+                "specific_heat",
+                self.specific_heat,
+                "a finite number > 0 (J/kg/K)",
+            );
         }
         if !positive(self.density) {
             return bad("density", self.density, "a finite number > 0 (kg/m³)");
         }
         if !temperature(self.initial) {
-            return bad("initial", self.initial, "°C, above -273.15 and at most 1000");
+            return bad(
+                "initial",
+                self.initial,
+                "°C, above -273.15 and at most 1000",
+            );
         }
         if !(temperature(self.coagulation) && self.coagulation > self.initial) {
             return bad(
@@ -100,7 +112,11 @@ impl HeatParameters {
             );
         }
         if !positive(self.burn_stiffening) {
-            return bad("burn_stiffening", self.burn_stiffening, "a finite number > 0");
+            return bad(
+                "burn_stiffening",
+                self.burn_stiffening,
+                "a finite number > 0",
+            );
         }
         if !temperature(self.air_temperature) {
             return bad(
@@ -178,7 +194,9 @@ pub enum HeatError {
         expected: usize,
     },
     /// A temperature that is not finite or outside (-273.15, 1000] °C.
-    #[error("temperature {value} °C at node {node} is invalid: expected above -273.15 and at most 1000")]
+    #[error(
+        "temperature {value} °C at node {node} is invalid: expected above -273.15 and at most 1000"
+    )]
     InvalidTemperature {
         /// 0-based node.
         node: usize,
@@ -284,7 +302,8 @@ impl HeatBody {
         if let Some(t) = mesh.tets.iter().flatten().find(|&&t| t as usize >= n) {
             return Err(HeatError::NodeOutOfRange { node: *t, nodes: n });
         }
-        let mut system = HeatSystem::new(n, &mesh.tets).map_err(|e| HeatError::Solver(e.to_string()))?;
+        let mut system =
+            HeatSystem::new(n, &mesh.tets).map_err(|e| HeatError::Solver(e.to_string()))?;
         let mut capacity = vec![0.0; n];
         let rho_c = params.density * params.specific_heat;
         for (e, t) in mesh.tets.iter().enumerate() {
