@@ -597,11 +597,6 @@ impl HeatBody {
         self.system.nnz()
     }
 
-    /// `K T`, the net conductive outflow per node, W (sums to zero up to round-off).
-    pub fn conductive_outflow(&self, out: &mut [f64]) {
-        self.system.conductance_times(&self.temperature, out);
-    }
-
     pub(crate) fn check_node(&self, node: u32) -> Result<(), HeatError> {
         match self.capacity.get(node as usize) {
             None => Err(HeatError::NodeOutOfRange {
@@ -613,7 +608,7 @@ impl HeatBody {
         }
     }
 
-    /// Temperature of a node after a link exchange (checked by the world).
+    /// The temperatures, for the world's link exchange (which checks its node indices).
     pub(crate) fn temperature_mut(&mut self) -> &mut [f64] {
         &mut self.temperature
     }
