@@ -50,6 +50,8 @@
 //! - *Factorised once.* The matrix depends only on the geometry, `Δt` and `h`: faer's sparse
 //!   Cholesky factorises it when the body is built or those change (`set_dt`, `set_air`);
 //!   a step is one sparse product `K T` and two triangular solves, with no allocation.
+//!   Measured (release, one core, default parameters): liver (555 nodes, 1706 tets) built and
+//!   factorised in 1.8 ms, 44 µs per step; cylinder (260 nodes, 991 tets) 0.9 ms, 15 µs.
 //!   First-order accurate in time (relative error `λΔt/2` on a mode decaying at rate `λ`),
 //!   second order in space: on a bar the slowest mode's rate is off by `(πh/L)²/12` (0.8 % at
 //!   10 cells), on the shipped unstructured beam by 0.26 %.
