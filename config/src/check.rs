@@ -112,6 +112,25 @@ impl Check<'_, '_> {
         }
     }
 
+    /// A temperature, °C: above absolute zero (-273.15 °C) and at most 1000 °C (a larger value
+    /// is almost surely kelvin or a typo).
+    pub(crate) fn temperature(
+        &self,
+        key: &KeyPath,
+        v: f64,
+        what: &str,
+    ) -> Result<f64, ConfigError> {
+        if v > -273.15 && v <= 1000.0 {
+            Ok(v)
+        } else {
+            Err(self.invalid(
+                key,
+                fmt_f64(v),
+                format!("{what} must be in °C, above -273.15 and at most 1000"),
+            ))
+        }
+    }
+
     /// Every component finite.
     pub(crate) fn finite3(
         &self,

@@ -54,6 +54,11 @@
 //! [device]
 //! mock_script = "../scripts/organs-poke.toml"
 //!
+//! [heat]
+//! air_temperature = 22.0
+//! air_coefficient = 10.0
+//! contact_conductance = 500.0
+//!
 //! [[body]]
 //! name = "liver"
 //! mesh = "../../assets/meshes/liver"
@@ -80,6 +85,14 @@
 //! density = 20.0
 //! damping = 0.3
 //! dt = 0.02
+//!
+//! [body.heat]
+//! conductivity = 0.52
+//! specific_heat = 3540.0
+//! density = 1060.0
+//! initial = 37.0
+//! coagulation = 60.0
+//! burn_stiffening = 1.0
 //! ```
 //!
 //! ## `[scene]` (optional)
@@ -100,7 +113,7 @@
 //! | `stiffness` | float | `300` | `k`: N/m for `linear`, N/m² for `quadratic` (> 0) |
 //! | `damping` | float | `0` | N·s/m on the penetration speed (>= 0) |
 //! | `max_force` | float | `3.0` | N, force clamp for this scene (> 0); the daemon clamps to the smallest of this, `haptic.max_force_n` and the device's limit |
-//! | `heat_power` | float | `20` | W delivered by the cautery button (>= 0) |
+//! | `heat_power` | float | `20` | W delivered by the cautery button (>= 0), spread over the touched surface triangle's nodes by the contact point's barycentric weights (see `[heat]`) |
 //!
 //! Stiffness felt at the stylus is `stiffness × workspace.scale`. A Phantom Omni renders about
 //! 0.7 N/mm stably; the shipped scenes use 300 N/m at scale ≤ 2, i.e. ≤ 0.6 N/mm.
@@ -141,6 +154,18 @@
 //! | `blend` | float | `0.2` | s (>= 0): fade-out of the residual shape after a hand-over to the cage; 0 snaps |
 //! | `start` | `"gc"` \| `"precise"` | `"gc"` | level every `auto` body starts at; `precise` lets bodies settle under gravity precisely first (thesis fig. 6.5) |
 //!
+//! ## `[heat]` (optional): heat and burns (thesis §5.3)
+//! Heat diffuses through each body (`ρc ∂T/∂t = ∇·(k∇T) + q`, linear tetrahedra, backward
+//! Euler: conservative and stable at any step; see `lop_sim::heat`), leaves to the air at the
+//! surface and crosses between organs that touch. Temperatures in °C, powers in W.
+//!
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `air_temperature` | float | `22` | °C (above -273.15, at most 1000) |
+//! | `air_coefficient` | float | `10` | convective heat-transfer coefficient `h` from tissue surfaces to the air, W/m²/K (>= 0; 10 is natural convection; 0 insulates) |
+//! | `contact_conductance` | float | `500` | W/m²/K (>= 0) between touching organs, times the contact area (≈ tissue conductivity 0.5 W/m/K across a 1 mm layer; 0: no heat crosses) |
+//! | `dt` | float | one heat step per deformation step | heat time step, s (0 < dt <= 1); the scheme is stable at any step, so a longer one only costs accuracy |
+//!
 //! ## `[[body]]` (one or more)
 //! | key | type | default | meaning |
 //! |---|---|---|---|
@@ -158,7 +183,8 @@
 //! A body needs the parameter tables of every model it can run:
 //! - `[body.fem]` if `importance = "important"` or `model = "fem"`;
 //! - `[body.msd]` unless `model = "fem"`: mass-spring is every body's fallback;
-//! - `[body.gc]` optional: without it a cage runs with the defaults below.
+//! - `[body.gc]` optional: without it a cage runs with the defaults below;
+//! - `[body.heat]` optional: without it the body has the liver-like defaults below.
 //!
 //! ### `[body.fem]`: linear tetrahedral FEM (thesis §4.2)
 //! | key | type | default | meaning |
@@ -195,6 +221,19 @@
 //! | `density` | float | required for `mass-spring` | kg/m³ (> 0): cage volume × density, shared by its vertices |
 //! | `damping` | float | required for `mass-spring` | N·s/m per cage vertex (>= 0) |
 //! | `dt` | float | the precise model's `dt` | time step, s (0 < dt <= 1) |
+//!
+//! ### `[body.heat]`: thermal tissue properties (thesis §5.3)
+//! The defaults are liver-like soft tissue (typical literature values, e.g. the IT'IS
+//! Foundation tissue database); diffusivity `α = k / (ρ c)` ≈ 1.4e-7 m²/s.
+//!
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `conductivity` | float | `0.52` | thermal conductivity `k`, W/m/K (> 0) |
+//! | `specific_heat` | float | `3540` | specific heat capacity `c`, J/kg/K (> 0) |
+//! | `density` | float | `1060` | kg/m³ (> 0) for the heat capacity; independent of `[body.fem]`/`[body.msd]` densities, which are tuned for the dynamics |
+//! | `initial` | float | `37` | initial (body) temperature, °C (above -273.15, at most 1000) |
+//! | `coagulation` | float | `60` | °C, above `initial`: a node hotter than this is burned (shown by viewers) until the scene is reset |
+//! | `burn_stiffening` | float | `1.0` | stiffness factor of burned tissue (> 0); 1 = off, e.g. 3 makes coagulated tissue three times stiffer |
 //!
 //! # Daemon configuration
 //!
@@ -241,7 +280,7 @@ pub use resolve::{
 };
 pub use scene::{
     load_scene, parse_scene, BodySpec, CageKind, DeviceDefaults, FemMode, FemParams, ForceLaw,
-    GcDynamics, GcParams, Importance, Integrator, LopSpec, MassSpec, ModelPin, MsdParams, Rates,
-    Scene, StartLevel, ToolSpec,
+    GcDynamics, GcParams, HeatParams, HeatSpec, Importance, Integrator, LopSpec, MassSpec,
+    ModelPin, MsdParams, Rates, Scene, StartLevel, ToolSpec,
 };
 pub use workspace::{mat_t_vec, mat_vec, rotation_xyz_deg, Mat3, WorkspaceMap, WorkspaceTransform};

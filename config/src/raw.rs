@@ -23,7 +23,18 @@ pub(crate) struct RawScene {
     #[serde(default)]
     pub lop: RawLop,
     #[serde(default)]
+    pub heat: RawHeat,
+    #[serde(default)]
     pub body: Vec<RawBody>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawHeat {
+    pub air_temperature: Option<f64>,
+    pub air_coefficient: Option<f64>,
+    pub contact_conductance: Option<f64>,
+    pub dt: Option<f64>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -92,6 +103,18 @@ pub(crate) struct RawBody {
     pub fem: Option<RawFem>,
     pub msd: Option<RawMsd>,
     pub gc: Option<RawGc>,
+    pub heat: Option<RawBodyHeat>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawBodyHeat {
+    pub conductivity: Option<f64>,
+    pub specific_heat: Option<f64>,
+    pub density: Option<f64>,
+    pub initial: Option<f64>,
+    pub coagulation: Option<f64>,
+    pub burn_stiffening: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]

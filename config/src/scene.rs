@@ -9,7 +9,8 @@ use serde::Deserialize;
 use crate::check::{fmt_f64, fmt_f64s, Check};
 use crate::error::ConfigError;
 use crate::raw::{
-    RawBody, RawDevice, RawFem, RawGc, RawLop, RawMsd, RawRates, RawScene, RawTool, RawWorkspace,
+    RawBody, RawBodyHeat, RawDevice, RawFem, RawGc, RawHeat, RawLop, RawMsd, RawRates, RawScene,
+    RawTool, RawWorkspace,
 };
 use crate::source::{KeyPath, Source};
 use crate::workspace::{mat_vec, rotation_xyz_deg, WorkspaceMap};
@@ -37,6 +38,8 @@ pub struct Scene {
     pub device: DeviceDefaults,
     /// When bodies switch between their levels of precision.
     pub lop: LopSpec,
+    /// Air and contact for the heat model, `[heat]`.
+    pub heat: HeatSpec,
 }
 
 impl Scene {
@@ -142,6 +145,8 @@ pub struct BodySpec {
     pub msd: Option<MsdParams>,
     /// Green-coordinates cage parameters (present if pinned to GC).
     pub gc: Option<GcParams>,
+    /// Thermal parameters, `[body.heat]` (every body has them; defaults: liver-like tissue).
+    pub heat: HeatParams,
 }
 
 impl BodySpec {
@@ -270,6 +275,62 @@ impl Default for GcParams {
             density: None,
             damping: None,
             dt: None,
+        }
+    }
+}
+
+/// Scene-level heat settings (thesis §5.3), `[heat]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeatSpec {
+    /// Air temperature, °C.
+    pub air_temperature: f64,
+    /// Convective coefficient from tissue surfaces to the air, W/m²/K (>= 0; 0 insulates).
+    pub air_coefficient: f64,
+    /// Contact conductance between touching organs, W/m²/K (>= 0; 0: no heat crosses).
+    pub contact_conductance: f64,
+    /// Heat time step, s (0 < dt <= 1); `None`: one heat step per deformation step.
+    pub dt: Option<f64>,
+}
+
+impl Default for HeatSpec {
+    fn default() -> Self {
+        HeatSpec {
+            air_temperature: 22.0,
+            air_coefficient: 10.0,
+            contact_conductance: 500.0,
+            dt: None,
+        }
+    }
+}
+
+/// Thermal parameters of one body, `[body.heat]`. The defaults are liver-like soft tissue
+/// (typical literature values, e.g. the IT'IS Foundation tissue database).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeatParams {
+    /// Thermal conductivity, W/m/K (> 0).
+    pub conductivity: f64,
+    /// Specific heat capacity, J/kg/K (> 0).
+    pub specific_heat: f64,
+    /// Density for the heat capacity, kg/m³ (> 0); independent of the deformation models'
+    /// densities, which are tuned for dynamics.
+    pub density: f64,
+    /// Initial (body) temperature, °C.
+    pub initial: f64,
+    /// Coagulation temperature, °C (> `initial`): hotter tissue is burned.
+    pub coagulation: f64,
+    /// Stiffness factor of burned tissue (> 0); 1 = burns do not change stiffness.
+    pub burn_stiffening: f64,
+}
+
+impl Default for HeatParams {
+    fn default() -> Self {
+        HeatParams {
+            conductivity: 0.52,
+            specific_heat: 3540.0,
+            density: 1060.0,
+            initial: 37.0,
+            coagulation: 60.0,
+            burn_stiffening: 1.0,
         }
     }
 }
@@ -412,6 +473,7 @@ fn validate_scene(src: &Source<'_>, raw: RawScene) -> Result<Scene, ConfigError>
     let rates = validate_rates(&c, raw.rates)?;
     let device = validate_device(&c, raw.device, &dir)?;
     let lop = validate_lop(&c, raw.lop)?;
+    let heat = validate_heat(&c, raw.heat)?;
 
     if raw.body.is_empty() {
         return Err(c.invalid(
@@ -450,6 +512,84 @@ fn validate_scene(src: &Source<'_>, raw: RawScene) -> Result<Scene, ConfigError>
         rates,
         device,
         lop,
+        heat,
+    })
+}
+
+fn validate_heat(c: &Check<'_, '_>, raw: RawHeat) -> Result<HeatSpec, ConfigError> {
+    let k = KeyPath::top("heat");
+    let d = HeatSpec::default();
+    Ok(HeatSpec {
+        air_temperature: c.temperature(
+            &k.key("air_temperature"),
+            raw.air_temperature.unwrap_or(d.air_temperature),
+            "air temperature",
+        )?,
+        air_coefficient: c.non_negative(
+            &k.key("air_coefficient"),
+            raw.air_coefficient.unwrap_or(d.air_coefficient),
+            "air heat-transfer coefficient (W/m²/K)",
+        )?,
+        contact_conductance: c.non_negative(
+            &k.key("contact_conductance"),
+            raw.contact_conductance.unwrap_or(d.contact_conductance),
+            "contact conductance (W/m²/K)",
+        )?,
+        dt: raw.dt.map(|v| c.time_step(&k.key("dt"), v)).transpose()?,
+    })
+}
+
+fn validate_body_heat(
+    c: &Check<'_, '_>,
+    k: &KeyPath,
+    raw: RawBodyHeat,
+) -> Result<HeatParams, ConfigError> {
+    let d = HeatParams::default();
+    let initial = c.temperature(
+        &k.key("initial"),
+        raw.initial.unwrap_or(d.initial),
+        "initial temperature",
+    )?;
+    let coagulation = c.temperature(
+        &k.key("coagulation"),
+        raw.coagulation.unwrap_or(d.coagulation),
+        "coagulation temperature",
+    )?;
+    // Both are finite here (checked above).
+    if coagulation <= initial {
+        return Err(c.invalid(
+            &k.key("coagulation"),
+            fmt_f64(coagulation),
+            format!(
+                "coagulation temperature must be above the initial temperature ({} °C), or \
+                 the whole body starts burned",
+                fmt_f64(initial)
+            ),
+        ));
+    }
+    Ok(HeatParams {
+        conductivity: c.positive(
+            &k.key("conductivity"),
+            raw.conductivity.unwrap_or(d.conductivity),
+            "thermal conductivity (W/m/K)",
+        )?,
+        specific_heat: c.positive(
+            &k.key("specific_heat"),
+            raw.specific_heat.unwrap_or(d.specific_heat),
+            "specific heat (J/kg/K)",
+        )?,
+        density: c.positive(
+            &k.key("density"),
+            raw.density.unwrap_or(d.density),
+            "density (kg/m³)",
+        )?,
+        initial,
+        coagulation,
+        burn_stiffening: c.positive(
+            &k.key("burn_stiffening"),
+            raw.burn_stiffening.unwrap_or(d.burn_stiffening),
+            "burn_stiffening (stiffness factor of burned tissue)",
+        )?,
     })
 }
 
@@ -683,6 +823,7 @@ fn validate_body(
         .gc
         .map(|g| validate_gc(&c, &key.key("gc"), g))
         .transpose()?;
+    let heat = validate_body_heat(&c, &key.key("heat"), rb.heat.unwrap_or_default())?;
     let mesh = resolve_mesh(&c, &key.key("mesh"), &rb.mesh, dir)?;
 
     Ok(BodySpec {
@@ -699,6 +840,7 @@ fn validate_body(
         fem,
         msd,
         gc,
+        heat,
     })
 }
 

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use common::{fixture_dir, good_with, scene_path, GOOD};
 use lop_config::{
     list_scenes_in, load_daemon_config, load_scene, parse_daemon_config, parse_scene,
-    resolve_scene_in, ConfigError, DaemonConfig, FemMode, ForceLaw, Importance, ModelPin, Rates,
-    ToolSpec, WorkspaceMap,
+    resolve_scene_in, ConfigError, DaemonConfig, FemMode, ForceLaw, HeatParams, HeatSpec,
+    Importance, ModelPin, Rates, ToolSpec, WorkspaceMap,
 };
 
 fn daemon_err(text: &str, needles: &[&str]) {
@@ -153,6 +153,57 @@ fn defaults_apply_when_tables_are_absent() {
     assert_eq!(scene.bodies[1].importance, Importance::Normal);
     assert_ne!(scene.bodies[0].color, scene.bodies[1].color);
     assert!(scene.bodies.iter().all(|b| b.gc.is_none()));
+    // Heat: liver-like tissue at 37 °C in 22 °C air, no own heat step.
+    assert_eq!(
+        scene.heat,
+        HeatSpec {
+            air_temperature: 22.0,
+            air_coefficient: 10.0,
+            contact_conductance: 500.0,
+            dt: None,
+        }
+    );
+    for b in &scene.bodies {
+        assert_eq!(
+            b.heat,
+            HeatParams {
+                conductivity: 0.52,
+                specific_heat: 3540.0,
+                density: 1060.0,
+                initial: 37.0,
+                coagulation: 60.0,
+                burn_stiffening: 1.0,
+            }
+        );
+    }
+}
+
+#[test]
+fn heat_tables_are_read() {
+    let text = format!(
+        "[heat]\nair_temperature = 25.0\nair_coefficient = 0.0\ncontact_conductance = 100.0\n\
+         dt = 0.05\n{}",
+        good_with(
+            "integrator = \"rk4\"\n",
+            "integrator = \"rk4\"\n\n[body.heat]\nconductivity = 0.5\nspecific_heat = 3600.0\n\
+             density = 1050.0\ninitial = 36.5\ncoagulation = 65.0\nburn_stiffening = 2.5\n",
+        )
+    );
+    let scene = parse_scene(&text, &scene_path()).unwrap();
+    assert_eq!(scene.heat.air_temperature, 25.0);
+    assert_eq!(scene.heat.air_coefficient, 0.0);
+    assert_eq!(scene.heat.contact_conductance, 100.0);
+    assert_eq!(scene.heat.dt, Some(0.05));
+    assert_eq!(scene.bodies[0].heat, HeatParams::default());
+    let b = &scene.bodies[1].heat;
+    assert_eq!(
+        (b.conductivity, b.specific_heat, b.density),
+        (0.5, 3600.0, 1050.0)
+    );
+    assert_eq!(
+        (b.initial, b.coagulation, b.burn_stiffening),
+        (36.5, 65.0, 2.5)
+    );
 }
 
 #[test]

@@ -314,6 +314,77 @@ fn out_of_range_odds_and_ends() {
     );
 }
 
+/// `GOOD` with a `[body.heat]` table holding `line` added to the second body.
+fn with_body_heat(line: &str) -> String {
+    good_with(
+        "integrator = \"rk4\"\n",
+        &format!("integrator = \"rk4\"\n\n[body.heat]\n{line}\n"),
+    )
+}
+
+#[test]
+fn heat_keys_out_of_range() {
+    let err = expect_err(
+        &with_body_heat("conductivity = nan"),
+        &["body[1].heat.conductivity", "nan", "body \"b\"", "W/m/K"],
+    );
+    assert_eq!(err.key(), Some("body[1].heat.conductivity"));
+    let text = with_body_heat("specific_heat = 0.0");
+    let err = expect_err(&text, &["body[1].heat.specific_heat", "0.0", "J/kg/K"]);
+    assert_eq!(err.line(), Some(line_of(&text, "specific_heat = 0.0")));
+    expect_err(
+        &with_body_heat("density = -1060.0"),
+        &["body[1].heat.density", "-1060.0"],
+    );
+    expect_err(
+        &with_body_heat("initial = 2000.0"),
+        &["body[1].heat.initial", "2000.0", "°C"],
+    );
+    expect_err(
+        &with_body_heat("initial = -300.0"),
+        &["body[1].heat.initial", "-300.0", "-273.15"],
+    );
+    expect_err(
+        &with_body_heat("coagulation = 30.0"),
+        &[
+            "body[1].heat.coagulation",
+            "30.0",
+            "above the initial temperature (37.0 °C)",
+        ],
+    );
+    expect_err(
+        &with_body_heat("coagulation = inf"),
+        &["body[1].heat.coagulation", "inf"],
+    );
+    expect_err(
+        &with_body_heat("burn_stiffening = 0.0"),
+        &["body[1].heat.burn_stiffening", "0.0"],
+    );
+    expect_err(
+        &with_body_heat("conductivty = 0.5"),
+        &["body[1].heat", "conductivty", "unknown field"],
+    );
+    expect_err(
+        &format!("[heat]\nair_temperature = nan\n{GOOD}"),
+        &["heat.air_temperature", "nan", "°C"],
+    );
+    let text = format!("[heat]\nair_coefficient = -10.0\n{GOOD}");
+    let err = expect_err(&text, &["heat.air_coefficient", "-10.0", "W/m²/K"]);
+    assert_eq!(err.line(), Some(2));
+    expect_err(
+        &format!("[heat]\ncontact_conductance = -inf\n{GOOD}"),
+        &["heat.contact_conductance", "-inf"],
+    );
+    expect_err(
+        &format!("[heat]\ndt = 10.0\n{GOOD}"),
+        &["heat.dt", "10.0", "seconds"],
+    );
+    expect_err(
+        &format!("[heat]\npower = 20.0\n{GOOD}"),
+        &["heat", "power", "unknown field"],
+    );
+}
+
 /// Every prefix of a valid scene, and many byte-mangled variants, load or fail without
 /// panicking.
 #[test]

@@ -3,7 +3,7 @@
 
 use lop_config::{
     list_scenes, load_scene, parse_daemon_config, parse_scene, resolve_scene, FemMode, ForceLaw,
-    Importance, MassSpec, ModelPin, Scene,
+    HeatParams, HeatSpec, Importance, MassSpec, ModelPin, Scene,
 };
 
 fn shipped(name: &str) -> Scene {
@@ -38,7 +38,10 @@ fn assert_common(scene: &Scene, script: &str) {
             b.mesh
         );
         assert!(b.msd.is_some() && b.model == ModelPin::Auto);
+        // Every shipped body spells out the heat defaults.
+        assert_eq!(b.heat, HeatParams::default(), "{}", b.name);
     }
+    assert_eq!(scene.heat, HeatSpec::default());
 }
 
 #[test]

@@ -13,6 +13,7 @@ pub mod contact;
 pub mod fem;
 pub mod gc;
 pub mod haptic;
+pub mod heat;
 pub mod lop;
 pub mod mesh;
 pub mod model;

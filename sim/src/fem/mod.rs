@@ -130,7 +130,7 @@
 // would obscure the formulas they transcribe.
 #![allow(clippy::needless_range_loop)]
 
-mod element;
+pub(crate) mod element;
 mod rotation;
 mod shapes;
 mod system;

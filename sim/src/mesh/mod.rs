@@ -290,14 +290,6 @@ impl fmt::Display for MeshInfo {
     }
 }
 
-/// Reads any supported mesh, dispatching on the path (see the [module docs](self)):
-/// `X.node` / `X.ele` / a base `X` with `X.node` beside it → TetGen; `*.msh` → Gmsh;
-/// `*.vtk` → VTK.
-///
-/// # Errors
-/// [`MeshReadError::Io`] if the file (or, for TetGen, `X.node`) does not exist,
-/// [`MeshReadError::UnsupportedFormat`] for an unknown extension, and whatever the reader for
-
 /// Axis-aligned bounding box `(min, max)` of `points`, m (infinite and inverted when empty).
 pub fn bounds(points: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
     let mut lo = [f64::INFINITY; 3];
@@ -323,6 +315,13 @@ pub fn smallest_extent(points: &[[f64; 3]]) -> f64 {
     extents(points).into_iter().fold(f64::INFINITY, f64::min)
 }
 
+/// Reads any supported mesh, dispatching on the path (see the [module docs](self)):
+/// `X.node` / `X.ele` / a base `X` with `X.node` beside it → TetGen; `*.msh` → Gmsh;
+/// `*.vtk` → VTK.
+///
+/// # Errors
+/// [`MeshReadError::Io`] if the file (or, for TetGen, `X.node`) does not exist,
+/// [`MeshReadError::UnsupportedFormat`] for an unknown extension, and whatever the reader for
 /// the format reports.
 pub fn read_mesh(path: &Path) -> Result<TetMesh, MeshReadError> {
     match text::extension(path).as_deref() {
