@@ -2,10 +2,18 @@
 //! steps every body at real-time pace (simulated time follows the wall clock; each body keeps its
 //! own `dt`) with the tool pressing on it, and publishes a frame after every step.
 //!
-//! Tool coupling: the newest tool state comes from the haptic loop's blackboard. The tool tip is
-//! a kinematic sphere; its penalty spring is integrated inside the body's sub-steps with the same
-//! law the haptic loop renders, so the tissue receives the force the hand feels (up to the
-//! multirate delay) and a stiff tool on light tissue stays stable.
+//! Tool coupling (force coupling, DESIGN's choice for the tissue response): the newest tool state
+//! comes from the haptic loop's blackboard. Where its god-object touches or holds a body, that
+//! body receives the opposite of the hand's force at the god-object's material point — the
+//! spring between god-object and device, integrated implicitly inside the body's step
+//! (`lop_sim::model::ToolAnchor`), so the tissue receives the force the hand feels (up to the
+//! multirate delay: the haptic loop renders against the last frame) and a stiff tool on light
+//! tissue stays stable. The grab button turns the contact into a hold that also pulls.
+//!
+//! Heat (thesis §5.3): with the heat button pressed while touching, the touched point receives
+//! `[tool] heat_power`; the heat model (`lop_sim::heat`, one implicit step per `[heat] dt` of
+//! simulated time) diffuses it, loses it to the air and passes it to organs that touch. Frames
+//! carry every node's temperature and its burned flag.
 
 use std::time::Duration;
 
@@ -16,7 +24,8 @@ use iceoryx2::prelude::*;
 use lop_config::{DaemonConfig, Scene};
 use lop_ipc::services::{self, Role, ToolBoard};
 use lop_ipc::*;
-use lop_sim::model::ModelKind;
+use lop_sim::model::{ModelKind, ToolAnchor};
+use lop_sim::world::{Coupling, World};
 
 use crate::rt;
 use crate::scene::{self, tool_sphere, LoadedScene};
@@ -29,8 +38,8 @@ const TOOL_STALE_NS: u64 = 100_000_000;
 const MAX_CATCH_UP: u32 = 4;
 /// Largest nodal speed under which a body counts as at rest, m/s.
 const REST_SPEED: f64 = 1e-3;
-/// Temperature every node starts at, °C.
-const BODY_TEMPERATURE: f32 = 37.0;
+/// Most heat steps in one pass to catch up with the wall clock.
+const MAX_HEAT_CATCH_UP: u32 = 8;
 
 /// Options of one deformation run.
 pub struct DeformOptions {
@@ -82,6 +91,13 @@ pub fn run(opts: DeformOptions) -> Result<()> {
         topology_indices,
         node_offsets,
     } = scene::load(opts.scene)?;
+    let mut heat = scene::heat_world(&scene, &world)?;
+    let heat_dt = heat
+        .bodies()
+        .first()
+        .map_or(scene::HEAT_DT_DEFAULT, |b| b.dt());
+    let mut heat_time = 0.0;
+    let mut heat_failed = false;
     let names = opts.names;
     let node = services::node("lopd-deform")?;
     let cleaned = services::cleanup_dead_nodes(&node);
@@ -162,15 +178,17 @@ pub fn run(opts: DeformOptions) -> Result<()> {
         }
         let mut tool_stamp = 0;
         let mut tool_read = 0;
-        let mut tool = None;
+        let mut tool_state = None;
         if let Some(t) = &tool_input {
             let state = *t.entry.get();
             tool_read = rt::now_ns();
             if state.stamp_ns > 0 && tool_read.saturating_sub(state.stamp_ns) < TOOL_STALE_NS {
                 tool_stamp = state.stamp_ns;
-                tool = Some(tool_sphere(&scene.tool, state.device_position));
+                tool_state = Some(state);
             }
         }
+        let held = tool_state.and_then(|s| god_object_hold(&s, &topology, &world));
+        world.coupling = Coupling::GodObject(held);
 
         // Step every body that is due, on its own dt.
         let sim_now = (now - start) as f64 * 1e-9;
@@ -178,6 +196,13 @@ pub fn run(opts: DeformOptions) -> Result<()> {
         let mut stepped = false;
         for (i, last_ns) in step_ns.iter_mut().enumerate() {
             let mut steps = 0;
+            let tool = tool_state.map(|s| {
+                let mut t = tool_sphere(&scene.tool, s.device_position);
+                if let Some(k) = scene.bodies[i].tool_stiffness {
+                    t.stiffness = k;
+                }
+                t
+            });
             while world.body_due(i, sim_now) && steps < MAX_CATCH_UP {
                 let t0 = rt::now_ns();
                 if let Err(cause) = world.step_body(i, tool.as_ref()) {
@@ -197,6 +222,36 @@ pub fn run(opts: DeformOptions) -> Result<()> {
                 if lagged.is_power_of_two() {
                     tracing::warn!("deformation lags the wall clock ({lagged} times so far)");
                 }
+            }
+        }
+        // Heat: the cautery on the touched point, then the heat steps that are due.
+        if !heat_failed {
+            for b in 0..world.bodies.len() {
+                if let Ok(h) = heat.body_mut(b) {
+                    h.clear_sources();
+                }
+            }
+            if let (Some(s), Some((b, a))) = (tool_state, held) {
+                if s.flags & TOOL_FLAG_HEAT != 0 && !a.grab {
+                    let tri = world.bodies[b].mesh.surface[a.triangle as usize];
+                    if let Ok(h) = heat.body_mut(b) {
+                        let _ = h.heat_point(tri, a.bary, scene.tool.heat_power);
+                    }
+                }
+            }
+            let mut heat_steps = 0;
+            while heat_time + heat_dt <= sim_now + 1e-12 && heat_steps < MAX_HEAT_CATCH_UP {
+                if let Err(e) = heat.step() {
+                    tracing::warn!("heat model stopped: {e}");
+                    heat_failed = true;
+                    break;
+                }
+                heat_time += heat_dt;
+                heat_steps += 1;
+                stepped = true;
+            }
+            if heat_time + heat_dt <= sim_now {
+                heat_time = sim_now; // fell behind: drop simulated heat time
             }
         }
         if !stepped {
@@ -245,11 +300,17 @@ pub fn run(opts: DeformOptions) -> Result<()> {
         let payload = sample.payload_mut();
         for (i, b) in world.bodies.iter().enumerate() {
             let off = node_offsets[i];
+            let hb = &heat.bodies()[i];
+            let (temps, burned) = (hb.temperatures(), hb.burned());
             for (k, p) in b.model.positions().iter().enumerate() {
                 payload[off + k].write(NodeSample {
                     position: [p[0] as f32, p[1] as f32, p[2] as f32],
-                    temperature: BODY_TEMPERATURE,
-                    flags: 0,
+                    temperature: temps.get(k).copied().unwrap_or(f64::NAN) as f32,
+                    flags: if burned.get(k).copied().unwrap_or(false) {
+                        NODE_FLAG_BURNED
+                    } else {
+                        0
+                    },
                 });
             }
         }
@@ -263,6 +324,36 @@ pub fn run(opts: DeformOptions) -> Result<()> {
     }
     tracing::info!("deformation stopped after {sequence} frames");
     Ok(())
+}
+
+/// Where the haptic loop's god-object touches or holds a body, as the body's anchor: the
+/// touched body, its local triangle, and the god-object's offset from that material point
+/// now. `None` without contact, or if the tool state refers to another topology.
+fn god_object_hold(
+    s: &ToolState,
+    topology: &TopologyHeader,
+    world: &World,
+) -> Option<(usize, ToolAnchor)> {
+    if s.flags & (TOOL_FLAG_CONTACT | TOOL_FLAG_GRAB) == 0
+        || s.topology_id != topology.topology_id
+        || s.contact_body < 0
+    {
+        return None;
+    }
+    let b = s.contact_body as usize;
+    let body = world.bodies.get(b)?;
+    let local = s
+        .contact_triangle
+        .checked_sub(topology.bodies.get(b)?.triangle_offset)?;
+    let anchor = ToolAnchor::from_proxy(
+        &body.mesh.surface,
+        body.model.positions(),
+        local,
+        s.contact_barycentric,
+        s.proxy_position,
+        s.flags & TOOL_FLAG_GRAB != 0,
+    )?;
+    Some((b, anchor))
 }
 
 /// The wire's model code.

@@ -6,13 +6,19 @@
 //! → stop (zero force first, on every path, panics included).
 //!
 //! One tick: read device → validate (finite, inside the workspace) → take the newest frame →
-//! penalty force against the nearest surface point of the newest frame → safety (clamp, ramp to
-//! zero on stale or broken data, per-tick step limit) → write device → tool state to the
-//! blackboard (for `lopd deform`) and to a lock-free ring (drained by a normal thread that
-//! publishes `PREFIX/tool` for viewers) → timing into preallocated histograms.
+//! god-object against the newest surface and the force law (`lop_sim::haptic`: the proxy stays
+//! on the surface while the device penetrates; `F = k d N` or the thesis' `k d² N`, per-body
+//! stiffness, optional damping; picking with the grab button) → safety (clamp, ramp to zero on
+//! stale or broken data, per-tick step limit) → write device → tool state to the blackboard
+//! (for `lopd deform`, which applies the opposite force to the tissue at the god-object's
+//! anchor) and to a lock-free ring (drained by a normal thread that publishes `PREFIX/tool`
+//! for viewers) → timing into preallocated histograms.
 //!
-//! The god-object (a proxy constrained to the surface) replaces the plain penalty force in the
-//! tool-interaction work; the loop's shape stays.
+//! The surfaces' index (adjacency, hierarchies, the god-object's buffers) is sized by the
+//! topology, so it is built off the RT thread: a helper thread subscribes to the topology,
+//! builds the index for each new one and hands it over through a lock-free ring; the RT thread
+//! swaps it in and hands the old one back to be freed there. A new frame only refreshes the
+//! positions (copied from shared memory, no allocation).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -27,14 +33,13 @@ use lop_config::{DaemonConfig, Scene, WorkspaceTransform};
 use lop_drivers::{DeviceLimits, HapticDevice};
 use lop_ipc::services::{self, Role, ToolBoard};
 use lop_ipc::*;
-use lop_sim::contact::{closest_on_surface, Positions, SurfaceHit, ToolSphere};
+use lop_sim::contact::ToolSphere;
+use lop_sim::haptic::{hand_force, GodObject, SurfaceSet};
 
 use crate::rt;
 use crate::safety::ForceSafety;
 use crate::scene::tool_sphere;
 
-/// Extra distance around a body's bounding box within which the tool is tested against it, m.
-const AABB_MARGIN: f64 = 0.005;
 /// Device samples farther than this outside the device's workspace are rejected as broken, mm.
 const WORKSPACE_SLACK_MM: f64 = 20.0;
 /// Tool states the ring to the publisher thread holds: 0.5 s at 1 kHz.
@@ -61,6 +66,11 @@ pub struct HapticSettings {
     pub tool: ToolSphere,
     /// Device limits (workspace check).
     pub limits: DeviceLimits,
+    /// Tool stiffness against each body, in topology order (`[body] tool_stiffness`, else the
+    /// tool's).
+    pub body_stiffness: Vec<f64>,
+    /// Tool damping, N·s/m.
+    pub damping: f64,
 }
 
 impl HapticSettings {
@@ -81,6 +91,12 @@ impl HapticSettings {
             workspace: scene.workspace.transform(),
             tool: tool_sphere(&scene.tool, [0.0; 3]),
             limits,
+            body_stiffness: scene
+                .bodies
+                .iter()
+                .map(|b| b.tool_stiffness.unwrap_or(scene.tool.stiffness))
+                .collect(),
+            damping: scene.tool.damping,
         }
     }
 
@@ -90,17 +106,105 @@ impl HapticSettings {
     }
 }
 
-/// A frame's nodes as positions for the contact query (f32 in shared memory, f64 maths).
-struct FrameNodes<'a>(&'a [NodeSample]);
+/// The contact index of one topology: every body's surface and the god-object over it.
+struct ContactIndex {
+    topology_id: u64,
+    set: SurfaceSet,
+    god: GodObject,
+    /// Sequence of the frame whose positions `set` holds.
+    frame_sequence: Option<u64>,
+}
 
-impl Positions for FrameNodes<'_> {
-    #[inline]
-    fn at(&self, i: usize) -> [f64; 3] {
-        let p = self.0[i].position;
-        [p[0] as f64, p[1] as f64, p[2] as f64]
+impl ContactIndex {
+    /// Builds the index of a topology (allocates; off the RT thread). `None` if the topology is
+    /// not this contract's.
+    fn build(h: &TopologyHeader, indices: &[u32], radius: f64) -> Option<ContactIndex> {
+        if h.contract_version != CONTRACT_VERSION {
+            return None;
+        }
+        let tri_count = (h.triangle_count as usize).min(indices.len() / 3);
+        let triangles: Vec<[u32; 3]> = indices[..tri_count * 3]
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect();
+        let bodies = (h.body_count as usize).min(MAX_BODIES);
+        let mut slices = Vec::with_capacity(bodies);
+        for b in &h.bodies[..bodies] {
+            let start = (b.triangle_offset as usize).min(tri_count);
+            let end = (start + b.triangle_count as usize).min(tri_count);
+            slices.push(&triangles[start..end]);
+        }
+        let set = SurfaceSet::new(h.node_count as usize, &slices);
+        let god = GodObject::new(radius, set.triangles().len());
+        Some(ContactIndex {
+            topology_id: h.topology_id,
+            set,
+            god,
+            frame_sequence: None,
+        })
     }
-    fn len(&self) -> usize {
-        self.0.len()
+}
+
+/// The thread that builds contact indices for the RT thread, and frees the ones it retires.
+struct IndexFeed {
+    rx: rtrb::Consumer<Box<ContactIndex>>,
+    back: rtrb::Producer<Box<ContactIndex>>,
+    stop: Arc<AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl IndexFeed {
+    fn start(names: &ServiceNames, radius: f64) -> Result<IndexFeed> {
+        let (mut tx, rx) = rtrb::RingBuffer::<Box<ContactIndex>>::new(2);
+        let (back, mut retired) = rtrb::RingBuffer::<Box<ContactIndex>>::new(8);
+        let stop = Arc::new(AtomicBool::new(false));
+        let names = names.clone();
+        let flag = stop.clone();
+        let thread = std::thread::Builder::new()
+            .name("lop-haptic-index".into())
+            .spawn(move || {
+                let mut run = || -> Result<()> {
+                    let node = services::node("lopd-haptic-index")?;
+                    let topologies = services::topology_service(&node, &names, Role::Owner)?
+                        .subscriber_builder()
+                        .create()
+                        .context("topology subscriber")?;
+                    while !flag.load(Ordering::Relaxed) {
+                        while let Ok(Some(t)) = topologies.receive() {
+                            if let Some(ix) =
+                                ContactIndex::build(t.user_header(), t.payload(), radius)
+                            {
+                                // A full ring means the RT thread has not taken the previous
+                                // index yet; it takes this one on a later tick.
+                                let _ = tx.push(Box::new(ix));
+                            }
+                        }
+                        while let Ok(old) = retired.pop() {
+                            drop(old);
+                        }
+                        std::thread::sleep(Duration::from_millis(2));
+                    }
+                    Ok(())
+                };
+                if let Err(e) = run() {
+                    tracing::warn!("haptic contact index thread stopped: {e:#}");
+                }
+            })?;
+        Ok(IndexFeed {
+            rx,
+            back,
+            stop,
+            thread: Some(thread),
+        })
+    }
+}
+
+impl Drop for IndexFeed {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
     }
 }
 
@@ -151,12 +255,12 @@ pub struct HapticLoop {
     safety: ForceSafety,
     _node: Node<ipc::Service>,
     frames: services::FrameSubscriber,
-    topologies: services::TopologySubscriber,
+    index_feed: IndexFeed,
+    index: Option<Box<ContactIndex>>,
     _board: ToolBoard,
     _writer: iceoryx2::port::writer::Writer<ipc::Service, u32>,
     tool_entry: EntryHandleMut<ipc::Service, u32, ToolState>,
     frame: Option<Sample<ipc::Service, [NodeSample], FrameHeader>>,
-    topology: Option<Sample<ipc::Service, [u32], TopologyHeader>>,
     tool_ring: rtrb::Producer<ToolState>,
     telemetry_ring: rtrb::Producer<HapticTelemetry>,
     stats: Stats,
@@ -198,11 +302,7 @@ impl HapticLoop {
             .buffer_size(2)
             .create()
             .context("frame subscriber")?;
-        let topo_service = services::topology_service(&node, names, Role::Owner)?;
-        let topologies = topo_service
-            .subscriber_builder()
-            .create()
-            .context("topology subscriber")?;
+        let index_feed = IndexFeed::start(names, settings.tool.radius)?;
         let board = services::tool_board_owner(&node, names)?;
         let writer = board
             .writer_builder()
@@ -217,12 +317,12 @@ impl HapticLoop {
             settings,
             _node: node,
             frames,
-            topologies,
+            index_feed,
+            index: None,
             _board: board,
             _writer: writer,
             tool_entry,
             frame: None,
-            topology: None,
             tool_ring,
             telemetry_ring,
             stats: Stats::new()?,
@@ -298,9 +398,12 @@ impl HapticLoop {
             state.flags |= TOOL_FLAG_DEVICE_ERROR;
         }
 
-        // 2. Take the newest topology and frame. Receiving never allocates.
-        while let Ok(Some(s)) = self.topologies.receive() {
-            self.topology = Some(s);
+        // 2. Take the newest contact index and frame. Receiving never allocates; a retired
+        // index goes back to its thread to be freed.
+        while let Ok(ix) = self.index_feed.rx.pop() {
+            if let Some(old) = self.index.replace(ix) {
+                let _ = self.index_feed.back.push(old);
+            }
         }
         while let Ok(Some(s)) = self.frames.receive() {
             self.frame = Some(s);
@@ -316,8 +419,9 @@ impl HapticLoop {
         } else {
             self.stats.record(FRAME_AGE, frame_age);
         }
+        let surface_ready = self.refresh_surface();
 
-        // 3. Contact and penalty force against the newest surface.
+        // 3. God-object and force against the newest surface.
         let mut desired = [0.0; 3];
         if let Some(s) = sample {
             let p = self.settings.workspace.device_to_scene(s.position_mm);
@@ -325,25 +429,39 @@ impl HapticLoop {
             state.proxy_position = p;
             state.buttons = s.buttons;
             self.settings.tool.center = p;
-            if let Some((body, tri, hit)) = self.nearest_contact(p) {
-                let depth = self.settings.tool.depth(&hit);
-                if depth > 0.0 {
-                    desired = self.settings.tool.force_on_tool(&hit);
-                    state.flags |= TOOL_FLAG_CONTACT;
-                    state.contact_body = body as i32;
-                    state.contact_triangle = tri as u32;
-                    state.contact_barycentric = hit.barycentric;
-                    let r = self.settings.tool.radius;
-                    state.proxy_position = [
-                        hit.point[0] + hit.normal[0] * r,
-                        hit.point[1] + hit.normal[1] * r,
-                        hit.point[2] + hit.normal[2] * r,
-                    ];
+            if let (true, Some(ix)) = (surface_ready, self.index.as_deref_mut()) {
+                let grab = s.pressed(lop_drivers::BUTTON_GRAB);
+                let g = ix.god.update(&mut ix.set, p, grab);
+                state.proxy_position = g.proxy;
+                state.topology_id = ix.topology_id;
+                if let Some(a) = g.anchor {
+                    let k = self
+                        .settings
+                        .body_stiffness
+                        .get(a.body)
+                        .copied()
+                        .unwrap_or(self.settings.tool.stiffness);
+                    let scale = 1e-3 * self.settings.workspace.scale;
+                    let v = self
+                        .settings
+                        .workspace
+                        .device_dir_to_scene(s.velocity_mm_s)
+                        .map(|c| c * scale);
+                    desired = hand_force(&g, self.settings.tool.law, k, self.settings.damping, v);
+                    state.contact_body = a.body as i32;
+                    state.contact_triangle = a.triangle as u32;
+                    state.contact_barycentric = a.bary;
+                    if g.depth > 0.0 {
+                        state.flags |= TOOL_FLAG_CONTACT;
+                    }
+                    if g.grabbing {
+                        state.flags |= TOOL_FLAG_GRAB;
+                    }
+                    if s.pressed(lop_drivers::BUTTON_HEAT) {
+                        state.flags |= TOOL_FLAG_HEAT;
+                    }
                 }
             }
-        }
-        if let Some(topo) = &self.topology {
-            state.topology_id = topo.user_header().topology_id;
         }
 
         // 4. Safety: finite, clamped, ramped, rate-limited. Then the device.
@@ -389,52 +507,33 @@ impl HapticLoop {
         })
     }
 
-    /// The deepest contact over all bodies whose bounds are near `p`: (body, global triangle,
-    /// hit). `None` without a matching topology and frame.
-    fn nearest_contact(&self, p: [f64; 3]) -> Option<(usize, usize, SurfaceHit)> {
-        let topo = self.topology.as_ref()?;
-        let frame = self.frame.as_ref()?;
-        let th = topo.user_header();
+    /// Brings the contact index up to date with the newest frame (positions copied in, the
+    /// god-object carried along with the tissue). False without a matching index and frame:
+    /// then nothing is touched (and a stale frame ramps the force down anyway).
+    fn refresh_surface(&mut self) -> bool {
+        let (Some(ix), Some(frame)) = (self.index.as_deref_mut(), self.frame.as_ref()) else {
+            return false;
+        };
         let fh = frame.user_header();
-        if th.topology_id != fh.topology_id
+        let nodes = frame.payload();
+        if fh.topology_id != ix.topology_id
             || fh.contract_version != CONTRACT_VERSION
-            || frame.payload().len() != th.node_count as usize
+            || nodes.len() != ix.set.node_count()
         {
-            return None;
+            return false;
         }
-        let indices = topo.payload();
-        let tri_count = (th.triangle_count as usize).min(indices.len() / 3);
-        // SAFETY: `[u32; 3]` has the alignment of `u32` and no padding; the length is checked.
-        let triangles: &[[u32; 3]] =
-            unsafe { std::slice::from_raw_parts(indices.as_ptr() as *const [u32; 3], tri_count) };
-        let nodes = FrameNodes(frame.payload());
-        let reach = self.settings.tool.radius + AABB_MARGIN;
-        let mut best: Option<(usize, usize, SurfaceHit)> = None;
-        for b in 0..(th.body_count as usize).min(MAX_BODIES) {
-            let bf = &fh.bodies[b];
-            let near = (0..3).all(|k| {
-                p[k] >= bf.aabb_min[k] as f64 - reach && p[k] <= bf.aabb_max[k] as f64 + reach
-            });
-            if !near {
-                continue;
-            }
-            let bt = &th.bodies[b];
-            let start = bt.triangle_offset as usize;
-            let end = (start + bt.triangle_count as usize).min(tri_count);
-            if start >= end {
-                continue;
-            }
-            if let Some(hit) = closest_on_surface(&nodes, &triangles[start..end], p) {
-                let better = match &best {
-                    None => true,
-                    Some((_, _, b)) => hit.signed_distance() < b.signed_distance(),
-                };
-                if better {
-                    best = Some((b, start + hit.triangle, hit));
-                }
+        if ix.frame_sequence != Some(fh.sequence) {
+            let first = ix.frame_sequence.is_none();
+            ix.frame_sequence = Some(fh.sequence);
+            ix.set
+                .set_positions(|i| nodes[i].position.map(|c| c as f64));
+            if first {
+                ix.god.reset();
+            } else {
+                ix.god.follow_surface(&ix.set);
             }
         }
-        best
+        true
     }
 
     fn emit_telemetry(&mut self, now: u64, force: [f64; 3]) {

@@ -240,3 +240,76 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
         node_offsets,
     })
 }
+
+/// Surface nodes of two bodies closer than this at rest are linked for heat conduction, m.
+pub const HEAT_LINK_DISTANCE: f64 = 0.002;
+/// Heat time step when the scene does not set `[heat] dt`, s.
+pub const HEAT_DT_DEFAULT: f64 = 0.01;
+
+/// The scene's heat model: one body per scene body (its `[body.heat]` and the scene's
+/// `[heat]`), linked where two organs touch at rest (surface nodes within
+/// [`HEAT_LINK_DISTANCE`], conductance from `[heat] contact_conductance`). Allocates; built once.
+pub fn heat_world(scene: &Scene, world: &World) -> Result<lop_sim::heat::HeatWorld> {
+    use lop_sim::heat::{HeatBody, HeatParameters, HeatWorld};
+    let dt = scene.heat.dt.unwrap_or(HEAT_DT_DEFAULT);
+    let mut bodies = Vec::with_capacity(world.bodies.len());
+    for (spec, body) in scene.bodies.iter().zip(&world.bodies) {
+        let h = &spec.heat;
+        let params = HeatParameters {
+            conductivity: h.conductivity,
+            specific_heat: h.specific_heat,
+            density: h.density,
+            initial: h.initial,
+            coagulation: h.coagulation,
+            burn_stiffening: h.burn_stiffening,
+            air_temperature: scene.heat.air_temperature,
+            air_coefficient: scene.heat.air_coefficient,
+            dt,
+        };
+        bodies.push(
+            HeatBody::new(&body.mesh, params)
+                .with_context(|| format!("heat model of body {:?}", spec.name))?,
+        );
+    }
+    let mut heat = HeatWorld::new(bodies).context("heat model")?;
+    let mut links = Vec::new();
+    if scene.heat.contact_conductance > 0.0 {
+        let surface_nodes = |b: &lop_sim::world::Body| {
+            let mut v: Vec<u32> = b.mesh.surface.iter().flatten().copied().collect();
+            v.sort_unstable();
+            v.dedup();
+            v
+        };
+        for a in 0..world.bodies.len() {
+            let na = surface_nodes(&world.bodies[a]);
+            for b in a + 1..world.bodies.len() {
+                let nb = surface_nodes(&world.bodies[b]);
+                let (xa, xb) = (&world.bodies[a].mesh.nodes, &world.bodies[b].mesh.nodes);
+                for &i in &na {
+                    let p = xa[i as usize];
+                    let best = nb
+                        .iter()
+                        .map(|&j| {
+                            let q = xb[j as usize];
+                            let d2 = (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>();
+                            (d2, j)
+                        })
+                        .min_by(|x, y| x.0.total_cmp(&y.0));
+                    if let Some((d2, j)) = best {
+                        if d2.sqrt() < HEAT_LINK_DISTANCE {
+                            links.push(heat.contact_link(
+                                a,
+                                i,
+                                b,
+                                j,
+                                scene.heat.contact_conductance,
+                            )?);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    heat.set_links(&links).context("heat links")?;
+    Ok(heat)
+}
