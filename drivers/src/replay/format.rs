@@ -244,7 +244,7 @@ impl<'a> Cursor<'a> {
                 path: self.path.to_path_buf(),
                 offset: self.at as u64,
                 what: format!(
-                    "{what} needs {n} bytes, {} left",
+                    "{what}: {n} bytes expected, {} left",
                     self.bytes.len() - self.at
                 ),
             });
@@ -311,10 +311,8 @@ impl Recording {
             ));
         }
         let limits_at = c.at;
-        let mut l = [0.0; 9];
-        for v in &mut l {
-            *v = c.f64("the device limits")?;
-        }
+        let raw = c.take(72, "the device limits")?;
+        let l: [f64; 9] = std::array::from_fn(|i| le_f64(&raw[8 * i..8 * i + 8]));
         let limits = DeviceLimits {
             max_force_n: l[0],
             max_continuous_force_n: l[1],
