@@ -7,6 +7,7 @@
 use std::sync::atomic::AtomicBool;
 
 pub mod deform;
+pub mod doctor;
 pub mod haptic;
 pub mod record;
 pub mod rt;

@@ -50,6 +50,28 @@ enum Command {
     },
     /// List the shipped scenes and mock scripts.
     Scenes,
+    /// Check this machine for a rig (real-time limits, CPUs, device library and device,
+    /// shared memory, stale IPC) and print a fix for each problem. Exit code 1 on a FAIL.
+    Doctor(DoctorArgs),
+}
+
+#[derive(Args, Clone)]
+struct DoctorArgs {
+    /// Daemon configuration (default: /etc/lop/lopd.toml if it exists).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// The rig's device: openhaptics[:NAME] | mock[:SCRIPT] | replay:PATH.
+    #[arg(long, default_value = "openhaptics")]
+    device: String,
+    /// Service prefix to look for stale services under.
+    #[arg(long, default_value = lop_ipc::SERVICE_PREFIX_DEFAULT)]
+    prefix: String,
+    /// Remove the resources of dead iceoryx2 nodes.
+    #[arg(long)]
+    clean: bool,
+    /// Print the findings as JSON.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Subcommand)]
@@ -147,15 +169,20 @@ fn bad<T, E: Into<anyhow::Error>>(r: std::result::Result<T, E>) -> Result<T> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    tracing_subscriber::fmt()
+    let logs = tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_env("LOP_LOG")
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
         )
         .with_writer(std::io::stderr)
         .with_ansi(std::io::stderr().is_terminal())
-        .with_target(false)
-        .init();
+        .with_target(false);
+    // Under systemd stderr goes to the journal, which stamps every line itself.
+    if std::env::var_os("JOURNAL_STREAM").is_some() {
+        logs.without_time().init();
+    } else {
+        logs.init();
+    }
     signals::install();
     let result = match cli.command {
         Command::Run(a) => cmd_run(a),
@@ -166,6 +193,7 @@ fn main() -> ExitCode {
             command: MeshCommand::Info { paths },
         } => cmd_mesh_info(&paths),
         Command::Scenes => cmd_scenes().map(|()| 0),
+        Command::Doctor(a) => cmd_doctor(a),
     };
     match result {
         Ok(code) => ExitCode::from(code as u8),
@@ -547,4 +575,17 @@ fn cmd_scenes() -> Result<()> {
         println!("  {name:<18} {}", path.display());
     }
     Ok(())
+}
+
+fn cmd_doctor(a: DoctorArgs) -> Result<i32> {
+    let device: DeviceSpec = bad(a.device.parse())?;
+    bad(ServiceNames::new(&a.prefix))?;
+    let findings = lop_daemon::doctor::run(&lop_daemon::doctor::DoctorOptions {
+        config: a.config,
+        device,
+        prefix: a.prefix,
+        clean: a.clean,
+    });
+    let failed = lop_daemon::doctor::print(&findings, a.json);
+    Ok(if failed { 1 } else { 0 })
 }

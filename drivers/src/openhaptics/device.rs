@@ -370,14 +370,9 @@ impl OpenHapticsDevice {
         let api = HdApi::load(&candidates).map_err(|why| DeviceOpenError::Unavailable {
             device: label.clone(),
             reason: format!(
-                "the OpenHaptics HD library could not be loaded (tried {}: {why}). Install \
-                 OpenHaptics and the device driver (docs/deploy.md), or point {} (or `hd_library` \
-                 under [device] in the daemon config) at libHD.so",
-                candidates
-                    .iter()
-                    .map(|p| p.display().to_string())
-                    .collect::<Vec<_>>()
-                    .join(", "),
+                "the OpenHaptics HD library could not be loaded ({why}). Install OpenHaptics and \
+                 the device driver (docs/deploy.md), or point {} (or `hd_library` under [device] \
+                 in the daemon config) at libHD.so",
                 ffi::LIBRARY_ENV
             ),
         })?;
