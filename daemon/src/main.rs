@@ -437,7 +437,7 @@ fn cmd_haptic(a: HapticArgs) -> Result<()> {
             let task = servo::ServoTask::new(
                 &names,
                 settings,
-                config.haptic.core,
+                rt_request.core,
                 &signals::STOP,
                 max_ticks,
                 tool_tx,

@@ -141,9 +141,9 @@ fn servo_path_allocates_nothing_after_the_first_callback() {
             bf.aabb_min = [f32::INFINITY; 3];
             bf.aabb_max = [f32::NEG_INFINITY; 3];
             for p in &b.mesh.nodes {
-                for k in 0..3 {
-                    bf.aabb_min[k] = bf.aabb_min[k].min(p[k] as f32);
-                    bf.aabb_max[k] = bf.aabb_max[k].max(p[k] as f32);
+                for (k, &v) in p.iter().enumerate() {
+                    bf.aabb_min[k] = bf.aabb_min[k].min(v as f32);
+                    bf.aabb_max[k] = bf.aabb_max[k].max(v as f32);
                 }
             }
         }

@@ -6,6 +6,9 @@
 //! `cargo build` would contend for the build lock, so the stand-in (one file, std only) is
 //! compiled with `rustc` directly, once per test process, into the test's scratch directory.
 
+// Each test crate uses a different part of this file.
+#![allow(dead_code)]
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
