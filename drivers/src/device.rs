@@ -7,6 +7,10 @@
 //! releases the device, on every exit path (OpenHaptics keeps rendering the last force it was
 //! given).
 //!
+//! A device with its own servo clock ([`Pacing::DeviceClock`], OpenHaptics) is driven through
+//! [`HapticDevice::run_clocked`] instead: the driver calls the loop's tick inside its servo
+//! callback, on its scheduler thread, with the same RT rules from the second call on.
+//!
 //! Everything here is in the device's own frame and units (OpenHaptics convention): millimetres,
 //! newtons, +x to the user's right, +y up, +z toward the user. The daemon maps device millimetres
 //! into scene metres with the scene's workspace transform.
