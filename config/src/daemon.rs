@@ -16,6 +16,8 @@ pub struct DaemonConfig {
     pub deform: DeformConfig,
     /// Interval of the status line / status publication, ms (> 0). Default 500.
     pub status_interval_ms: u64,
+    /// Device drivers (`[device]`).
+    pub device: DeviceConfig,
 }
 
 impl Default for DaemonConfig {
@@ -24,6 +26,7 @@ impl Default for DaemonConfig {
             haptic: HapticConfig::default(),
             deform: DeformConfig::default(),
             status_interval_ms: 500,
+            device: DeviceConfig::default(),
         }
     }
 }
@@ -166,5 +169,27 @@ pub fn parse_daemon_config(text: &str, path: &Path) -> Result<DaemonConfig, Conf
             core: raw.deform.core,
         },
         status_interval_ms,
+        device: device_config(raw.device, path),
     })
+}
+
+/// Settings of the device drivers (`[device]`).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct DeviceConfig {
+    /// The OpenHaptics HD library (`libHD.so`) to load for `--device openhaptics`; a relative
+    /// path is relative to the config file. `None`: the loader's search and the usual install
+    /// directories. The environment variable `LOP_HD_LIBRARY` wins over this key.
+    pub hd_library: Option<std::path::PathBuf>,
+}
+
+fn device_config(raw: crate::raw::RawDaemonDevice, config_path: &Path) -> DeviceConfig {
+    DeviceConfig {
+        hd_library: raw.hd_library.map(|p| {
+            if p.is_relative() {
+                config_path.parent().unwrap_or(Path::new(".")).join(p)
+            } else {
+                p
+            }
+        }),
+    }
 }

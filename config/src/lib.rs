@@ -251,6 +251,7 @@
 //! | `haptic.spin_us` | float | `50` | busy-wait before each deadline, 0..=1000 µs |
 //! | `haptic.max_force_step_n` | float | `0.05` | largest force change per tick except at contact onset, N (> 0, <= `max_force_n`) |
 //! | `deform.core` | integer | not pinned | CPU the deformation thread is pinned to |
+//! | `device.hd_library` | path | search `libHD.so` | OpenHaptics library for `--device openhaptics` (relative to the config file; `LOP_HD_LIBRARY` wins) |
 //!
 //! ```toml
 //! status_interval_ms = 500
@@ -271,7 +272,7 @@ mod source;
 mod workspace;
 
 pub use daemon::{
-    load_daemon_config, parse_daemon_config, DaemonConfig, DeformConfig, HapticConfig,
+    load_daemon_config, parse_daemon_config, DaemonConfig, DeformConfig, DeviceConfig, HapticConfig,
 };
 pub use error::{ConfigError, Location};
 pub use resolve::{

@@ -160,6 +160,8 @@ pub(crate) struct RawDaemon {
     #[serde(default)]
     pub deform: RawDeform,
     pub status_interval_ms: Option<u64>,
+    #[serde(default)]
+    pub device: RawDaemonDevice,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -179,4 +181,11 @@ pub(crate) struct RawHaptic {
 #[serde(deny_unknown_fields)]
 pub(crate) struct RawDeform {
     pub core: Option<usize>,
+}
+
+/// `[device]` of the daemon config (issue 7: the OpenHaptics library).
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawDaemonDevice {
+    pub hd_library: Option<std::path::PathBuf>,
 }

@@ -7,14 +7,18 @@
 use std::sync::atomic::AtomicBool;
 
 pub mod deform;
+pub mod doctor;
 pub mod haptic;
+pub mod record;
 pub mod rt;
 pub mod safety;
 pub mod scene;
+pub mod servo;
 pub mod signals;
 pub mod simulate;
 pub mod status;
 pub mod supervisor;
+pub mod tool_source;
 
 /// Set once `mlockall` succeeded in this process.
 pub static MEMORY_LOCKED: AtomicBool = AtomicBool::new(false);

@@ -14,9 +14,12 @@ use lop_config::{
     load_daemon_config, load_scene, resolve_scene, resolve_script, DaemonConfig, Scene,
 };
 use lop_daemon::haptic::{self, HapticSettings, RtRequest};
-use lop_daemon::{deform, rt, signals, supervisor, MEMORY_LOCKED};
+use lop_daemon::record::{self, Recorded};
+use lop_daemon::{deform, rt, servo, signals, supervisor, MEMORY_LOCKED};
 use lop_drivers::mock::{MockDevice, MockScript};
-use lop_drivers::{DeviceSpec, HapticDevice};
+use lop_drivers::openhaptics::OpenHapticsDevice;
+use lop_drivers::replay::ReplayDevice;
+use lop_drivers::{DeviceSpec, HapticDevice, Pacing};
 use lop_ipc::ServiceNames;
 
 #[derive(Parser)]
@@ -47,6 +50,28 @@ enum Command {
     },
     /// List the shipped scenes and mock scripts.
     Scenes,
+    /// Check this machine for a rig (real-time limits, CPUs, device library and device,
+    /// shared memory, stale IPC) and print a fix for each problem. Exit code 1 on a FAIL.
+    Doctor(DoctorArgs),
+}
+
+#[derive(Args, Clone)]
+struct DoctorArgs {
+    /// Daemon configuration (default: /etc/lop/lopd.toml if it exists).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// The rig's device: openhaptics[:NAME] | mock[:SCRIPT] | replay:PATH.
+    #[arg(long, default_value = "openhaptics")]
+    device: String,
+    /// Service prefix to look for stale services under.
+    #[arg(long, default_value = lop_ipc::SERVICE_PREFIX_DEFAULT)]
+    prefix: String,
+    /// Remove the resources of dead iceoryx2 nodes.
+    #[arg(long)]
+    clean: bool,
+    /// Print the findings as JSON.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Subcommand)]
@@ -86,6 +111,10 @@ struct HapticArgs {
     /// Write every force the device received as CSV at exit (mock device).
     #[arg(long)]
     force_log: Option<PathBuf>,
+    /// Record the device stream (poses, buttons, ticks, times) for `--device replay:PATH`.
+    /// An existing file is never overwritten: the recording takes the first free `NAME-N.EXT`.
+    #[arg(long)]
+    record: Option<PathBuf>,
 }
 
 #[derive(Args, Clone)]
@@ -103,8 +132,12 @@ struct SimulateArgs {
     #[arg(long = "static")]
     static_solve: bool,
     /// Mock script (name or path) that moves the tool on simulated time.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "device")]
     script: Option<String>,
+    /// The tool's trajectory from a device stream instead: `replay:PATH` (a session recording,
+    /// by tick index) or `mock:SCRIPT` (as --script).
+    #[arg(long)]
+    device: Option<String>,
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
@@ -136,15 +169,20 @@ fn bad<T, E: Into<anyhow::Error>>(r: std::result::Result<T, E>) -> Result<T> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    tracing_subscriber::fmt()
+    let logs = tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_env("LOP_LOG")
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
         )
         .with_writer(std::io::stderr)
         .with_ansi(std::io::stderr().is_terminal())
-        .with_target(false)
-        .init();
+        .with_target(false);
+    // Under systemd stderr goes to the journal, which stamps every line itself.
+    if std::env::var_os("JOURNAL_STREAM").is_some() {
+        logs.without_time().init();
+    } else {
+        logs.init();
+    }
     signals::install();
     let result = match cli.command {
         Command::Run(a) => cmd_run(a),
@@ -155,6 +193,7 @@ fn main() -> ExitCode {
             command: MeshCommand::Info { paths },
         } => cmd_mesh_info(&paths),
         Command::Scenes => cmd_scenes().map(|()| 0),
+        Command::Doctor(a) => cmd_doctor(a),
     };
     match result {
         Ok(code) => ExitCode::from(code as u8),
@@ -191,27 +230,34 @@ fn load_common(a: &CommonArgs) -> Result<(Scene, DaemonConfig, ServiceNames, Opt
 /// reachable after the loop.
 enum Device {
     Mock(MockDevice),
+    Replay(ReplayDevice),
+    OpenHaptics(Box<OpenHapticsDevice>),
 }
 
 impl Device {
     fn as_dyn(&mut self) -> &mut dyn HapticDevice {
         match self {
             Device::Mock(m) => m,
+            Device::Replay(r) => r,
+            Device::OpenHaptics(o) => o.as_mut(),
         }
     }
     fn as_ref_dyn(&self) -> &dyn HapticDevice {
         match self {
             Device::Mock(m) => m,
+            Device::Replay(r) => r,
+            Device::OpenHaptics(o) => o.as_ref(),
         }
     }
     fn mock(&self) -> Option<&MockDevice> {
         match self {
             Device::Mock(m) => Some(m),
+            _ => None,
         }
     }
 }
 
-fn open_device(spec: &DeviceSpec, scene: &Scene) -> Result<Device> {
+fn open_device(spec: &DeviceSpec, scene: &Scene, config: &DaemonConfig) -> Result<Device> {
     match spec {
         DeviceSpec::Mock { script } => {
             let path = match script {
@@ -220,21 +266,41 @@ fn open_device(spec: &DeviceSpec, scene: &Scene) -> Result<Device> {
                     Some(p) => p.clone(),
                     None => {
                         let script = MockScript::stationary([0.0, 0.0, 0.0]);
-                        return Ok(Device::Mock(MockDevice::new(script, MockDevice::omni_limits())));
+                        return Ok(Device::Mock(MockDevice::new(
+                            script,
+                            MockDevice::omni_limits(),
+                        )));
                     }
                 },
             };
             let script = bad(MockScript::load(&path))?;
             tracing::info!("mock device playing {}", path.display());
-            Ok(Device::Mock(MockDevice::new(script, MockDevice::omni_limits())))
+            Ok(Device::Mock(MockDevice::new(
+                script,
+                MockDevice::omni_limits(),
+            )))
         }
-        DeviceSpec::Replay { path } => bad(Err(anyhow::anyhow!(
-            "--device replay:{}: session replay is not part of this build yet",
-            path.display()
-        ))),
-        DeviceSpec::OpenHaptics { .. } => bad(Err(anyhow::anyhow!(
-            "--device {spec}: the OpenHaptics driver is not part of this build yet; use --device mock"
-        ))),
+        DeviceSpec::Replay { path } => {
+            let device = bad(ReplayDevice::open(path)
+                .with_context(|| format!("--device replay:{}", path.display())))?;
+            let r = device.recording();
+            tracing::info!(
+                "replaying {} ({} samples, {:.1} s at {} Hz, scene {})",
+                path.display(),
+                r.records().len(),
+                r.duration(),
+                r.header().rate_hz,
+                r.header().get("scene").unwrap_or("?")
+            );
+            Ok(Device::Replay(device))
+        }
+        DeviceSpec::OpenHaptics { name } => {
+            let device = bad(OpenHapticsDevice::open(
+                name.as_deref(),
+                config.device.hd_library.as_deref(),
+            ))?;
+            Ok(Device::OpenHaptics(Box::new(device)))
+        }
     }
 }
 
@@ -242,7 +308,7 @@ fn cmd_run(a: RunArgs) -> Result<i32> {
     // Validate everything up front so a typo fails here, not in a child.
     let (scene, config, _names, duration) = load_common(&a.haptic.common)?;
     let spec: DeviceSpec = bad(a.haptic.device.parse())?;
-    drop(open_device(&spec, &scene)?);
+    drop(open_device(&spec, &scene, &config)?);
     supervisor::run(supervisor::RunOptions {
         scene: scene.path.clone(),
         device: a.haptic.device.clone(),
@@ -250,6 +316,7 @@ fn cmd_run(a: RunArgs) -> Result<i32> {
         prefix: a.haptic.common.prefix.clone(),
         config: a.haptic.common.config.clone(),
         force_log: a.haptic.force_log.clone(),
+        record: a.haptic.record.clone(),
         status_interval: Duration::from_millis(config.status_interval_ms),
         status: !a.quiet,
     })
@@ -258,7 +325,7 @@ fn cmd_run(a: RunArgs) -> Result<i32> {
 fn cmd_haptic(a: HapticArgs) -> Result<()> {
     let (scene, config, names, duration) = load_common(&a.common)?;
     let spec: DeviceSpec = bad(a.device.parse())?;
-    let mut device = open_device(&spec, &scene)?;
+    let mut device = open_device(&spec, &scene, &config)?;
     device.as_dyn().start().context("starting the device")?;
     if config.haptic.lock_memory {
         match rt::lock_memory() {
@@ -266,19 +333,48 @@ fn cmd_haptic(a: HapticArgs) -> Result<()> {
             Err(e) => tracing::warn!("memory not locked: {e}"),
         }
     }
-    let settings = HapticSettings::new(&config, &scene, device.as_ref_dyn().limits());
+    let limits = device.as_ref_dyn().limits();
+    let settings = HapticSettings::new(&config, &scene, limits);
     let max_ticks = duration.map(|d| (d.as_secs_f64() * settings.rate_hz).round() as u64);
     let rt_request = RtRequest {
         core: config.haptic.core.or_else(rt::last_core),
         priority: config.haptic.rt_priority,
     };
+    let pacing = device.as_ref_dyn().pacing();
+    if let Some(w) = servo::stiffness_warning(&scene, &limits) {
+        tracing::warn!("{w}");
+    }
     tracing::info!(
-        "haptic loop: {} Hz on {}, force clamp {:.2} N, stale limit {} ms",
+        "haptic loop: {} Hz on {}{}, force clamp {:.2} N, stale limit {} ms",
         settings.rate_hz,
         device.as_ref_dyn().name(),
+        if pacing == Pacing::DeviceClock {
+            " (the device's servo callback is the clock)"
+        } else {
+            ""
+        },
         settings.max_force,
         settings.stale_ns / 1_000_000
     );
+    let recording = match &a.record {
+        Some(path) => {
+            let header = record::header(
+                settings.rate_hz,
+                limits,
+                &scene.name,
+                &scene.path,
+                &a.device,
+            );
+            let (tap, writer) = record::start(path, &header)?;
+            tracing::info!("recording the device stream to {}", writer.path().display());
+            Some((tap, writer))
+        }
+        None => None,
+    };
+    let (mut tap, writer) = match recording {
+        Some((tap, writer)) => (Some(tap), Some(writer)),
+        None => (None, None),
+    };
     let ((tool_tx, tool_rx), (tel_tx, tel_rx)) = haptic::rings();
     let done = Arc::new(AtomicBool::new(false));
     let publisher = {
@@ -288,33 +384,98 @@ fn cmd_haptic(a: HapticArgs) -> Result<()> {
             .name("lop-tool-pub".into())
             .spawn(move || haptic::run_publisher(&names, tool_rx, tel_rx, done))?
     };
-    let rt_thread = {
-        let names = names.clone();
-        std::thread::Builder::new()
-            .name("lop-haptic-rt".into())
-            .stack_size(1 << 20)
-            .spawn(move || {
-                let r = haptic::run_loop(
-                    &names,
-                    settings,
-                    device.as_dyn(),
-                    &rt_request,
-                    &signals::STOP,
-                    max_ticks,
-                    tool_tx,
-                    tel_tx,
-                );
-                (r, device)
-            })?
+    let (result, mut device) = match pacing {
+        Pacing::SelfPaced => {
+            let rt_thread = {
+                let names = names.clone();
+                let tap = tap.as_mut();
+                std::thread::scope(|scope| {
+                    std::thread::Builder::new()
+                        .name("lop-haptic-rt".into())
+                        .stack_size(1 << 20)
+                        .spawn_scoped(scope, move || {
+                            let r = match tap {
+                                Some(tap) => haptic::run_loop(
+                                    &names,
+                                    settings,
+                                    &mut Recorded {
+                                        device: device.as_dyn(),
+                                        tap,
+                                    },
+                                    &rt_request,
+                                    &signals::STOP,
+                                    max_ticks,
+                                    tool_tx,
+                                    tel_tx,
+                                ),
+                                None => haptic::run_loop(
+                                    &names,
+                                    settings,
+                                    device.as_dyn(),
+                                    &rt_request,
+                                    &signals::STOP,
+                                    max_ticks,
+                                    tool_tx,
+                                    tel_tx,
+                                ),
+                            };
+                            (r, device)
+                        })
+                        .map(|h| h.join())
+                })?
+            };
+            match rt_thread {
+                Ok(v) => v,
+                Err(_) => {
+                    done.store(true, Ordering::Release);
+                    let _ = publisher.join();
+                    bail!("the haptic loop panicked; zero force was written by its guard")
+                }
+            }
+        }
+        Pacing::DeviceClock => {
+            let task = servo::ServoTask::new(
+                &names,
+                settings,
+                rt_request.core,
+                &signals::STOP,
+                max_ticks,
+                tool_tx,
+                tel_tx,
+                tap.as_mut(),
+            );
+            let r = servo::run(device.as_dyn(), task);
+            (r, device)
+        }
     };
-    let joined = rt_thread.join();
     done.store(true, Ordering::Release);
     let _ = publisher.join();
-    let (result, mut device) = match joined {
-        Ok(v) => v,
-        Err(_) => bail!("the haptic loop panicked; zero force was written by its guard"),
-    };
     device.as_dyn().stop();
+    if let Some(writer) = writer {
+        let path = writer.path().to_path_buf();
+        let records = writer.finish()?;
+        let dropped = tap.as_ref().map_or(0, |t| t.dropped());
+        tracing::info!(
+            "recorded {records} device samples to {}{}",
+            path.display(),
+            if dropped > 0 {
+                format!(" ({dropped} lost: the writer fell behind)")
+            } else {
+                String::new()
+            }
+        );
+    }
+    if let Device::OpenHaptics(o) = &device {
+        let s = o.stats();
+        if s.clamped_forces + s.non_finite_forces + s.recoverable_errors > 0 {
+            tracing::info!(
+                "device: {} forces clamped to its peak, {} non-finite refused, {} force errors",
+                s.clamped_forces,
+                s.non_finite_forces,
+                s.recoverable_errors
+            );
+        }
+    }
     let summary = result?;
     if let Some(path) = &a.force_log {
         if let Some(mock) = device.mock() {
@@ -356,10 +517,25 @@ fn cmd_deform(a: CommonArgs) -> Result<()> {
 fn cmd_simulate(a: SimulateArgs) -> Result<()> {
     let path = bad(resolve_scene(&a.scene))?;
     let scene = bad(load_scene(&path))?;
-    let script = match &a.script {
+    let mut script = match &a.script {
         Some(s) => Some(bad(resolve_script(s))?),
         None => None,
     };
+    let mut replay = None;
+    if let Some(d) = &a.device {
+        match bad(d.parse::<DeviceSpec>())? {
+            DeviceSpec::Mock { script: Some(name) } => script = Some(bad(resolve_script(&name))?),
+            DeviceSpec::Replay { path } => {
+                // Validate here so a bad recording is bad input (exit 2), named with its byte.
+                bad(lop_drivers::replay::Recording::load(&path))?;
+                replay = Some(path);
+            }
+            other => bad(Err(anyhow::anyhow!(
+                "--device {other}: an offline run takes its tool from `replay:PATH` or \
+                 `mock:SCRIPT`"
+            )))?,
+        }
+    }
     if a.steps == 0 && !a.static_solve {
         bad(Err(anyhow::anyhow!("--steps 0: nothing to simulate")))?;
     }
@@ -369,6 +545,7 @@ fn cmd_simulate(a: SimulateArgs) -> Result<()> {
         until_converged: a.until_converged,
         static_solve: a.static_solve,
         script,
+        replay,
         out: a.out,
     })?;
     Ok(())
@@ -398,4 +575,17 @@ fn cmd_scenes() -> Result<()> {
         println!("  {name:<18} {}", path.display());
     }
     Ok(())
+}
+
+fn cmd_doctor(a: DoctorArgs) -> Result<i32> {
+    let device: DeviceSpec = bad(a.device.parse())?;
+    bad(ServiceNames::new(&a.prefix))?;
+    let findings = lop_daemon::doctor::run(&lop_daemon::doctor::DoctorOptions {
+        config: a.config,
+        device,
+        prefix: a.prefix,
+        clean: a.clean,
+    });
+    let failed = lop_daemon::doctor::print(&findings, a.json);
+    Ok(if failed { 1 } else { 0 })
 }

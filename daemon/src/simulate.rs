@@ -13,13 +13,13 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use lop_config::Scene;
-use lop_drivers::mock::MockScript;
 use lop_sim::lop::SwitchReason;
 use lop_sim::mesh::{write_vtk, TetMesh};
 use lop_sim::model::Model;
 use serde::Serialize;
 
 use crate::scene::{self, tool_sphere};
+use crate::tool_source::ToolSource;
 
 /// Options of `lopd simulate`.
 pub struct SimulateOptions {
@@ -33,6 +33,8 @@ pub struct SimulateOptions {
     pub static_solve: bool,
     /// Tool trajectory.
     pub script: Option<PathBuf>,
+    /// Tool trajectory from a session recording (`--device replay:PATH`), by tick index.
+    pub replay: Option<PathBuf>,
     /// Output directory.
     pub out: PathBuf,
 }
@@ -86,10 +88,7 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
 pub fn run(opts: SimulateOptions) -> Result<PathBuf> {
     std::fs::create_dir_all(&opts.out)
         .with_context(|| format!("creating {}", opts.out.display()))?;
-    let script = match &opts.script {
-        Some(p) => Some(MockScript::load(p).map_err(anyhow::Error::from)?),
-        None => None,
-    };
+    let script = ToolSource::load(opts.script.as_deref(), opts.replay.as_deref())?;
     let workspace = opts.scene.workspace.transform();
     let tool_spec = opts.scene.tool.clone();
     let loaded = scene::load(opts.scene)?;
@@ -232,7 +231,9 @@ pub fn run(opts: SimulateOptions) -> Result<PathBuf> {
         steps_per_body: opts.steps,
         until_converged: opts.until_converged,
         static_solve: opts.static_solve,
-        script: opts.script.as_ref().map(|p| p.display().to_string()),
+        script: (opts.script.as_ref())
+            .or(opts.replay.as_ref())
+            .map(|p| p.display().to_string()),
         wall_s: wall.elapsed().as_secs_f64(),
         bodies,
     };

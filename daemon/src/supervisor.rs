@@ -37,6 +37,8 @@ pub struct RunOptions {
     pub config: Option<PathBuf>,
     /// `--force-log`, passed to the haptic process.
     pub force_log: Option<PathBuf>,
+    /// `--record`, passed to the haptic process (a restarted one records to `NAME-N.EXT`).
+    pub record: Option<PathBuf>,
     /// Status line interval.
     pub status_interval: Duration,
     /// Print the status line.
@@ -169,6 +171,9 @@ pub fn run(opts: RunOptions) -> Result<i32> {
     haptic_args.extend(["--device".to_string(), opts.device.clone()]);
     if let Some(f) = &opts.force_log {
         haptic_args.extend(["--force-log".to_string(), f.display().to_string()]);
+    }
+    if let Some(r) = &opts.record {
+        haptic_args.extend(["--record".to_string(), r.display().to_string()]);
     }
     let mut haptic = Supervised::new("haptic", haptic_args);
     let mut deform = Supervised::new("deform", common);

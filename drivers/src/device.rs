@@ -7,11 +7,16 @@
 //! releases the device, on every exit path (OpenHaptics keeps rendering the last force it was
 //! given).
 //!
+//! A device with its own servo clock ([`Pacing::DeviceClock`], OpenHaptics) is driven through
+//! [`HapticDevice::run_clocked`] instead: the driver calls the loop's tick inside its servo
+//! callback, on its scheduler thread, with the same RT rules from the second call on.
+//!
 //! Everything here is in the device's own frame and units (OpenHaptics convention): millimetres,
 //! newtons, +x to the user's right, +y up, +z toward the user. The daemon maps device millimetres
 //! into scene metres with the scene's workspace transform.
 
 use crate::mock::ScriptError;
+use crate::replay::RecordingError;
 
 /// Device button 1 (OpenHaptics `HD_DEVICE_BUTTON_1`): grab / pick tissue.
 pub const BUTTON_GRAB: u32 = 1 << 0;
@@ -130,6 +135,9 @@ pub enum DeviceOpenError {
     /// The mock's script could not be read or is invalid.
     #[error(transparent)]
     Script(#[from] ScriptError),
+    /// The recording to replay could not be read or is invalid.
+    #[error(transparent)]
+    Recording(#[from] RecordingError),
     /// The driver or its device is not available on this machine (library missing, driver not
     /// built, device not connected).
     #[error("device `{device}` is not available: {reason}")]
@@ -176,6 +184,79 @@ pub trait HapticDevice: Send {
 
     /// Write zero force and release the device. Idempotent. Called on every exit path.
     fn stop(&mut self);
+
+    /// Runs `tick` inside the device's own servo callback, once per servo tick, on the device's
+    /// scheduler thread, until `tick` returns [`ServoControl::Stop`], the device fails or its
+    /// scheduler stalls; blocks the calling thread meanwhile. Only for
+    /// [`Pacing::DeviceClock`] devices (the default refuses).
+    ///
+    /// Inside `tick`, the `&mut dyn HapticDevice` it is given reads and writes the device within
+    /// the servo frame; the RT rules hold there. The first call may be slow (the caller may set
+    /// up there, e.g. build state that must live on the scheduler thread); every later call must
+    /// not allocate, lock, format or block. When `tick` stops, and on every other way out (a
+    /// fatal device error, a panic in `tick`), the driver writes zero force in that same frame.
+    fn run_clocked(&mut self, tick: &mut ServoTick<'_>) -> Result<ServoRun, DeviceOpenError> {
+        let _ = tick;
+        Err(DeviceOpenError::Unavailable {
+            device: self.name().to_owned(),
+            reason: "this device is paced by lop's own loop, not by a servo callback".into(),
+        })
+    }
+}
+
+/// What a servo tick asks of the device-clocked driver.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ServoControl {
+    /// Call again next servo tick.
+    Continue,
+    /// Write zero force and stop calling (OpenHaptics `HD_CALLBACK_DONE`).
+    Stop,
+}
+
+/// When a servo tick runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ServoClock {
+    /// Servo callbacks so far (0 for the first one).
+    pub tick: u64,
+    /// `CLOCK_MONOTONIC` at the start of the callback, ns.
+    pub now_ns: u64,
+}
+
+/// The per-tick closure a device-clocked driver runs in its servo callback. `Send`: it runs on
+/// the device's scheduler thread.
+pub type ServoTick<'a> = dyn FnMut(&mut dyn HapticDevice, ServoClock) -> ServoControl + Send + 'a;
+
+/// Why a device-clocked run ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ServoEnd {
+    /// The tick asked to stop.
+    Requested,
+    /// The device reported an unrecoverable error; zero force was written in that frame.
+    Device(DeviceError),
+    /// The tick panicked; zero force was written in that frame.
+    Panicked,
+    /// The scheduler stopped calling back (the device or its link died).
+    Stalled,
+}
+
+/// How a device-clocked run went.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ServoRun {
+    /// Servo callbacks that ran the tick.
+    pub ticks: u64,
+    /// Why it ended.
+    pub end: ServoEnd,
+}
+
+/// `CLOCK_MONOTONIC` now, ns (a vDSO call: no syscall, no allocation).
+pub(crate) fn monotonic_ns() -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec; CLOCK_MONOTONIC always exists on Linux.
+    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
 }
 
 #[cfg(test)]

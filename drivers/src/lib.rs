@@ -8,17 +8,23 @@
 //! Drivers:
 //! - [`mock`]: plays a TOML script of waypoints and records the forces it receives; deterministic,
 //!   for tests, benchmarks and demos.
-//! - `replay`, `openhaptics`: named by [`DeviceSpec`], not implemented in this crate yet.
+//! - [`replay`]: plays a session recording by tick index (deterministic); also the recording
+//!   file format and its writer.
+//! - [`openhaptics`]: a Phantom Omni / Touch through the proprietary OpenHaptics HD library,
+//!   loaded at run time; the device's servo callback is the clock ([`Pacing::DeviceClock`],
+//!   [`HapticDevice::run_clocked`]).
 //!
 //! Units and frame are the device's own (OpenHaptics): millimetres, newtons, +x right, +y up,
 //! +z toward the user.
 
 mod device;
 pub mod mock;
+pub mod openhaptics;
+pub mod replay;
 mod spec;
 
 pub use device::{
-    DeviceError, DeviceLimits, DeviceOpenError, DeviceSample, HapticDevice, Pacing, BUTTON_GRAB,
-    BUTTON_HEAT,
+    DeviceError, DeviceLimits, DeviceOpenError, DeviceSample, HapticDevice, Pacing, ServoClock,
+    ServoControl, ServoEnd, ServoRun, ServoTick, BUTTON_GRAB, BUTTON_HEAT,
 };
 pub use spec::{DeviceSpec, DeviceSpecError, DEVICE_SPEC_FORMS};

@@ -1,0 +1,256 @@
+//! The haptic loop on a device's own clock (OpenHaptics: the servo callback of the vendor's
+//! scheduler thread, 1 kHz).
+//!
+//! Same loop, different pacing: where `haptic::run_loop` sleeps to absolute deadlines, here the
+//! device calls [`ServoTask::on_tick`] once per servo tick and it runs the existing
+//! `HapticLoop::tick` inside the servo frame. iceoryx2 ports are not `Send`, so the
+//! `HapticLoop` is built in the first callback, on the scheduler thread, and dropped in the
+//! last one; that first callback only sets up and writes zero force (it may take a few ms: no
+//! force is rendered yet). From the second callback on the RT rules hold — no allocation, no
+//! lock, no formatting (tested against the stand-in libHD in `tests/rt_alloc_servo.rs`).
+//!
+//! Every way out writes zero force in the last frame: a stop request (Ctrl-C, SIGTERM,
+//! `--duration`), a fatal device error, a panic (the driver catches it), and the driver's own
+//! `stop` writes zero again before unscheduling, stopping the scheduler and disabling the device.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use anyhow::{bail, Result};
+use lop_config::{ForceLaw, Scene};
+use lop_drivers::{
+    DeviceError, DeviceLimits, HapticDevice, ServoClock, ServoControl, ServoEnd, ServoRun,
+};
+use lop_ipc::{
+    HapticTelemetry, ServiceNames, ToolState, RT_FLAG_FIFO, RT_FLAG_MLOCKED, RT_FLAG_PINNED,
+};
+
+use crate::haptic::{HapticLoop, HapticSettings, HapticSummary};
+use crate::record::{RecordTap, Recorded};
+use crate::rt;
+
+/// What the first callback needs to build the loop.
+struct Setup {
+    names: ServiceNames,
+    settings: HapticSettings,
+    tool_ring: rtrb::Producer<ToolState>,
+    telemetry_ring: rtrb::Producer<HapticTelemetry>,
+    core: Option<usize>,
+}
+
+/// The servo-side state of a device-clocked run: the loop (once built) and its counters.
+pub struct ServoTask<'a> {
+    setup: Option<Setup>,
+    hl: Option<HapticLoop>,
+    build_error: Option<anyhow::Error>,
+    stop: &'a AtomicBool,
+    max_ticks: Option<u64>,
+    period_ns: u64,
+    last_wake_ns: u64,
+    ticks: u64,
+    overruns: u64,
+    ring_drops: u64,
+    fatal: Option<DeviceError>,
+    record: Option<&'a mut RecordTap>,
+}
+
+impl<'a> ServoTask<'a> {
+    /// A task that builds its loop from these in the first servo callback. `core`: pin the
+    /// scheduler thread there (its priority is the vendor's).
+    #[allow(clippy::too_many_arguments)] // each is a distinct input of the loop's start-up
+    pub fn new(
+        names: &ServiceNames,
+        settings: HapticSettings,
+        core: Option<usize>,
+        stop: &'a AtomicBool,
+        max_ticks: Option<u64>,
+        tool_ring: rtrb::Producer<ToolState>,
+        telemetry_ring: rtrb::Producer<HapticTelemetry>,
+        record: Option<&'a mut RecordTap>,
+    ) -> ServoTask<'a> {
+        ServoTask {
+            period_ns: settings.period_ns(),
+            setup: Some(Setup {
+                names: names.clone(),
+                settings,
+                tool_ring,
+                telemetry_ring,
+                core,
+            }),
+            hl: None,
+            build_error: None,
+            stop,
+            max_ticks,
+            last_wake_ns: 0,
+            ticks: 0,
+            overruns: 0,
+            ring_drops: 0,
+            fatal: None,
+            record,
+        }
+    }
+
+    /// One servo callback. The first builds the loop; the others tick it (allocation-free).
+    pub fn on_tick(&mut self, device: &mut dyn HapticDevice, clock: ServoClock) -> ServoControl {
+        let Some(hl) = self.hl.as_mut() else {
+            return self.set_up(device, clock);
+        };
+        if self.stop.load(Ordering::Relaxed) || self.max_ticks.is_some_and(|m| hl.ticks() >= m) {
+            return self.finish(device);
+        }
+        // The device is the clock: a gap of more than one period and a half is a missed tick.
+        let period = self.period_ns;
+        let gap = clock.now_ns.saturating_sub(self.last_wake_ns);
+        let deadline = self.last_wake_ns + period;
+        if gap > period + period / 2 {
+            let missed = (gap + period / 2) / period - 1;
+            self.overruns += missed;
+            for _ in 0..missed {
+                hl.count_overrun();
+            }
+        }
+        self.last_wake_ns = clock.now_ns;
+        let outcome = match self.record.as_deref_mut() {
+            Some(tap) => hl.tick(&mut Recorded { device, tap }, clock.now_ns, deadline),
+            None => hl.tick(device, clock.now_ns, deadline),
+        };
+        if let Some(e) = outcome.fatal {
+            self.fatal = Some(e);
+            return self.finish(device);
+        }
+        ServoControl::Continue
+    }
+
+    fn set_up(&mut self, device: &mut dyn HapticDevice, clock: ServoClock) -> ServoControl {
+        let _ = device.write_force([0.0; 3]);
+        let Some(s) = self.setup.take() else {
+            return ServoControl::Stop;
+        };
+        let mut flags = 0;
+        let mut pinned = -1;
+        if let Some(core) = s.core {
+            match rt::pin_to_core(core) {
+                Ok(()) => {
+                    flags |= RT_FLAG_PINNED;
+                    pinned = core as i32;
+                }
+                Err(e) => tracing::warn!("servo thread not pinned: {e}"),
+            }
+        }
+        // SAFETY: plain query of the calling thread's policy.
+        if unsafe { libc::sched_getscheduler(0) } == libc::SCHED_FIFO {
+            flags |= RT_FLAG_FIFO;
+        } else {
+            tracing::warn!(
+                "the device's servo thread does not run SCHED_FIFO: grant the service real-time \
+                 limits (LimitRTPRIO, see docs/deploy.md)"
+            );
+        }
+        if crate::MEMORY_LOCKED.load(Ordering::Relaxed) {
+            flags |= RT_FLAG_MLOCKED;
+        }
+        match HapticLoop::new(&s.names, s.settings, s.tool_ring, s.telemetry_ring) {
+            Ok(mut hl) => {
+                hl.set_rt_state(flags, pinned);
+                self.hl = Some(hl);
+                self.last_wake_ns = clock.now_ns;
+                ServoControl::Continue
+            }
+            Err(e) => {
+                self.build_error = Some(e);
+                ServoControl::Stop
+            }
+        }
+    }
+
+    /// The last tick: zero force, counters kept, the loop dropped here on its own thread.
+    fn finish(&mut self, device: &mut dyn HapticDevice) -> ServoControl {
+        let _ = device.write_force([0.0; 3]);
+        if let Some(hl) = self.hl.take() {
+            self.ticks = hl.ticks();
+            self.ring_drops = hl.ring_drops();
+            drop(hl);
+        }
+        ServoControl::Stop
+    }
+
+    /// How the run went, once the device has returned from `run_clocked`.
+    pub fn summary(&mut self, run: ServoRun) -> Result<HapticSummary> {
+        if let Some(e) = self.build_error.take() {
+            return Err(e.context("setting up the haptic loop in the servo callback"));
+        }
+        if let Some(hl) = self.hl.take() {
+            // The run ended without a last tick (stall, panic): the scheduler no longer calls
+            // back, so the loop is dropped here, never concurrently with its thread.
+            self.ticks = hl.ticks();
+            self.ring_drops = hl.ring_drops();
+        }
+        let fatal = match run.end {
+            ServoEnd::Requested => self.fatal,
+            ServoEnd::Device(e) => Some(self.fatal.unwrap_or(e)),
+            ServoEnd::Stalled => {
+                bail!(
+                    "the device's servo loop stopped calling back (stalled) after {} ticks; \
+                     force output was disabled",
+                    run.ticks
+                )
+            }
+            ServoEnd::Panicked => {
+                bail!("the haptic tick panicked in the servo callback; zero force was written")
+            }
+        };
+        Ok(HapticSummary {
+            ticks: self.ticks,
+            overruns: self.overruns,
+            ring_drops: self.ring_drops,
+            fatal,
+        })
+    }
+}
+
+/// Lets the task cross to the device's scheduler thread.
+///
+/// SAFETY argument: the task's `HapticLoop` (iceoryx2 ports, not `Send`) is created in the
+/// first servo callback and dropped in the last one, on the scheduler thread; the thread that
+/// calls `run_clocked` blocks meanwhile and touches the task again only after the driver
+/// returned, when no callback runs any more.
+struct ServoCell<'a>(ServoTask<'a>);
+// SAFETY: see above.
+unsafe impl Send for ServoCell<'_> {}
+
+impl ServoCell<'_> {
+    fn call(&mut self, device: &mut dyn HapticDevice, clock: ServoClock) -> ServoControl {
+        self.0.on_tick(device, clock)
+    }
+}
+
+/// Runs `task` on `device`'s clock until it stops; the device is then stopped (zero force
+/// first, then unschedule, stop the scheduler, disable).
+pub fn run(device: &mut dyn HapticDevice, task: ServoTask<'_>) -> Result<HapticSummary> {
+    let mut cell = ServoCell(task);
+    let run = {
+        let cell = &mut cell;
+        device.run_clocked(&mut |dev, clock| cell.call(dev, clock))
+    };
+    device.stop();
+    let run = run?;
+    cell.0.summary(run)
+}
+
+/// A warning when the scene's tool spring, as felt at the device, is stiffer than the device's
+/// nominal maximum (the stylus would buzz). Linear force law only.
+pub fn stiffness_warning(scene: &Scene, limits: &DeviceLimits) -> Option<String> {
+    if scene.tool.force_law != ForceLaw::Linear {
+        return None;
+    }
+    // 1 mm at the device is 1e-3 · scale m in the scene; forces are not scaled.
+    let scale = scene.workspace.transform().scale;
+    let at_device = scene.tool.stiffness * 1e-3 * scale;
+    (at_device > limits.max_stiffness_n_per_mm).then(|| {
+        format!(
+            "the tool spring ({} N/m in the scene, workspace scale {scale}) is {at_device:.3} N/mm \
+             at the device, above its nominal maximum {:.3} N/mm: expect buzzing; lower [tool] \
+             stiffness or the workspace scale",
+            scene.tool.stiffness, limits.max_stiffness_n_per_mm
+        )
+    })
+}

@@ -1,0 +1,235 @@
+//! Real time on the device's clock: the OpenHaptics path (driver servo callback → `ServoTask`
+//! → `HapticLoop::tick`, with `--record`'s tap) allocates nothing after its first callback.
+//!
+//! The device is the stand-in libHD (`drivers/standin-hd`) playing the organs poke at 1 kHz on
+//! its own scheduler thread; this test plays the deformation side (topology once, a frame every
+//! 10 ms). Every allocation our code makes on the scheduler thread from servo tick 200 to 5200
+//! is counted — the driver's callback wrapper, the error checks, the tick, the ring pushes —
+//! and must be zero. (The stand-in's own allocations go through its own allocator: they stand
+//! for the vendor's code.)
+
+#[path = "../../drivers/standin-hd/testing.rs"]
+mod standin;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+use lop_config::{load_scene, resolve_scene, resolve_script, DaemonConfig};
+use lop_daemon::haptic::{rings, HapticSettings};
+use lop_daemon::scene;
+use lop_daemon::servo::ServoTask;
+use lop_drivers::mock::MockScript;
+use lop_drivers::openhaptics::OpenHapticsDevice;
+use lop_drivers::{HapticDevice, ServoControl, ServoEnd};
+use lop_ipc::services::{self, Role};
+use lop_ipc::*;
+
+struct Counting;
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+thread_local! {
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+}
+// SAFETY: forwards to the system allocator; counting has no effect on the allocation.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if COUNTING.with(Cell::get) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        if COUNTING.with(Cell::get) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+const COUNT_FROM: u64 = 200;
+const COUNT_UNTIL: u64 = 5200;
+static STOP: AtomicBool = AtomicBool::new(false);
+
+/// The task crosses to the scheduler thread; its loop is built and dropped there (as in
+/// `lop_daemon::servo::run`).
+struct SendTask<'a>(ServoTask<'a>);
+// SAFETY: see above; the spawning thread does not touch the task while the device runs it.
+unsafe impl Send for SendTask<'_> {}
+impl SendTask<'_> {
+    fn call(&mut self, d: &mut dyn HapticDevice, c: lop_drivers::ServoClock) -> ServoControl {
+        if c.tick == COUNT_FROM {
+            ALLOCATIONS.store(0, Ordering::Relaxed);
+            COUNTING.with(|x| x.set(true));
+        }
+        if c.tick == COUNT_UNTIL {
+            COUNTING.with(|x| x.set(false));
+            STOP.store(true, Ordering::Relaxed);
+        }
+        self.0.on_tick(d, c)
+    }
+}
+
+#[test]
+fn servo_path_allocates_nothing_after_the_first_callback() {
+    let dir = std::env::temp_dir().join(format!("lop-rtalloc-servo-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let script = MockScript::load(&resolve_script("organs-poke").unwrap()).unwrap();
+    let mut text = String::new();
+    for k in 0..8000 {
+        let s = script.sample(k as f64 / 1000.0);
+        let p = s.position_mm;
+        text.push_str(&format!("{},{},{},{}\n", p[0], p[1], p[2], s.buttons));
+    }
+    let trajectory = dir.join("trajectory.csv");
+    std::fs::write(&trajectory, text).unwrap();
+    // SAFETY: the only test in this binary; set before any other thread runs.
+    unsafe {
+        std::env::set_var("LOP_HD_LIBRARY", standin::standin_library());
+        std::env::set_var("LOP_STANDIN_TRAJECTORY", &trajectory);
+        std::env::remove_var("LOP_STANDIN_ERRORS");
+        std::env::remove_var("LOP_STANDIN_LOG_DIR");
+    }
+
+    let prefix = format!("rtalloc-servo-{}", std::process::id());
+    let names = ServiceNames::new(&prefix).unwrap();
+    let scene_file = load_scene(&resolve_scene("organs").unwrap()).unwrap();
+    let mut device = OpenHapticsDevice::open(None, None).unwrap();
+    device.start().unwrap();
+    let settings = HapticSettings::new(&DaemonConfig::default(), &scene_file, device.limits());
+    let loaded = scene::load(scene_file.clone()).unwrap();
+
+    // The deformation side.
+    let node = services::node("rtalloc-servo-deform").unwrap();
+    let topo_pub = services::topology_service(&node, &names, Role::Owner)
+        .unwrap()
+        .publisher_builder()
+        .initial_max_slice_len(loaded.topology_indices.len())
+        .create()
+        .unwrap();
+    let frame_pub = services::frame_service(&node, &names, Role::Owner)
+        .unwrap()
+        .publisher_builder()
+        .initial_max_slice_len(loaded.topology.node_count as usize)
+        .create()
+        .unwrap();
+    let mut topology = loaded.topology;
+    topology.topology_id = 42;
+    let publish_topology = || {
+        let mut s = topo_pub
+            .loan_slice_uninit(loaded.topology_indices.len())
+            .unwrap();
+        *s.user_header_mut() = topology;
+        s.write_from_slice(&loaded.topology_indices).send().unwrap();
+    };
+    let publish_frame = |seq: u64| {
+        let n = topology.node_count as usize;
+        let mut s = frame_pub.loan_slice_uninit(n).unwrap();
+        let h = s.user_header_mut();
+        h.contract_version = CONTRACT_VERSION;
+        h.topology_id = 42;
+        h.sequence = seq;
+        h.body_count = topology.body_count;
+        h.node_count = n as u32;
+        h.publish_ns = clock::monotonic_ns();
+        for (i, b) in loaded.world.bodies.iter().enumerate() {
+            let bf = &mut h.bodies[i];
+            bf.aabb_min = [f32::INFINITY; 3];
+            bf.aabb_max = [f32::NEG_INFINITY; 3];
+            for p in &b.mesh.nodes {
+                for (k, &v) in p.iter().enumerate() {
+                    bf.aabb_min[k] = bf.aabb_min[k].min(v as f32);
+                    bf.aabb_max[k] = bf.aabb_max[k].max(v as f32);
+                }
+            }
+        }
+        let mut s = s.write_from_fn(|_| NodeSample::default());
+        let mut k = 0;
+        for b in &loaded.world.bodies {
+            for p in &b.mesh.nodes {
+                s.payload_mut()[k] = NodeSample {
+                    position: [p[0] as f32, p[1] as f32, p[2] as f32],
+                    temperature: 37.0,
+                    flags: 0,
+                };
+                k += 1;
+            }
+        }
+        s.send().unwrap();
+    };
+
+    let ((tool_tx, mut tool_rx), (tel_tx, mut tel_rx)) = rings();
+    let header = lop_daemon::record::header(
+        1000.0,
+        device.limits(),
+        "organs",
+        &scene_file.path,
+        "openhaptics",
+    );
+    let (mut tap, writer) = lop_daemon::record::start(&dir.join("rt.lrec"), &header).unwrap();
+    let running = AtomicBool::new(true);
+    let mut contact_ticks = 0u64;
+    let run = std::thread::scope(|scope| {
+        let servo = scope.spawn(|| {
+            let task = ServoTask::new(
+                &names,
+                settings,
+                None,
+                &STOP,
+                None,
+                tool_tx,
+                tel_tx,
+                Some(&mut tap),
+            );
+            let mut cell = SendTask(task);
+            let cell_ref = &mut cell;
+            let run = device.run_clocked(&mut |d, c| cell_ref.call(d, c)).unwrap();
+            running.store(false, Ordering::Release);
+            let summary = cell.0.summary(run).unwrap();
+            (run, summary)
+        });
+        let mut seq = 0;
+        while running.load(Ordering::Acquire) {
+            // The loop subscribes in its first servo callback: repeat the topology for a while
+            // so it cannot miss it.
+            if seq < 100 {
+                publish_topology();
+            }
+            seq += 1;
+            publish_frame(seq);
+            while let Ok(t) = tool_rx.pop() {
+                if t.flags & TOOL_FLAG_CONTACT != 0 {
+                    contact_ticks += 1;
+                }
+            }
+            while tel_rx.pop().is_ok() {}
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        servo.join().unwrap()
+    });
+    device.stop();
+    let records = writer.finish().unwrap();
+    let (run, summary) = run;
+    let allocations = ALLOCATIONS.load(Ordering::Relaxed);
+    assert_eq!(run.end, ServoEnd::Requested);
+    assert!(summary.ticks >= COUNT_UNTIL - 1, "{summary:?}");
+    assert!(records >= COUNT_UNTIL - 1, "{records} records");
+    assert!(
+        contact_ticks > 500,
+        "the poke must exercise the contact path ({contact_ticks})"
+    );
+    assert_eq!(
+        allocations, 0,
+        "heap allocations on the servo thread after the first callback"
+    );
+    // The counter does see allocations (the test can fail).
+    COUNTING.with(|c| c.set(true));
+    std::hint::black_box(vec![1u8; 16]);
+    COUNTING.with(|c| c.set(false));
+    assert!(ALLOCATIONS.load(Ordering::Relaxed) > 0);
+    let _ = std::fs::remove_dir_all(&dir);
+}
