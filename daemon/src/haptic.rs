@@ -40,6 +40,9 @@ use crate::rt;
 use crate::safety::ForceSafety;
 use crate::scene::tool_sphere;
 
+/// A body's positions are copied into the contact index once the device or the god-object is
+/// this close to its bounds, m: well beyond what the tool covers between frames.
+const REACH: f64 = 0.02;
 /// Device samples farther than this outside the device's workspace are rejected as broken, mm.
 const WORKSPACE_SLACK_MM: f64 = 20.0;
 /// Tool states the ring to the publisher thread holds: 0.5 s at 1 kHz.
@@ -111,8 +114,10 @@ struct ContactIndex {
     topology_id: u64,
     set: SurfaceSet,
     god: GodObject,
-    /// Sequence of the frame whose positions `set` holds.
+    /// Sequence of the newest frame seen.
     frame_sequence: Option<u64>,
+    /// Per body: the frame sequence its positions in `set` come from.
+    body_sequence: [Option<u64>; MAX_BODIES],
 }
 
 impl ContactIndex {
@@ -141,6 +146,7 @@ impl ContactIndex {
             set,
             god,
             frame_sequence: None,
+            body_sequence: [None; MAX_BODIES],
         })
     }
 }
@@ -419,7 +425,8 @@ impl HapticLoop {
         } else {
             self.stats.record(FRAME_AGE, frame_age);
         }
-        let surface_ready = self.refresh_surface();
+        let tip = sample.map(|s| self.settings.workspace.device_to_scene(s.position_mm));
+        let surface_ready = self.refresh_surface(tip);
 
         // 3. God-object and force against the newest surface.
         let mut desired = [0.0; 3];
@@ -507,10 +514,13 @@ impl HapticLoop {
         })
     }
 
-    /// Brings the contact index up to date with the newest frame (positions copied in, the
-    /// god-object carried along with the tissue). False without a matching index and frame:
-    /// then nothing is touched (and a stale frame ramps the force down anyway).
-    fn refresh_surface(&mut self) -> bool {
+    /// Brings the contact index up to date with the newest frame for the bodies the tool can
+    /// reach this tick: their positions are copied in (a few µs for an organ, so only bodies
+    /// whose frame bounds are within [`REACH`] of the device or the god-object are, and only
+    /// once per frame), the others are left out of the queries until they come within reach.
+    /// The god-object is carried along with the tissue. False without a matching index and
+    /// frame: then nothing is touched (and a stale frame ramps the force down anyway).
+    fn refresh_surface(&mut self, device: Option<[f64; 3]>) -> bool {
         let (Some(ix), Some(frame)) = (self.index.as_deref_mut(), self.frame.as_ref()) else {
             return false;
         };
@@ -522,16 +532,36 @@ impl HapticLoop {
         {
             return false;
         }
-        if ix.frame_sequence != Some(fh.sequence) {
-            let first = ix.frame_sequence.is_none();
-            ix.frame_sequence = Some(fh.sequence);
-            ix.set
-                .set_positions(|i| nodes[i].position.map(|c| c as f64));
-            if first {
-                ix.god.reset();
-            } else {
-                ix.god.follow_surface(&ix.set);
+        let first = ix.frame_sequence.is_none();
+        let new_frame = ix.frame_sequence != Some(fh.sequence);
+        ix.frame_sequence = Some(fh.sequence);
+        let proxy = ix.god.proxy();
+        let mut moved = false;
+        for b in 0..ix.set.bodies().min(fh.body_count as usize) {
+            let bf = &fh.bodies[b];
+            let near = |p: [f64; 3]| {
+                (0..3).all(|k| {
+                    p[k] >= bf.aabb_min[k] as f64 - REACH && p[k] <= bf.aabb_max[k] as f64 + REACH
+                })
+            };
+            let wanted = device.is_some_and(near) || near(proxy);
+            if !wanted {
+                ix.set.set_active(b, false);
+                continue;
             }
+            if ix.body_sequence[b] != Some(fh.sequence) {
+                ix.body_sequence[b] = Some(fh.sequence);
+                ix.set
+                    .set_body_positions(b, |i| nodes[i].position.map(|c| c as f64));
+                moved = true;
+            } else {
+                ix.set.set_active(b, true);
+            }
+        }
+        if first {
+            ix.god.reset();
+        } else if new_frame || moved {
+            ix.god.follow_surface(&ix.set);
         }
         true
     }

@@ -43,6 +43,10 @@ pub struct SurfaceSet {
     body_tris: Vec<(usize, usize)>,
     /// Per body: bounding box of its nodes (updated with the positions).
     body_box: Vec<([f64; 3], [f64; 3])>,
+    /// Per body: the range of node indices its triangles use.
+    body_nodes: Vec<(usize, usize)>,
+    /// Per body: whether queries consider it (its positions are current).
+    active: Vec<bool>,
     /// Per body: a surface vertex to start walks from.
     warm: Vec<u32>,
     /// Surface-vertex adjacency (CSR over all nodes; non-surface nodes have none).
@@ -114,10 +118,22 @@ impl SurfaceSet {
             .collect();
         let bvh = body_tris.iter().map(|&(s, e)| Bvh::new(e - s)).collect();
         let bodies = body_tris.len();
+        let body_nodes = body_tris
+            .iter()
+            .map(|&(s, e)| {
+                let it = || tris[s..e].iter().flatten().map(|&v| v as usize);
+                match it().min() {
+                    Some(lo) => (lo, it().max().unwrap_or(lo) + 1),
+                    None => (0, 0),
+                }
+            })
+            .collect();
         SurfaceSet {
             tris,
             body_tris,
             body_box: vec![([0.0; 3], [0.0; 3]); bodies],
+            body_nodes,
+            active: vec![true; bodies],
             warm,
             adj_ptr,
             adj,
@@ -187,11 +203,48 @@ impl SurfaceSet {
             }
             self.body_box[b] = (lo, hi);
             self.dirty[b] = true;
+            self.active[b] = true;
         }
     }
 
-    /// Whether `p` is within `margin` of body `b`'s bounding box.
+    /// Replaces the positions of body `b`'s nodes only (`at(i)` for each of its node indices)
+    /// and makes it active; the other bodies keep theirs. Allocation-free.
+    pub fn set_body_positions(&mut self, b: usize, mut at: impl FnMut(usize) -> [f64; 3]) {
+        let Some(&(n0, n1)) = self.body_nodes.get(b) else {
+            return;
+        };
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for i in n0..n1 {
+            let p = at(i);
+            self.x[i] = p;
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        self.body_box[b] = (lo, hi);
+        self.dirty[b] = true;
+        self.active[b] = true;
+    }
+
+    /// Takes body `b` out of (or back into) the queries, e.g. while its positions are stale.
+    pub fn set_active(&mut self, b: usize, active: bool) {
+        if let Some(a) = self.active.get_mut(b) {
+            *a = active;
+        }
+    }
+
+    /// Whether body `b` is considered by queries.
+    pub fn is_active(&self, b: usize) -> bool {
+        self.active.get(b).copied().unwrap_or(false)
+    }
+
+    /// Whether `p` is within `margin` of body `b`'s bounding box (false for an inactive body).
     pub fn near_body(&self, b: usize, p: [f64; 3], margin: f64) -> bool {
+        if !self.active[b] {
+            return false;
+        }
         let (lo, hi) = self.body_box[b];
         (0..3).all(|k| p[k] >= lo[k] - margin && p[k] <= hi[k] + margin)
     }
@@ -325,7 +378,7 @@ impl SurfaceSet {
     pub fn triangles_in_box(&mut self, lo: [f64; 3], hi: [f64; 3], mut f: impl FnMut(usize)) {
         for b in 0..self.body_tris.len() {
             let (blo, bhi) = self.body_box[b];
-            if !(0..3).all(|k| blo[k] <= hi[k] && bhi[k] >= lo[k]) {
+            if !self.active[b] || !(0..3).all(|k| blo[k] <= hi[k] && bhi[k] >= lo[k]) {
                 continue;
             }
             self.refit(b);
