@@ -388,21 +388,21 @@ impl ControlClient {
         let service = open_retry(&service_name, timeout, || {
             control_service(node, names, Role::Client)
         })?;
-        let client = service
-            .client_builder()
-            .create()
-            .map_err(|e| IpcError::Iceoryx {
+        let client = service.client_builder().create().map_err(|e| match e {
+            iceoryx2::service::port_factory::client::ClientCreateError::ExceedsMaxSupportedClients => {
+                IpcError::Full {
+                    service: service_name.clone(),
+                    port: "client",
+                    limit: CONTROL_MAX_CLIENTS,
+                    constant: "CONTROL_MAX_CLIENTS",
+                }
+            }
+            other => IpcError::Iceoryx {
                 what: "create client for",
                 service: service_name.clone(),
-                reason: match e {
-                    iceoryx2::service::port_factory::client::ClientCreateError::ExceedsMaxSupportedClients => {
-                        format!(
-                            "the service already has its maximum of {CONTROL_MAX_CLIENTS} clients"
-                        )
-                    }
-                    other => format!("{other:?}"),
-                },
-            })?;
+                reason: format!("{other:?}"),
+            },
+        })?;
         Ok(ControlClient {
             service_name,
             client,

@@ -16,6 +16,7 @@
 
 pub mod clock;
 pub mod control;
+pub mod limits;
 pub mod services;
 pub mod types;
 
