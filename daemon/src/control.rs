@@ -203,7 +203,7 @@ impl ControlServer {
         }
         let i = match self.find_body(req, world) {
             Ok(i) => i,
-            Err(r) => return Answer(r),
+            Err(r) => return Decision::Answer(*r),
         };
         match req.op {
             CONTROL_OP_GET => Answer(self.describe(i, world, CONTROL_STATUS_OK, "")),
@@ -430,7 +430,11 @@ impl ControlServer {
         let _ = request.send_copy(resp);
     }
 
-    fn find_body(&self, req: &ControlRequest, world: &World) -> Result<usize, ControlResponse> {
+    fn find_body(
+        &self,
+        req: &ControlRequest,
+        world: &World,
+    ) -> Result<usize, Box<ControlResponse>> {
         let n = world.bodies.len();
         let found = if req.body_index >= 0 {
             ((req.body_index as usize) < n).then_some(req.body_index as usize)
@@ -444,10 +448,10 @@ impl ControlServer {
             } else {
                 format!("{:?}", req.body_str())
             };
-            self.with_paused(ControlResponse::with(
+            Box::new(self.with_paused(ControlResponse::with(
                 CONTROL_STATUS_UNKNOWN_BODY,
                 &format!("no body {asked}; bodies: {}", names.join(", ")),
-            ))
+            )))
         })
     }
 
@@ -516,6 +520,9 @@ impl ControlServer {
     }
 }
 
+/// What to do with a request: answer now, or rebuild a body's models and answer then. Lives
+/// for one call on the stack, so the size difference of its variants does not matter.
+#[allow(clippy::large_enum_variant)]
 enum Decision {
     Answer(ControlResponse),
     Rebuild {

@@ -23,7 +23,7 @@ struct Cli {
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
-    if lop_client::ServiceNames::new(&cli.prefix).is_err() || !(cli.fps > 0.0) {
+    if lop_client::ServiceNames::new(&cli.prefix).is_err() || cli.fps.is_nan() || cli.fps <= 0.0 {
         eprintln!(
             "lop-view: error: bad --prefix {:?} or --fps {} (must be positive)",
             cli.prefix, cli.fps
