@@ -1,14 +1,22 @@
 #!/usr/bin/env bash
 # Installs what lop's builds, tests and benchmarks need beyond the Rust toolchain, on Debian or
-# Ubuntu. Idempotent: it only calls apt-get when something is missing.
+# Ubuntu. Idempotent: it only calls apt-get / pip when something is missing.
 #   tetgen    regenerates and checks the shipped meshes (assets/generate.py --check)
 #   rt-tests  cyclictest, the machine's own wake-up latency floor in `lop-bench latency`
+#   chromium  headless browser for the web viewer's screenshot test (view/tests/browser.rs)
+#   iceoryx2  the Python binding, at exactly the daemon's iceoryx2 version, for the renderer
+#             contract's Python consumer example (examples/python/consumer.py)
 set -euo pipefail
+
+# Must equal the workspace's `iceoryx2 = "=…"` pin: every process sharing a service runs the
+# same iceoryx2 version.
+ICEORYX2_VERSION=0.10.0
 
 need=()
 command -v tetgen >/dev/null 2>&1 || need+=(tetgen)
 command -v cyclictest >/dev/null 2>&1 || need+=(rt-tests)
 command -v python3 >/dev/null 2>&1 || need+=(python3)
+command -v chromium >/dev/null 2>&1 || need+=(chromium)
 
 if [ ${#need[@]} -gt 0 ]; then
   if ! command -v apt-get >/dev/null 2>&1; then
@@ -20,4 +28,20 @@ if [ ${#need[@]} -gt 0 ]; then
   echo "setup: installing ${need[*]}" >&2
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${need[@]}" >/dev/null
+fi
+
+have=$(python3 -c 'import importlib.metadata as m; print(m.version("iceoryx2"))' 2>/dev/null || true)
+if [ "$have" != "$ICEORYX2_VERSION" ]; then
+  if ! python3 -m pip --version >/dev/null 2>&1; then
+    echo "setup: installing python3-pip" >&2
+    sudo=""
+    [ "$(id -u)" -eq 0 ] || sudo="sudo"
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq python3-pip >/dev/null
+  fi
+  echo "setup: installing Python iceoryx2==$ICEORYX2_VERSION" >&2
+  # --user keeps the system interpreter untouched; Debian's externally-managed marker needs
+  # --break-system-packages for a user install too.
+  python3 -m pip install -q --user "iceoryx2==$ICEORYX2_VERSION" 2>/dev/null \
+    || python3 -m pip install -q --user --break-system-packages "iceoryx2==$ICEORYX2_VERSION"
 fi

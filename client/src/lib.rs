@@ -105,22 +105,14 @@ impl Attachment {
             let s = services::topology_service(&node, &names, Role::Client)?;
             s.subscriber_builder()
                 .create()
-                .map_err(|e| IpcError::Iceoryx {
-                    what: "create subscriber for",
-                    service: names.topology.clone(),
-                    reason: format!("{e:?}"),
-                })
+                .map_err(|e| lop_ipc::limits::subscriber_create_error(&names.topology, e))
         })?;
         let frame_sub = services::open_retry(&names.frame, timeout, || {
             let s = services::frame_service(&node, &names, Role::Client)?;
             s.subscriber_builder()
                 .buffer_size(services::FRAME_BUFFER)
                 .create()
-                .map_err(|e| IpcError::Iceoryx {
-                    what: "create subscriber for",
-                    service: names.frame.clone(),
-                    reason: format!("{e:?}"),
-                })
+                .map_err(|e| lop_ipc::limits::subscriber_create_error(&names.frame, e))
         })?;
         Ok(Attachment {
             node,

@@ -149,6 +149,7 @@ pub fn run(opts: DeformOptions) -> Result<()> {
     }
 
     let mut tool_input = open_tool_input(&node, &names);
+    let mut control = crate::control::ControlServer::new(&node, &names, &scene, &world);
     let mut last_connection_update = rt::now_ns();
     let mut last_tool_try = rt::now_ns();
     let period = (1e9 / scene.rates.deform_max_hz).round() as u64;
@@ -192,9 +193,12 @@ pub fn run(opts: DeformOptions) -> Result<()> {
 
         // Step every body that is due, on its own dt.
         let sim_now = (now - start) as f64 * 1e-9;
+        // Control requests (PREFIX/control) are served here, between steps; paused: no stepping,
+        // frames keep coming with frozen positions.
+        let paused = control.poll(&mut world, sim_now);
         let step_start = rt::now_ns();
-        let mut stepped = false;
-        for (i, last_ns) in step_ns.iter_mut().enumerate() {
+        let mut stepped = paused;
+        for (i, last_ns) in step_ns.iter_mut().enumerate().filter(|_| !paused) {
             let mut steps = 0;
             let tool = tool_state.map(|s| {
                 let mut t = tool_sphere(&scene.tool, s.device_position);

@@ -6,6 +6,8 @@
 
 use std::sync::atomic::AtomicBool;
 
+pub mod control;
+pub mod ctl;
 pub mod deform;
 pub mod doctor;
 pub mod haptic;

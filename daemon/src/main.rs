@@ -53,6 +53,11 @@ enum Command {
     /// Check this machine for a rig (real-time limits, CPUs, device library and device,
     /// shared memory, stale IPC) and print a fix for each problem. Exit code 1 on a FAIL.
     Doctor(DoctorArgs),
+    /// Runtime control of a running daemon: get/set body parameters, pin/release, reset, pause,
+    /// resume (`lopd ctl get liver`, `lopd ctl set liver fem.young 300`).
+    Ctl(CtlArgs),
+    /// The web viewer alone (normally started by `lopd run --view`): runs `lop-view`.
+    View(ViewArgs),
 }
 
 #[derive(Args, Clone)]
@@ -72,6 +77,26 @@ struct DoctorArgs {
     /// Print the findings as JSON.
     #[arg(long)]
     json: bool,
+}
+
+#[derive(Args, Clone)]
+struct CtlArgs {
+    /// Service prefix of the daemon to control.
+    #[arg(long, default_value = lop_ipc::SERVICE_PREFIX_DEFAULT)]
+    prefix: String,
+    /// get BODY | set BODY KEY VALUE | pin BODY gc|msd|fem | release BODY | reset | pause | resume
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+    words: Vec<String>,
+}
+
+#[derive(Args, Clone)]
+struct ViewArgs {
+    /// Service prefix of the daemon to show.
+    #[arg(long, default_value = lop_ipc::SERVICE_PREFIX_DEFAULT)]
+    prefix: String,
+    /// Address and port the web viewer listens on.
+    #[arg(long, default_value = lop_daemon::supervisor::VIEW_BIND_DEFAULT)]
+    bind: String,
 }
 
 #[derive(Subcommand)]
@@ -150,6 +175,12 @@ struct RunArgs {
     /// No live status line.
     #[arg(long)]
     quiet: bool,
+    /// Also start the web viewer (`lop-view`) and print its URL.
+    #[arg(long)]
+    view: bool,
+    /// Where the web viewer listens (with --view).
+    #[arg(long, default_value = lop_daemon::supervisor::VIEW_BIND_DEFAULT)]
+    view_bind: String,
 }
 
 /// Bad input: exit code 2.
@@ -194,6 +225,8 @@ fn main() -> ExitCode {
         } => cmd_mesh_info(&paths),
         Command::Scenes => cmd_scenes().map(|()| 0),
         Command::Doctor(a) => cmd_doctor(a),
+        Command::Ctl(a) => cmd_ctl(a),
+        Command::View(a) => cmd_view(a),
     };
     match result {
         Ok(code) => ExitCode::from(code as u8),
@@ -319,6 +352,7 @@ fn cmd_run(a: RunArgs) -> Result<i32> {
         record: a.haptic.record.clone(),
         status_interval: Duration::from_millis(config.status_interval_ms),
         status: !a.quiet,
+        view: a.view.then(|| a.view_bind.clone()),
     })
 }
 
@@ -588,4 +622,29 @@ fn cmd_doctor(a: DoctorArgs) -> Result<i32> {
     });
     let failed = lop_daemon::doctor::print(&findings, a.json);
     Ok(if failed { 1 } else { 0 })
+}
+
+fn cmd_ctl(a: CtlArgs) -> Result<i32> {
+    let names = bad(ServiceNames::new(&a.prefix))?;
+    let cmd = bad(lop_daemon::ctl::CtlCommand::parse(&a.words))?;
+    lop_daemon::ctl::run(&names, &cmd)
+}
+
+/// Replaces this process with the `lop-view` binary next to `lopd`, so the supervisor can start
+/// the viewer as one of its children like the other two.
+fn cmd_view(a: ViewArgs) -> Result<i32> {
+    use std::os::unix::process::CommandExt;
+    bad(ServiceNames::new(&a.prefix))?;
+    let exe = std::env::current_exe().context("locating the lopd binary")?;
+    let view = exe.with_file_name("lop-view");
+    if !view.exists() {
+        bail!(
+            "{} not found: lop-view is built with the workspace (`cargo build --workspace`)",
+            view.display()
+        );
+    }
+    let err = std::process::Command::new(&view)
+        .args(["--prefix", &a.prefix, "--bind", &a.bind])
+        .exec();
+    Err(anyhow::Error::new(err).context(format!("starting {}", view.display())))
 }

@@ -43,7 +43,12 @@ pub struct RunOptions {
     pub status_interval: Duration,
     /// Print the status line.
     pub status: bool,
+    /// `--view`: also run the web viewer (`lopd view`, which runs `lop-view`) bound here.
+    pub view: Option<String>,
 }
+
+/// Where `lopd run --view` and `lop-view` listen unless told otherwise: loopback only.
+pub const VIEW_BIND_DEFAULT: &str = "127.0.0.1:8733";
 
 struct Supervised {
     role: &'static str,
@@ -177,6 +182,18 @@ pub fn run(opts: RunOptions) -> Result<i32> {
     }
     let mut haptic = Supervised::new("haptic", haptic_args);
     let mut deform = Supervised::new("deform", common);
+    // The web viewer, supervised like the other two (restarted if it dies; the daemon never
+    // waits on it).
+    let mut view = opts.view.as_ref().map(|bind| {
+        println!("lop-view: http://{bind}/");
+        let args = vec![
+            "--prefix".to_string(),
+            opts.prefix.clone(),
+            "--bind".to_string(),
+            bind.clone(),
+        ];
+        Supervised::new("view", args)
+    });
 
     let mut monitor = StatusMonitor::new(&names)?;
     let tty = std::io::stdout().is_terminal();
@@ -186,6 +203,12 @@ pub fn run(opts: RunOptions) -> Result<i32> {
     while !signals::stop_requested() && opts.duration.is_none_or(|d| start.elapsed() < d) {
         haptic.check();
         deform.check();
+        if let Some(v) = &mut view {
+            v.check();
+            if let Err(e) = v.maybe_start() {
+                tracing::warn!("web viewer: {e:#}");
+            }
+        }
         if let Err(e) = haptic.maybe_start().and_then(|()| deform.maybe_start()) {
             tracing::error!("{e:#}");
             code = 1;
@@ -213,9 +236,15 @@ pub fn run(opts: RunOptions) -> Result<i32> {
     monitor.detach();
     haptic.terminate();
     deform.terminate();
+    if let Some(v) = &mut view {
+        v.terminate();
+    }
     let until = Instant::now() + STOP_GRACE;
     haptic.wait_or_kill(until);
     deform.wait_or_kill(until);
+    if let Some(v) = &mut view {
+        v.wait_or_kill(until);
+    }
     drop(monitor);
 
     let node = services::node("lopd-run-cleanup")?;

@@ -6,6 +6,8 @@
 //! - [`services`]: the service names under a configurable prefix, the quality of service each
 //!   service is created with, and thin helpers that create (daemon side) or open (client side)
 //!   them;
+//! - [`control`]: the request–response control service `PREFIX/control` (get and set body
+//!   parameters, pin and release, reset, pause and resume);
 //! - [`clock`]: the one clock every timestamp in a payload uses (`CLOCK_MONOTONIC`, ns), so
 //!   latencies can be computed across processes.
 //!
@@ -13,9 +15,12 @@
 //! the docs of [`services`].
 
 pub mod clock;
+pub mod control;
+pub mod limits;
 pub mod services;
 pub mod types;
 
+pub use control::*;
 pub use services::{ServiceNames, SERVICE_PREFIX_DEFAULT};
 pub use types::*;
 

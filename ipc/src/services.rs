@@ -109,6 +109,19 @@ pub enum IpcError {
         /// iceoryx2's error, formatted.
         reason: String,
     },
+    /// The service is at its capacity for this kind of port (set by the daemon when it created
+    /// the service); retrying does not help until another client leaves.
+    #[error("{service:?} refused a new {port}: it already has its maximum of {limit} {port}s ({constant}); close another client first")]
+    Full {
+        /// The service name.
+        service: String,
+        /// "subscriber", "client".
+        port: &'static str,
+        /// The capacity.
+        limit: usize,
+        /// The contract constant that sets it.
+        constant: &'static str,
+    },
     /// The service did not appear within the retry time.
     #[error(
         "service {service:?} did not appear within {waited:?}: is lopd running with this prefix?"
@@ -178,6 +191,7 @@ pub fn open_retry<T>(
     loop {
         match f() {
             Ok(v) => return Ok(v),
+            Err(e @ IpcError::Full { .. }) => return Err(e),
             Err(e) if start.elapsed() >= timeout => {
                 return Err(match e {
                     IpcError::Iceoryx { .. } => IpcError::NotAvailable {

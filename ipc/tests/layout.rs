@@ -138,3 +138,35 @@ fn prefixes_are_checked() {
     let n = ServiceNames::new("t1").unwrap();
     assert_eq!(n.frame, "t1/scene/frame");
 }
+
+#[test]
+fn control_layout() {
+    assert_eq!(size_of::<ControlRequest>(), 88);
+    assert_eq!(align_of::<ControlRequest>(), 8);
+    assert_eq!(offset_of!(ControlRequest, body_index), 8);
+    assert_eq!(offset_of!(ControlRequest, model), 12);
+    assert_eq!(offset_of!(ControlRequest, body), 16);
+    assert_eq!(offset_of!(ControlRequest, key), 48);
+    assert_eq!(offset_of!(ControlRequest, value), 80);
+    assert_eq!(size_of::<ControlParam>(), 48);
+    assert_eq!(offset_of!(ControlParam, value), 32);
+    assert_eq!(offset_of!(ControlParam, flags), 40);
+    assert_eq!(size_of::<ControlResponse>(), 184 + 48 * CONTROL_MAX_PARAMS);
+    assert_eq!(align_of::<ControlResponse>(), 8);
+    assert_eq!(offset_of!(ControlResponse, pin), 12);
+    assert_eq!(offset_of!(ControlResponse, param_count), 16);
+    assert_eq!(offset_of!(ControlResponse, body), 24);
+    assert_eq!(offset_of!(ControlResponse, message), 56);
+    assert_eq!(offset_of!(ControlResponse, params), 184);
+    // SAFETY: type_name only returns a static string.
+    unsafe {
+        assert_eq!(ControlRequest::type_name(), "lop::ControlRequest");
+        assert_eq!(ControlResponse::type_name(), "lop::ControlResponse");
+    }
+    let r = ControlRequest::set("liver", "fem.young", 300.0);
+    assert_eq!(
+        (r.body_str(), r.key_str(), r.value),
+        ("liver", "fem.young", 300.0)
+    );
+    assert_eq!(r.contract_version, CONTRACT_VERSION);
+}

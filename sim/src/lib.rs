@@ -10,6 +10,7 @@
 
 pub mod collide;
 pub mod contact;
+pub mod control;
 pub mod fem;
 pub mod gc;
 pub mod haptic;

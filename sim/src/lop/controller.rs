@@ -77,7 +77,7 @@ pub struct Switch {
 #[derive(Debug, Clone)]
 pub struct Lop {
     parked: Model,
-    policy: LopPolicy,
+    pub(crate) policy: LopPolicy,
     calm: f64,
     switches: u32,
     last: Option<Switch>,

@@ -1,0 +1,274 @@
+/* lop_ipc.h — lop's shared-memory contract for C and C++ renderers.
+ *
+ * Mirrors ipc/src/types.rs and ipc/src/control.rs field by field (see docs/ipc.md for the
+ * services, their QoS and the rules for clients). Every padding byte is an explicit _pad field;
+ * the _Static_asserts below pin sizes and offsets, and ipc/tests/c_header.rs compiles this
+ * header and compares every offset with the Rust layout.
+ *
+ * Type names to give iceoryx2 when opening a service (they must match exactly):
+ *   "lop::ToolState", "lop::FrameHeader", "lop::NodeSample", "lop::TopologyHeader",
+ *   "u32" (topology payload), "lop::HapticTelemetry", "lop::ControlRequest",
+ *   "lop::ControlResponse".
+ */
+#ifndef LOP_IPC_H
+#define LOP_IPC_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define LOP_CONTRACT_VERSION 3u
+#define LOP_MAX_BODIES 16
+#define LOP_BODY_NAME_LEN 32
+#define LOP_MAX_SUBSCRIBERS 16
+#define LOP_TOOL_BUFFER 64
+#define LOP_FRAME_BUFFER 4
+#define LOP_TELEMETRY_BUFFER 16
+
+/* ToolState.flags */
+#define LOP_TOOL_FLAG_CONTACT      (1u << 0)
+#define LOP_TOOL_FLAG_RAMPING      (1u << 1)
+#define LOP_TOOL_FLAG_STALE_FRAME  (1u << 2)
+#define LOP_TOOL_FLAG_DEVICE_ERROR (1u << 3)
+#define LOP_TOOL_FLAG_GRAB         (1u << 4)
+#define LOP_TOOL_FLAG_HEAT         (1u << 5)
+
+/* BodyFrame.model */
+#define LOP_MODEL_GC  0u
+#define LOP_MODEL_MSD 1u
+#define LOP_MODEL_FEM 2u
+/* BodyFrame.state */
+#define LOP_BODY_STATE_REST   0u
+#define LOP_BODY_STATE_ACTIVE 1u
+#define LOP_BODY_STATE_RESET  2u
+/* NodeSample.flags */
+#define LOP_NODE_FLAG_BURNED (1u << 0)
+/* BodyTopology.importance */
+#define LOP_IMPORTANCE_NORMAL    0u
+#define LOP_IMPORTANCE_IMPORTANT 1u
+/* HapticTelemetry.rt_flags */
+#define LOP_RT_FLAG_FIFO    (1u << 0)
+#define LOP_RT_FLAG_PINNED  (1u << 1)
+#define LOP_RT_FLAG_MLOCKED (1u << 2)
+
+/* "lop::ToolState", service PREFIX/tool. 152 bytes, align 8. */
+typedef struct lop_ToolState {
+    uint32_t contract_version;
+    uint32_t flags;
+    uint64_t sequence;
+    uint64_t stamp_ns;
+    double device_position[3];
+    double proxy_position[3];
+    double force[3];
+    double tool_radius;
+    double contact_barycentric[3];
+    uint32_t buttons;
+    int32_t contact_body;
+    uint32_t contact_triangle;
+    uint32_t _pad;
+    uint64_t topology_id;
+} lop_ToolState;
+
+/* "lop::BodyFrame", inside FrameHeader. 48 bytes, align 4. */
+typedef struct lop_BodyFrame {
+    float aabb_min[3];
+    float aabb_max[3];
+    float kinetic_energy;
+    float max_speed;
+    uint32_t step_ns;
+    uint32_t resets;
+    uint8_t model;
+    uint8_t state;
+    uint8_t _pad[2];
+    uint32_t switches;
+} lop_BodyFrame;
+
+/* "lop::FrameHeader", user header of PREFIX/scene/frame. 840 bytes, align 8. */
+typedef struct lop_FrameHeader {
+    uint32_t contract_version;
+    uint32_t body_count;
+    uint64_t topology_id;
+    uint64_t sequence;
+    double sim_time;
+    uint64_t publish_ns;
+    uint64_t tool_stamp_ns;
+    uint64_t tool_read_ns;
+    uint64_t step_ns;
+    uint32_t node_count;
+    uint32_t _pad;
+    lop_BodyFrame bodies[LOP_MAX_BODIES];
+} lop_FrameHeader;
+
+/* "lop::NodeSample", payload element of PREFIX/scene/frame. 20 bytes, align 4. */
+typedef struct lop_NodeSample {
+    float position[3];
+    float temperature;
+    uint32_t flags;
+} lop_NodeSample;
+
+/* "lop::BodyTopology", inside TopologyHeader. 72 bytes, align 4. */
+typedef struct lop_BodyTopology {
+    uint8_t name[LOP_BODY_NAME_LEN];
+    uint32_t node_offset;
+    uint32_t node_count;
+    uint32_t triangle_offset;
+    uint32_t triangle_count;
+    uint32_t tet_offset;
+    uint32_t tet_count;
+    float color[3];
+    uint8_t importance;
+    uint8_t _pad[3];
+} lop_BodyTopology;
+
+/* "lop::TopologyHeader", user header of PREFIX/scene/topology (payload: uint32_t[]). 1184 bytes. */
+typedef struct lop_TopologyHeader {
+    uint32_t contract_version;
+    uint32_t body_count;
+    uint64_t topology_id;
+    uint32_t node_count;
+    uint32_t triangle_count;
+    uint32_t tet_count;
+    uint32_t _pad;
+    lop_BodyTopology bodies[LOP_MAX_BODIES];
+} lop_TopologyHeader;
+
+/* "lop::Percentiles", inside HapticTelemetry. 40 bytes. */
+typedef struct lop_Percentiles {
+    uint64_t count;
+    uint64_t p50;
+    uint64_t p99;
+    uint64_t p999;
+    uint64_t max;
+} lop_Percentiles;
+
+/* "lop::HapticTelemetry", service PREFIX/telemetry/haptic. 312 bytes, align 8. */
+typedef struct lop_HapticTelemetry {
+    uint32_t contract_version;
+    uint32_t rt_flags;
+    uint64_t stamp_ns;
+    uint64_t ticks;
+    uint64_t overruns;
+    uint64_t stale_ticks;
+    uint64_t device_faults;
+    double rate_hz;
+    double force_norm;
+    lop_Percentiles window_jitter;
+    lop_Percentiles window_compute;
+    lop_Percentiles window_frame_age;
+    lop_Percentiles total_jitter;
+    lop_Percentiles total_compute;
+    lop_Percentiles total_frame_age;
+    int32_t pinned_core;
+    uint32_t _pad;
+} lop_HapticTelemetry;
+
+/* ---- control: request-response service PREFIX/control ---------------------------------- */
+#define LOP_CONTROL_KEY_LEN 32
+#define LOP_CONTROL_MESSAGE_LEN 128
+#define LOP_CONTROL_MAX_PARAMS 16
+#define LOP_CONTROL_MAX_CLIENTS 8
+#define LOP_CONTROL_MAX_ACTIVE_REQUESTS 2
+
+#define LOP_CONTROL_OP_GET     1u
+#define LOP_CONTROL_OP_SET     2u
+#define LOP_CONTROL_OP_PIN     3u
+#define LOP_CONTROL_OP_RELEASE 4u
+#define LOP_CONTROL_OP_RESET   5u
+#define LOP_CONTROL_OP_PAUSE   6u
+#define LOP_CONTROL_OP_RESUME  7u
+
+#define LOP_CONTROL_STATUS_OK           0u
+#define LOP_CONTROL_STATUS_UNKNOWN_BODY 1u
+#define LOP_CONTROL_STATUS_UNKNOWN_KEY  2u
+#define LOP_CONTROL_STATUS_BAD_VALUE    3u
+#define LOP_CONTROL_STATUS_NOT_ALLOWED  4u
+#define LOP_CONTROL_STATUS_BUSY         5u
+#define LOP_CONTROL_STATUS_BAD_REQUEST  6u
+#define LOP_CONTROL_STATUS_FAILED       7u
+
+#define LOP_CONTROL_PIN_AUTO 255u
+#define LOP_CONTROL_PARAM_LIVE (1u << 0)
+
+/* "lop::ControlRequest". 88 bytes, align 8. */
+typedef struct lop_ControlRequest {
+    uint32_t contract_version;
+    uint32_t op;
+    int32_t body_index;
+    uint32_t model;
+    uint8_t body[LOP_BODY_NAME_LEN];
+    uint8_t key[LOP_CONTROL_KEY_LEN];
+    double value;
+} lop_ControlRequest;
+
+/* "lop::ControlParam", inside ControlResponse. 48 bytes, align 8. */
+typedef struct lop_ControlParam {
+    uint8_t key[LOP_CONTROL_KEY_LEN];
+    double value;
+    uint32_t flags;
+    uint32_t _pad;
+} lop_ControlParam;
+
+/* "lop::ControlResponse". 952 bytes, align 8. */
+typedef struct lop_ControlResponse {
+    uint32_t contract_version;
+    uint32_t status;
+    int32_t body_index;
+    uint8_t pin;
+    uint8_t model;
+    uint8_t paused;
+    uint8_t _pad0;
+    uint32_t param_count;
+    uint32_t _pad1;
+    uint8_t body[LOP_BODY_NAME_LEN];
+    uint8_t message[LOP_CONTROL_MESSAGE_LEN];
+    lop_ControlParam params[LOP_CONTROL_MAX_PARAMS];
+} lop_ControlResponse;
+
+#if defined(__STDC_VERSION__) && __STDC_VERSION__ >= 201112L
+#define LOP_ASSERT(c, m) _Static_assert(c, m)
+#elif defined(__cplusplus)
+#define LOP_ASSERT(c, m) static_assert(c, m)
+#else
+#define LOP_ASSERT(c, m)
+#endif
+
+LOP_ASSERT(sizeof(lop_ToolState) == 152, "ToolState size");
+LOP_ASSERT(offsetof(lop_ToolState, device_position) == 24, "ToolState.device_position");
+LOP_ASSERT(offsetof(lop_ToolState, proxy_position) == 48, "ToolState.proxy_position");
+LOP_ASSERT(offsetof(lop_ToolState, buttons) == 128, "ToolState.buttons");
+LOP_ASSERT(offsetof(lop_ToolState, topology_id) == 144, "ToolState.topology_id");
+LOP_ASSERT(sizeof(lop_BodyFrame) == 48, "BodyFrame size");
+LOP_ASSERT(offsetof(lop_BodyFrame, model) == 40, "BodyFrame.model");
+LOP_ASSERT(offsetof(lop_BodyFrame, switches) == 44, "BodyFrame.switches");
+LOP_ASSERT(sizeof(lop_FrameHeader) == 72 + 48 * LOP_MAX_BODIES, "FrameHeader size");
+LOP_ASSERT(offsetof(lop_FrameHeader, node_count) == 64, "FrameHeader.node_count");
+LOP_ASSERT(offsetof(lop_FrameHeader, bodies) == 72, "FrameHeader.bodies");
+LOP_ASSERT(sizeof(lop_NodeSample) == 20, "NodeSample size");
+LOP_ASSERT(offsetof(lop_NodeSample, flags) == 16, "NodeSample.flags");
+LOP_ASSERT(sizeof(lop_BodyTopology) == 72, "BodyTopology size");
+LOP_ASSERT(offsetof(lop_BodyTopology, color) == 56, "BodyTopology.color");
+LOP_ASSERT(offsetof(lop_BodyTopology, importance) == 68, "BodyTopology.importance");
+LOP_ASSERT(sizeof(lop_TopologyHeader) == 32 + 72 * LOP_MAX_BODIES, "TopologyHeader size");
+LOP_ASSERT(offsetof(lop_TopologyHeader, bodies) == 32, "TopologyHeader.bodies");
+LOP_ASSERT(sizeof(lop_Percentiles) == 40, "Percentiles size");
+LOP_ASSERT(sizeof(lop_HapticTelemetry) == 312, "HapticTelemetry size");
+LOP_ASSERT(offsetof(lop_HapticTelemetry, window_jitter) == 64, "HapticTelemetry.window_jitter");
+LOP_ASSERT(offsetof(lop_HapticTelemetry, pinned_core) == 304, "HapticTelemetry.pinned_core");
+LOP_ASSERT(sizeof(lop_ControlRequest) == 88, "ControlRequest size");
+LOP_ASSERT(offsetof(lop_ControlRequest, body) == 16, "ControlRequest.body");
+LOP_ASSERT(offsetof(lop_ControlRequest, key) == 48, "ControlRequest.key");
+LOP_ASSERT(offsetof(lop_ControlRequest, value) == 80, "ControlRequest.value");
+LOP_ASSERT(sizeof(lop_ControlParam) == 48, "ControlParam size");
+LOP_ASSERT(sizeof(lop_ControlResponse) == 952, "ControlResponse size");
+LOP_ASSERT(offsetof(lop_ControlResponse, pin) == 12, "ControlResponse.pin");
+LOP_ASSERT(offsetof(lop_ControlResponse, body) == 24, "ControlResponse.body");
+LOP_ASSERT(offsetof(lop_ControlResponse, message) == 56, "ControlResponse.message");
+LOP_ASSERT(offsetof(lop_ControlResponse, params) == 184, "ControlResponse.params");
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* LOP_IPC_H */

@@ -1,0 +1,241 @@
+//! What `lop-view` sends a browser over its WebSocket (`/ws`). Little-endian throughout.
+//!
+//! Text messages are JSON objects with a `type`:
+//! - `status` `{connected, prefix}`: whether a daemon is attached;
+//! - `topology` `{id, node_count, triangle_count, bodies: [{name, color, node_offset,
+//!   node_count, triangle_offset, triangle_count, importance}]}`, followed at once by the
+//!   binary triangle message;
+//! - `telemetry` `{rate_hz, overruns, stale_ticks, force, jitter_p99_us, compute_p99_us,
+//!   frame_age_p99_ms, history: {jitter, compute, age}}`, about 4 times a second;
+//! - `control` `{ok, status, status_name, message, body, body_index, pin, model, paused,
+//!   params: [{key, value, live}]}`, the answer to a control request.
+//!
+//! Binary messages start with a `u32` kind:
+//! - `1` triangles: `u32 1, u32 triangle_count`, then `3 × triangle_count` `u32` global node
+//!   indices;
+//! - `2` frame: a 64-byte header (`u32 2, u32 node_count, u32 body_count, u32 tool_flags`
+//!   (bit 31: a tool state is present, low bits `TOOL_FLAG_*`), `f32 sim_time, f32 frame_age_ms`
+//!   (publish → viewer receive), `f32 device[3], f32 proxy[3], f32 tool_radius, f32 force[3]`),
+//!   then per body 8 × 4 bytes (`u32 model, u32 state, u32 switches, u32 resets,
+//!   f32 kinetic_energy, f32 max_speed, f32 step_ms, u32 0`), then `f32 position[3 × N]`,
+//!   `f32 temperature[N]`, `u8 flags[N]` (`NODE_FLAG_*`) padded to 4 bytes.
+//!
+//! The page sends control requests as JSON text: `{"op": "get"|"set"|"pin"|"release"|"reset"|
+//! "pause"|"resume", "body": NAME, "key": KEY, "value": NUMBER, "model": "gc"|"msd"|"fem"}`.
+
+use lop_client::*;
+use serde_json::{json, Value};
+
+/// Binary message kind: triangles.
+pub const KIND_TRIANGLES: u32 = 1;
+/// Binary message kind: frame.
+pub const KIND_FRAME: u32 = 2;
+/// Bytes of a frame message's header.
+pub const FRAME_HEADER_BYTES: usize = 64;
+/// Bytes per body in a frame message.
+pub const FRAME_BODY_BYTES: usize = 32;
+/// `tool_flags` bit: a tool state is present.
+pub const TOOL_PRESENT: u32 = 1 << 31;
+
+/// The topology's JSON description.
+pub fn topology_json(t: &Topology, prefix: &str) -> String {
+    let bodies: Vec<Value> = t
+        .bodies()
+        .iter()
+        .map(|b| {
+            json!({
+                "name": b.name_str(),
+                "color": b.color,
+                "node_offset": b.node_offset,
+                "node_count": b.node_count,
+                "triangle_offset": b.triangle_offset,
+                "triangle_count": b.triangle_count,
+                "importance": if b.importance == IMPORTANCE_IMPORTANT { "important" } else { "normal" },
+            })
+        })
+        .collect();
+    json!({
+        "type": "topology",
+        "prefix": prefix,
+        "id": format!("{:#x}", t.header.topology_id),
+        "node_count": t.header.node_count,
+        "triangle_count": t.triangles.len(),
+        "bodies": bodies,
+    })
+    .to_string()
+}
+
+/// The triangle message.
+pub fn topology_binary(t: &Topology) -> Vec<u8> {
+    let mut out = Vec::with_capacity(8 + t.triangles.len() * 12);
+    out.extend_from_slice(&KIND_TRIANGLES.to_le_bytes());
+    out.extend_from_slice(&(t.triangles.len() as u32).to_le_bytes());
+    for tri in &t.triangles {
+        for k in tri {
+            out.extend_from_slice(&k.to_le_bytes());
+        }
+    }
+    out
+}
+
+fn f32s(out: &mut Vec<u8>, v: &[f32]) {
+    for x in v {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
+}
+
+/// The frame message.
+pub fn frame_binary(f: &Frame, tool: Option<&ToolState>) -> Vec<u8> {
+    let n = f.nodes.len();
+    let bodies = f.bodies();
+    let mut out =
+        Vec::with_capacity(FRAME_HEADER_BYTES + bodies.len() * FRAME_BODY_BYTES + n * 17 + 4);
+    out.extend_from_slice(&KIND_FRAME.to_le_bytes());
+    out.extend_from_slice(&(n as u32).to_le_bytes());
+    out.extend_from_slice(&(bodies.len() as u32).to_le_bytes());
+    let flags = tool.map_or(0, |t| TOOL_PRESENT | (t.flags & !TOOL_PRESENT));
+    out.extend_from_slice(&flags.to_le_bytes());
+    let age_ms = f.received_ns.saturating_sub(f.header.publish_ns) as f64 * 1e-6;
+    f32s(&mut out, &[f.header.sim_time as f32, age_ms as f32]);
+    let t = tool.copied().unwrap_or_default();
+    let p = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32];
+    f32s(&mut out, &p(t.device_position));
+    f32s(&mut out, &p(t.proxy_position));
+    f32s(&mut out, &[t.tool_radius as f32]);
+    f32s(&mut out, &p(t.force));
+    debug_assert_eq!(out.len(), FRAME_HEADER_BYTES);
+    for b in bodies {
+        for v in [b.model as u32, b.state as u32, b.switches, b.resets] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        f32s(
+            &mut out,
+            &[b.kinetic_energy, b.max_speed, b.step_ns as f32 * 1e-6],
+        );
+        out.extend_from_slice(&0u32.to_le_bytes());
+    }
+    for s in &f.nodes {
+        f32s(&mut out, &s.position);
+    }
+    for s in &f.nodes {
+        f32s(&mut out, &[s.temperature]);
+    }
+    out.extend(f.nodes.iter().map(|s| s.flags.min(255) as u8));
+    while out.len() % 4 != 0 {
+        out.push(0);
+    }
+    out
+}
+
+/// The status message.
+pub fn status_json(connected: bool, prefix: &str) -> String {
+    json!({"type": "status", "connected": connected, "prefix": prefix}).to_string()
+}
+
+/// Recent telemetry windows, for the page's plots.
+#[derive(Debug, Default)]
+pub struct TelemetryHistory {
+    jitter_us: Vec<f64>,
+    compute_us: Vec<f64>,
+    age_ms: Vec<f64>,
+}
+
+/// Telemetry samples kept for the plots (about 30 s at 4 Hz).
+pub const HISTORY_LEN: usize = 120;
+
+impl TelemetryHistory {
+    /// Adds one telemetry sample (window p99s).
+    pub fn push(&mut self, t: &HapticTelemetry) {
+        for (v, x) in [
+            (&mut self.jitter_us, t.window_jitter.p99 as f64 * 1e-3),
+            (&mut self.compute_us, t.window_compute.p99 as f64 * 1e-3),
+            (&mut self.age_ms, t.window_frame_age.p99 as f64 * 1e-6),
+        ] {
+            v.push(x);
+            if v.len() > HISTORY_LEN {
+                v.remove(0);
+            }
+        }
+    }
+    /// The telemetry message for the newest sample `t`.
+    pub fn json(&self, t: &HapticTelemetry) -> String {
+        json!({
+            "type": "telemetry",
+            "rate_hz": t.rate_hz,
+            "ticks": t.ticks,
+            "overruns": t.overruns,
+            "stale_ticks": t.stale_ticks,
+            "force": t.force_norm,
+            "jitter_p99_us": t.window_jitter.p99 as f64 * 1e-3,
+            "compute_p99_us": t.window_compute.p99 as f64 * 1e-3,
+            "frame_age_p99_ms": t.window_frame_age.p99 as f64 * 1e-6,
+            "history": {"jitter": self.jitter_us, "compute": self.compute_us, "age": self.age_ms},
+        })
+        .to_string()
+    }
+}
+
+/// Parses the page's control request.
+pub fn control_request(text: &str) -> Result<ControlRequest, String> {
+    let v: Value = serde_json::from_str(text).map_err(|e| format!("bad JSON: {e}"))?;
+    let op = v["op"].as_str().unwrap_or("");
+    let body = v["body"].as_str().unwrap_or("");
+    Ok(match op {
+        "get" => ControlRequest::new(CONTROL_OP_GET, body),
+        "set" => {
+            let key = v["key"].as_str().unwrap_or("");
+            let value = match &v["value"] {
+                Value::Number(n) => n.as_f64().unwrap_or(f64::NAN),
+                Value::String(s) => s
+                    .trim()
+                    .parse()
+                    .map_err(|_| format!("{key}: value {s:?} is not a number"))?,
+                other => return Err(format!("{key}: value {other} is not a number")),
+            };
+            ControlRequest::set(body, key, value)
+        }
+        "pin" => {
+            let model = match v["model"].as_str().unwrap_or("") {
+                "gc" => BodyModel::Gc,
+                "msd" => BodyModel::Msd,
+                "fem" => BodyModel::Fem,
+                m => return Err(format!("pin: model {m:?} is not one of gc, msd, fem")),
+            };
+            ControlRequest::pin(body, model)
+        }
+        "release" => ControlRequest::new(CONTROL_OP_RELEASE, body),
+        "reset" => ControlRequest::new(CONTROL_OP_RESET, ""),
+        "pause" => ControlRequest::new(CONTROL_OP_PAUSE, ""),
+        "resume" => ControlRequest::new(CONTROL_OP_RESUME, ""),
+        other => return Err(format!("op {other:?} is not a control operation")),
+    })
+}
+
+/// The control answer as JSON.
+pub fn control_response_json(r: &ControlResponse) -> String {
+    let params: Vec<Value> = r
+        .params()
+        .iter()
+        .map(|p| json!({"key": p.key_str(), "value": p.value, "live": p.flags & CONTROL_PARAM_LIVE != 0}))
+        .collect();
+    json!({
+        "type": "control",
+        "ok": r.status == CONTROL_STATUS_OK,
+        "status": r.status,
+        "status_name": r.status_name(),
+        "message": r.message_str(),
+        "body": r.body_str(),
+        "body_index": r.body_index,
+        "pin": if r.pin == CONTROL_PIN_AUTO { "auto" } else { BodyModel::from_u8(r.pin).map_or("?", BodyModel::as_str) },
+        "model": BodyModel::from_u8(r.model).map_or("?", BodyModel::as_str),
+        "paused": r.paused != 0,
+        "params": params,
+    })
+    .to_string()
+}
+
+/// A control error raised before the daemon was asked.
+pub fn control_error_json(message: &str) -> String {
+    json!({"type": "control", "ok": false, "status_name": "error", "message": message, "params": []})
+        .to_string()
+}

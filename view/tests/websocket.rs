@@ -1,0 +1,163 @@
+//! lop-view's WebSocket against a live daemon: the topology comes first, then frames whose
+//! node count matches it; the control panel's requests reach the daemon and bad ones get typed
+//! errors; when the daemon is stopped and started again, the same WebSocket delivers the new
+//! topology (the viewer re-attaches by itself).
+
+mod common;
+
+use std::net::TcpStream;
+use std::time::{Duration, Instant};
+
+use common::Viewer;
+use lop_system_tests::{unique_prefix, Daemon};
+use lop_view::wire::{FRAME_BODY_BYTES, FRAME_HEADER_BYTES, KIND_FRAME, KIND_TRIANGLES};
+use tungstenite::stream::MaybeTlsStream;
+use tungstenite::{Message, WebSocket};
+
+type Ws = WebSocket<MaybeTlsStream<TcpStream>>;
+
+fn u32_at(b: &[u8], o: usize) -> u32 {
+    u32::from_le_bytes(b[o..o + 4].try_into().unwrap())
+}
+
+/// Reads messages until `pick` returns something, for at most `limit`.
+fn until<T>(ws: &mut Ws, limit: Duration, mut pick: impl FnMut(&Message) -> Option<T>) -> T {
+    let start = Instant::now();
+    while start.elapsed() < limit {
+        match ws.read() {
+            Ok(m) => {
+                if let Some(v) = pick(&m) {
+                    return v;
+                }
+            }
+            Err(tungstenite::Error::Io(e))
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) => {}
+            Err(e) => panic!("websocket: {e}"),
+        }
+    }
+    panic!("nothing expected arrived within {limit:?}");
+}
+
+fn json(m: &Message, kind: &str) -> Option<serde_json::Value> {
+    let Message::Text(t) = m else { return None };
+    let v: serde_json::Value = serde_json::from_str(t.as_str()).ok()?;
+    (v["type"] == kind).then_some(v)
+}
+
+fn control(ws: &mut Ws, req: serde_json::Value) -> serde_json::Value {
+    ws.send(Message::text(req.to_string())).unwrap();
+    until(ws, Duration::from_secs(40), |m| json(m, "control"))
+}
+
+fn start_daemon(prefix: &str) -> Daemon {
+    Daemon::spawn(
+        &["run", "--scene", "organs", "--prefix", prefix, "--quiet"],
+        prefix,
+        Duration::from_secs(180),
+    )
+}
+
+#[test]
+fn websocket_streams_frames_forwards_control_and_survives_a_daemon_restart() {
+    let prefix = unique_prefix("view-ws");
+    let mut daemon = start_daemon(&prefix);
+    let viewer = Viewer::spawn(&prefix, Duration::from_secs(180));
+    let (mut ws, _) = tungstenite::connect(format!("ws://{}/ws", viewer.addr)).expect("connect");
+    if let MaybeTlsStream::Plain(s) = ws.get_ref() {
+        s.set_read_timeout(Some(Duration::from_millis(200)))
+            .unwrap();
+    }
+
+    // Topology, its triangles, then frames of that many nodes.
+    let topo = until(&mut ws, Duration::from_secs(60), |m| json(m, "topology"));
+    let nodes = topo["node_count"].as_u64().unwrap() as usize;
+    let names: Vec<&str> = topo["bodies"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["liver", "spleen", "stomach", "pancreas"]);
+    let tris = until(&mut ws, Duration::from_secs(5), |m| match m {
+        Message::Binary(b) if u32_at(b, 0) == KIND_TRIANGLES => Some(b.to_vec()),
+        _ => None,
+    });
+    assert_eq!(
+        u32_at(&tris, 4) as u64,
+        topo["triangle_count"].as_u64().unwrap()
+    );
+    assert!(tris[8..]
+        .chunks_exact(4)
+        .all(|c| (u32::from_le_bytes(c.try_into().unwrap()) as usize) < nodes));
+    let frame = until(&mut ws, Duration::from_secs(30), |m| match m {
+        Message::Binary(b) if u32_at(b, 0) == KIND_FRAME => Some(b.to_vec()),
+        _ => None,
+    });
+    assert_eq!(u32_at(&frame, 4) as usize, nodes);
+    assert_eq!(u32_at(&frame, 8), 4);
+    let expected = FRAME_HEADER_BYTES + 4 * FRAME_BODY_BYTES + nodes * 16 + nodes.div_ceil(4) * 4;
+    assert_eq!(frame.len(), expected);
+    let pos0 = FRAME_HEADER_BYTES + 4 * FRAME_BODY_BYTES;
+    let temps = &frame[pos0 + 12 * nodes..pos0 + 16 * nodes];
+    let t0 = f32::from_le_bytes(temps[..4].try_into().unwrap());
+    assert!((20.0..=100.0).contains(&t0), "temperature {t0}");
+
+    // Control through the page's channel.
+    let r = control(&mut ws, serde_json::json!({"op": "get", "body": "spleen"}));
+    assert_eq!(r["ok"], true, "{r}");
+    assert_eq!(r["body"], "spleen");
+    let young = r["params"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["key"] == "fem.young")
+        .unwrap();
+    assert_eq!(young["value"], 140.0);
+    let r = control(
+        &mut ws,
+        serde_json::json!({"op": "set", "body": "spleen", "key": "fem.poisson", "value": 0.7}),
+    );
+    assert_eq!(r["status_name"], "bad value", "{r}");
+    assert!(
+        r["message"].as_str().unwrap().contains("fem.poisson = 0.7"),
+        "{r}"
+    );
+    let r = control(
+        &mut ws,
+        serde_json::json!({"op": "pin", "body": "kidney", "model": "fem"}),
+    );
+    assert_eq!(r["status_name"], "unknown body", "{r}");
+    let r = control(&mut ws, serde_json::json!({"op": "pause"}));
+    assert_eq!(
+        (r["ok"].clone(), r["paused"].clone()),
+        (true.into(), true.into()),
+        "{r}"
+    );
+    let r = control(&mut ws, serde_json::json!({"op": "resume"}));
+    assert_eq!(r["paused"], false, "{r}");
+
+    // Stop the daemon and start another one under the same prefix: the viewer re-attaches and
+    // the open WebSocket gets the new topology.
+    let old_id = topo["id"].as_str().unwrap().to_string();
+    daemon.signal(libc::SIGINT);
+    assert!(daemon
+        .wait(Duration::from_secs(20))
+        .expect("stops")
+        .success());
+    let down = until(&mut ws, Duration::from_secs(20), |m| {
+        json(m, "status").filter(|s| s["connected"] == false)
+    });
+    assert_eq!(down["prefix"], prefix.as_str());
+    let _daemon2 = start_daemon(&prefix);
+    let topo2 = until(&mut ws, Duration::from_secs(60), |m| json(m, "topology"));
+    assert_ne!(topo2["id"].as_str().unwrap(), old_id);
+    let frame2 = until(&mut ws, Duration::from_secs(30), |m| match m {
+        Message::Binary(b) if u32_at(b, 0) == KIND_FRAME => Some(b.len()),
+        _ => None,
+    });
+    assert_eq!(frame2, expected);
+    drop(viewer);
+}
