@@ -116,8 +116,6 @@ struct ContactIndex {
     god: GodObject,
     /// Sequence of the newest frame seen.
     frame_sequence: Option<u64>,
-    /// Per body: the frame sequence its positions in `set` come from.
-    body_sequence: [Option<u64>; MAX_BODIES],
 }
 
 impl ContactIndex {
@@ -146,7 +144,6 @@ impl ContactIndex {
             set,
             god,
             frame_sequence: None,
-            body_sequence: [None; MAX_BODIES],
         })
     }
 }
@@ -166,6 +163,7 @@ impl IndexFeed {
         let stop = Arc::new(AtomicBool::new(false));
         let names = names.clone();
         let flag = stop.clone();
+        let (ready_tx, ready_rx) = std::sync::mpsc::channel::<()>();
         let thread = std::thread::Builder::new()
             .name("lop-haptic-index".into())
             .spawn(move || {
@@ -175,6 +173,7 @@ impl IndexFeed {
                         .subscriber_builder()
                         .create()
                         .context("topology subscriber")?;
+                    let _ = ready_tx.send(());
                     while !flag.load(Ordering::Relaxed) {
                         while let Ok(Some(t)) = topologies.receive() {
                             if let Some(ix) =
@@ -196,6 +195,9 @@ impl IndexFeed {
                     tracing::warn!("haptic contact index thread stopped: {e:#}");
                 }
             })?;
+        // Subscribed before the loop starts, so a topology published right after is not missed
+        // (the deformation process also re-offers its topology to late subscribers).
+        let _ = ready_rx.recv_timeout(Duration::from_secs(2));
         Ok(IndexFeed {
             rx,
             back,
@@ -536,28 +538,17 @@ impl HapticLoop {
         let new_frame = ix.frame_sequence != Some(fh.sequence);
         ix.frame_sequence = Some(fh.sequence);
         let proxy = ix.god.proxy();
-        let mut moved = false;
-        for b in 0..ix.set.bodies().min(fh.body_count as usize) {
-            let bf = &fh.bodies[b];
-            let near = |p: [f64; 3]| {
-                (0..3).all(|k| {
-                    p[k] >= bf.aabb_min[k] as f64 - REACH && p[k] <= bf.aabb_max[k] as f64 + REACH
-                })
-            };
-            let wanted = device.is_some_and(near) || near(proxy);
-            if !wanted {
-                ix.set.set_active(b, false);
-                continue;
-            }
-            if ix.body_sequence[b] != Some(fh.sequence) {
-                ix.body_sequence[b] = Some(fh.sequence);
-                ix.set
-                    .set_body_positions(b, |i| nodes[i].position.map(|c| c as f64));
-                moved = true;
-            } else {
-                ix.set.set_active(b, true);
-            }
-        }
+        let points = [device.unwrap_or(proxy), proxy];
+        let count = (fh.body_count as usize).min(MAX_BODIES);
+        let bounds = |b: usize| match fh.bodies.get(b) {
+            Some(bf) if b < count => (bf.aabb_min.map(|c| c as f64), bf.aabb_max.map(|c| c as f64)),
+            _ => ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
+        };
+        let moved = ix
+            .set
+            .refresh_reachable(fh.sequence, &points, REACH, bounds, |i| {
+                nodes[i].position.map(|c| c as f64)
+            });
         if first {
             ix.god.reset();
         } else if new_frame || moved {

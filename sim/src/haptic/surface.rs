@@ -47,6 +47,8 @@ pub struct SurfaceSet {
     body_nodes: Vec<(usize, usize)>,
     /// Per body: whether queries consider it (its positions are current).
     active: Vec<bool>,
+    /// Per body: the frame its positions come from (see [`SurfaceSet::refresh_reachable`]).
+    body_frame: Vec<Option<u64>>,
     /// Per body: a surface vertex to start walks from.
     warm: Vec<u32>,
     /// Surface-vertex adjacency (CSR over all nodes; non-surface nodes have none).
@@ -134,6 +136,7 @@ impl SurfaceSet {
             body_box: vec![([0.0; 3], [0.0; 3]); bodies],
             body_nodes,
             active: vec![true; bodies],
+            body_frame: vec![None; bodies],
             warm,
             adj_ptr,
             adj,
@@ -226,6 +229,38 @@ impl SurfaceSet {
         self.body_box[b] = (lo, hi);
         self.dirty[b] = true;
         self.active[b] = true;
+    }
+
+    /// Brings the set up to date with frame `frame` for the bodies the tool can reach: a body
+    /// whose bounds `bounds(b)` (from the frame) are within `reach` of one of `points` gets its
+    /// positions from `at` — once per frame — and takes part in queries; the others are left
+    /// out until they come within reach. Copying only what the tool can touch keeps a frame's
+    /// arrival cheap on the haptic tick. Returns whether any positions changed.
+    pub fn refresh_reachable(
+        &mut self,
+        frame: u64,
+        points: &[[f64; 3]],
+        reach: f64,
+        bounds: impl Fn(usize) -> ([f64; 3], [f64; 3]),
+        mut at: impl FnMut(usize) -> [f64; 3],
+    ) -> bool {
+        let mut moved = false;
+        for b in 0..self.body_tris.len() {
+            let (lo, hi) = bounds(b);
+            let near = points
+                .iter()
+                .any(|p| (0..3).all(|k| p[k] >= lo[k] - reach && p[k] <= hi[k] + reach));
+            if !near {
+                self.active[b] = false;
+            } else if self.body_frame[b] != Some(frame) {
+                self.body_frame[b] = Some(frame);
+                self.set_body_positions(b, &mut at);
+                moved = true;
+            } else {
+                self.active[b] = true;
+            }
+        }
+        moved
     }
 
     /// Takes body `b` out of (or back into) the queries, e.g. while its positions are stale.
