@@ -99,7 +99,7 @@ pub struct LopArgs {
 // Shared helpers.
 
 /// A shipped scene by name (`config/scenes/NAME.toml`).
-fn shipped_scene(name: &str) -> Result<Scene> {
+pub(crate) fn shipped_scene(name: &str) -> Result<Scene> {
     let path = workspace_root()
         .join("config/scenes")
         .join(format!("{name}.toml"));

@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod cyclictest;
+mod interaction;
 mod latency;
 mod lop;
 mod models;
@@ -33,6 +34,9 @@ enum Command {
     /// Levels of precision, the thesis' §6.3–6.4: time per iteration per body with and without
     /// the GC cage, the cage's speed-up over FEM, and its approximation error (CSV + SVG plots).
     Lop(lop::LopArgs),
+    /// Tool interaction, the thesis' §6.3.4: haptic tick compute (god-object + force), collision
+    /// detection per step, heat step per body (table, CSV, SVG).
+    Interaction(interaction::InteractionArgs),
 }
 
 fn main() -> ExitCode {
@@ -42,6 +46,7 @@ fn main() -> ExitCode {
         Command::Latency(a) => latency::run(a),
         Command::Models(a) => models::run(a),
         Command::Lop(a) => lop::run(a),
+        Command::Interaction(a) => interaction::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,273 @@
+//! `lop-bench interaction`: the cost of tool interaction (thesis §6.3.4, figs. 6.10–6.12).
+//!
+//! - **Haptic tick** (god-object + force): the contact part of the 1 kHz tick — refresh of the
+//!   bodies the tool can reach when a frame arrives, the god-object's move, the force law — on
+//!   `organs` and `cylinders`, with the scene's mock poke and grab scripts moving the device and
+//!   the bodies deforming under the tool as in `lopd` (frames at 100 Hz: one world pass every
+//!   10 ticks, untimed). Target: p99 ≤ 20 µs on `organs`. IPC and the device are left out:
+//!   `lop-bench latency` measures the whole live tick.
+//! - **Collision detection** per world step (`lop_sim::collide`, all body pairs).
+//! - **Heat step** per body (`lop_sim::heat`, one implicit step, cautery on) and for the whole
+//!   scene (bodies plus the links between touching organs).
+//!
+//! Times are per call, one core, release build; CSV, SVG and an aligned table.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use hdrhistogram::Histogram;
+use lop_config::Scene;
+use lop_drivers::mock::MockScript;
+use lop_drivers::BUTTON_GRAB;
+use lop_sim::collide::{CollisionBody, Collisions};
+use lop_sim::haptic::{hand_force, GodObject, SurfaceSet};
+use lop_sim::model::ToolAnchor;
+use lop_sim::world::Coupling;
+use serde::Serialize;
+
+use crate::lop::shipped_scene;
+use crate::models::workspace_root;
+use crate::plot;
+use crate::table::{self, Row};
+
+/// Options of `lop-bench interaction`.
+#[derive(Args, Debug)]
+pub struct InteractionArgs {
+    /// Small and fast (for the smoke test): 2 s of simulated interaction per script.
+    #[arg(long)]
+    quick: bool,
+    /// Where the CSV and SVG files go (created if missing).
+    #[arg(long, default_value = "target/lop-bench/interaction")]
+    out: PathBuf,
+    /// Also write every number as JSON to this file.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+#[derive(Serialize)]
+struct Report {
+    rows: Vec<Row>,
+}
+
+/// Ticks per frame (1 kHz haptics, 100 Hz frames).
+const TICKS_PER_FRAME: u64 = 10;
+/// Bodies within this of the device or the god-object are refreshed (as in the haptic loop), m.
+const REACH: f64 = 0.02;
+
+/// Runs the benchmark.
+pub fn run(a: InteractionArgs) -> Result<()> {
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let seconds = if a.quick { 2.0 } else { 12.0 };
+    let mut rows = Vec::new();
+    for scene in ["organs", "cylinders"] {
+        for script in ["poke", "grab"] {
+            rows.push(haptic_ticks(scene, script, seconds)?);
+        }
+        rows.push(collision_steps(scene, if a.quick { 50 } else { 500 })?);
+        rows.extend(heat_steps(scene, if a.quick { 50 } else { 500 })?);
+    }
+    println!("lop-bench interaction (one core; µs per call)\n");
+    println!("{}", table::render(&rows));
+    let csv = a.out.join("interaction.csv");
+    let mut text = String::from("key,label,count,p50_us,p99_us,p999_us,max_us\n");
+    for r in &rows {
+        text += &format!(
+            "{},{},{},{:.3},{:.3},{:.3},{:.3}\n",
+            r.key, r.label, r.count, r.p50_us, r.p99_us, r.p999_us, r.max_us
+        );
+    }
+    std::fs::write(&csv, text).with_context(|| format!("writing {}", csv.display()))?;
+    let bars: Vec<(String, f64)> = rows.iter().map(|r| (r.key.clone(), r.p99_us)).collect();
+    let svg = a.out.join("interaction_p99.svg");
+    plot::bars(&svg, "Interaction costs, p99 per call", "µs", &bars)?;
+    println!("\nwrote {} and {}", csv.display(), svg.display());
+    if let Some(path) = a.json {
+        let body = serde_json::to_string_pretty(&Report { rows })?;
+        std::fs::write(&path, body).with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}
+
+fn script_of(scene: &Scene, name: &str) -> Result<MockScript> {
+    let path = workspace_root()
+        .join("config/scripts")
+        .join(format!("{}-{name}.toml", scene.name));
+    MockScript::load(&path).with_context(|| format!("loading {}", path.display()))
+}
+
+/// The contact part of the haptic tick against a deforming scene.
+fn haptic_ticks(scene_name: &str, script_name: &str, seconds: f64) -> Result<Row> {
+    let scene = shipped_scene(scene_name)?;
+    let script = script_of(&scene, script_name)?;
+    let workspace = scene.workspace.transform();
+    let tool_spec = scene.tool.clone();
+    let stiffness: Vec<f64> = scene
+        .bodies
+        .iter()
+        .map(|b| b.tool_stiffness.unwrap_or(tool_spec.stiffness))
+        .collect();
+    let loaded = lop_daemon::scene::load(scene)?;
+    let mut world = loaded.world;
+    let offsets = loaded.node_offsets;
+    let tris: Vec<Vec<[u32; 3]>> = world
+        .bodies
+        .iter()
+        .zip(&offsets)
+        .map(|(b, &o)| b.mesh.surface.iter().map(|t| t.map(|v| v + o as u32)).collect())
+        .collect();
+    let slices: Vec<&[[u32; 3]]> = tris.iter().map(|t| t.as_slice()).collect();
+    let node_count: usize = world.bodies.iter().map(|b| b.mesh.nodes.len()).sum();
+    let mut set = SurfaceSet::new(node_count, &slices);
+    let mut god = GodObject::new(tool_spec.radius, set.triangles().len());
+    let mut frame: Vec<[f64; 3]> = vec![[0.0; 3]; node_count];
+    let mut bounds = vec![([0.0; 3], [0.0; 3]); world.bodies.len()];
+    let mut hist = Histogram::<u64>::new_with_bounds(1, 1_000_000_000, 3)?;
+    let ticks = (seconds * 1000.0) as u64;
+    let law = lop_daemon::scene::tool_sphere(&tool_spec, [0.0; 3]).law;
+    let mut sequence = 0;
+    for tick in 0..ticks {
+        let t = tick as f64 * 1e-3;
+        let sample = script.sample(t);
+        let device = workspace.device_to_scene(sample.position_mm);
+        let new_frame = tick % TICKS_PER_FRAME == 0;
+        if new_frame {
+            // The deformation process's side (not timed): step what is due, publish.
+            for i in 0..world.bodies.len() {
+                let tool = lop_daemon::scene::tool_sphere(&tool_spec, device);
+                while world.body_due(i, t) {
+                    let _ = world.step_body(i, Some(&tool));
+                }
+            }
+            for (b, body) in world.bodies.iter().enumerate() {
+                let x = body.model.positions();
+                frame[offsets[b]..offsets[b] + x.len()].copy_from_slice(x);
+                bounds[b] = lop_sim::mesh::bounds(x);
+            }
+            sequence += 1;
+        }
+        let t0 = Instant::now();
+        let proxy = god.proxy();
+        let moved =
+            set.refresh_reachable(sequence, &[device, proxy], REACH, |b| bounds[b], |i| frame[i]);
+        if moved {
+            god.follow_surface(&set);
+        }
+        let g = god.update(&mut set, device, sample.pressed(BUTTON_GRAB));
+        let k = g.anchor.map_or(tool_spec.stiffness, |a| stiffness[a.body]);
+        let f = hand_force(&g, law, k, tool_spec.damping, [0.0; 3]);
+        let ns = t0.elapsed().as_nanos() as u64;
+        std::hint::black_box(f);
+        hist.saturating_record(ns.max(1));
+        // Hand the contact to the tissue as the deformation process does.
+        world.coupling = Coupling::GodObject(g.anchor.and_then(|a| {
+            let b = a.body;
+            let local = a.triangle - set.body_triangles(b).start;
+            let body = &world.bodies[b];
+            ToolAnchor::from_proxy(
+                &body.mesh.surface,
+                body.model.positions(),
+                local as u32,
+                a.bary,
+                g.proxy,
+                g.grabbing,
+            )
+            .map(|anchor| (b, anchor))
+        }));
+    }
+    let stats = set.stats();
+    Ok(Row::from_histogram_ns(
+        &format!("tick_{scene_name}_{script_name}"),
+        &format!(
+            "tick {scene_name} {script_name} ({}/{} walks fell back)",
+            stats.fallbacks, stats.walks
+        ),
+        &hist,
+    ))
+}
+
+/// Collision detection per world step while the poke deforms the scene.
+fn collision_steps(scene_name: &str, steps: usize) -> Result<Row> {
+    let scene = shipped_scene(scene_name)?;
+    let script = script_of(&scene, "poke")?;
+    let workspace = scene.workspace.transform();
+    let tool_spec = scene.tool.clone();
+    let loaded = lop_daemon::scene::load(scene)?;
+    let mut world = loaded.world;
+    let surfaces: Vec<&[[u32; 3]]> = world.bodies.iter().map(|b| &b.mesh.surface[..]).collect();
+    let mut collisions = Collisions::new(&surfaces);
+    drop(surfaces);
+    let mut hist = Histogram::<u64>::new_with_bounds(1, 1_000_000_000, 3)?;
+    let dt = world.bodies.iter().map(|b| b.model.dt()).fold(f64::INFINITY, f64::min);
+    for step in 0..steps {
+        let t = (step + 1) as f64 * dt + 1.0;
+        let tool = lop_daemon::scene::tool_sphere(
+            &tool_spec,
+            workspace.device_to_scene(script.sample(t).position_mm),
+        );
+        for i in 0..world.bodies.len() {
+            while world.body_due(i, t) {
+                let _ = world.step_body(i, Some(&tool));
+            }
+        }
+        let bodies: Vec<CollisionBody<'_>> = world
+            .bodies
+            .iter()
+            .map(|b| CollisionBody {
+                positions: b.model.positions(),
+                surface: &b.mesh.surface,
+            })
+            .collect();
+        let t0 = Instant::now();
+        std::hint::black_box(collisions.detect(&bodies).len());
+        hist.saturating_record((t0.elapsed().as_nanos() as u64).max(1));
+    }
+    Ok(Row::from_histogram_ns(
+        &format!("collide_{scene_name}"),
+        &format!("collision detection, {scene_name}"),
+        &hist,
+    ))
+}
+
+/// One heat step per body (cautery on the first body's surface) and for the whole scene.
+fn heat_steps(scene_name: &str, steps: usize) -> Result<Vec<Row>> {
+    let scene = shipped_scene(scene_name)?;
+    let power = scene.tool.heat_power;
+    let loaded = lop_daemon::scene::load(scene.clone())?;
+    let mut heat = lop_daemon::scene::heat_world(&scene, &loaded.world)?;
+    let mut rows = Vec::new();
+    let links = heat.links().len();
+    for b in 0..loaded.world.bodies.len() {
+        let tri = loaded.world.bodies[b].mesh.surface[0];
+        let mut hist = Histogram::<u64>::new_with_bounds(1, 1_000_000_000, 3)?;
+        let body = heat.body_mut(b)?;
+        for _ in 0..steps {
+            body.heat_point(tri, [1.0 / 3.0; 3], power)?;
+            let t0 = Instant::now();
+            body.step()?;
+            hist.saturating_record((t0.elapsed().as_nanos() as u64).max(1));
+        }
+        rows.push(Row::from_histogram_ns(
+            &format!("heat_{scene_name}_{}", loaded.world.bodies[b].name),
+            &format!(
+                "heat step, {} ({} nodes)",
+                loaded.world.bodies[b].name,
+                loaded.world.bodies[b].mesh.nodes.len()
+            ),
+            &hist,
+        ));
+    }
+    let mut hist = Histogram::<u64>::new_with_bounds(1, 1_000_000_000, 3)?;
+    for _ in 0..steps {
+        let t0 = Instant::now();
+        heat.step()?;
+        hist.saturating_record((t0.elapsed().as_nanos() as u64).max(1));
+    }
+    rows.push(Row::from_histogram_ns(
+        &format!("heat_{scene_name}_all"),
+        &format!("heat step, {scene_name}, {links} links"),
+        &hist,
+    ));
+    Ok(rows)
+}
