@@ -115,7 +115,13 @@ fn haptic_ticks(scene_name: &str, script_name: &str, seconds: f64) -> Result<Row
         .bodies
         .iter()
         .zip(&offsets)
-        .map(|(b, &o)| b.mesh.surface.iter().map(|t| t.map(|v| v + o as u32)).collect())
+        .map(|(b, &o)| {
+            b.mesh
+                .surface
+                .iter()
+                .map(|t| t.map(|v| v + o as u32))
+                .collect()
+        })
         .collect();
     let slices: Vec<&[[u32; 3]]> = tris.iter().map(|t| t.as_slice()).collect();
     let node_count: usize = world.bodies.iter().map(|b| b.mesh.nodes.len()).sum();
@@ -149,8 +155,13 @@ fn haptic_ticks(scene_name: &str, script_name: &str, seconds: f64) -> Result<Row
         }
         let t0 = Instant::now();
         let proxy = god.proxy();
-        let moved =
-            set.refresh_reachable(sequence, &[device, proxy], REACH, |b| bounds[b], |i| frame[i]);
+        let moved = set.refresh_reachable(
+            sequence,
+            &[device, proxy],
+            REACH,
+            |b| bounds[b],
+            |i| frame[i],
+        );
         if moved {
             god.follow_surface(&set);
         }
@@ -199,7 +210,11 @@ fn collision_steps(scene_name: &str, steps: usize) -> Result<Row> {
     let mut collisions = Collisions::new(&surfaces);
     drop(surfaces);
     let mut hist = Histogram::<u64>::new_with_bounds(1, 1_000_000_000, 3)?;
-    let dt = world.bodies.iter().map(|b| b.model.dt()).fold(f64::INFINITY, f64::min);
+    let dt = world
+        .bodies
+        .iter()
+        .map(|b| b.model.dt())
+        .fold(f64::INFINITY, f64::min);
     for step in 0..steps {
         let t = (step + 1) as f64 * dt + 1.0;
         let tool = lop_daemon::scene::tool_sphere(

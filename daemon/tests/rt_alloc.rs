@@ -100,14 +100,9 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
         h.publish_ns = clock::monotonic_ns();
         for (i, b) in loaded.world.bodies.iter().enumerate() {
             let bf = &mut h.bodies[i];
-            bf.aabb_min = [f32::INFINITY; 3];
-            bf.aabb_max = [f32::NEG_INFINITY; 3];
-            for p in &b.mesh.nodes {
-                for k in 0..3 {
-                    bf.aabb_min[k] = bf.aabb_min[k].min(p[k] as f32);
-                    bf.aabb_max[k] = bf.aabb_max[k].max(p[k] as f32);
-                }
-            }
+            let (lo, hi) = lop_sim::mesh::bounds(&b.mesh.nodes);
+            bf.aabb_min = lo.map(|c| c as f32);
+            bf.aabb_max = hi.map(|c| c as f32);
         }
         let mut k = 0;
         let s = s.write_from_fn(|_| NodeSample::default());
