@@ -81,6 +81,21 @@ impl HapticSettings {
     pub fn new(config: &DaemonConfig, scene: &Scene, limits: DeviceLimits) -> HapticSettings {
         let rate = scene.rates.haptic_hz;
         let h = &config.haptic;
+        // The device renders at most `max_stiffness_n_per_mm` at the stylus; a scene spring `k`
+        // (N/m) is felt as `k · 1e-3 · scale` N/mm there (the workspace scales motion, not
+        // force). A linear law stiffer than that is clamped to it (the quadratic law's
+        // stiffness grows with depth: not clamped, warned at start by the servo path).
+        let scale = scene.workspace.scale;
+        let k_max =
+            if limits.max_stiffness_n_per_mm.is_finite() && limits.max_stiffness_n_per_mm > 0.0 {
+                limits.max_stiffness_n_per_mm / (1e-3 * scale)
+            } else {
+                f64::INFINITY
+            };
+        let clamp_k = |k: f64| match scene.tool.force_law {
+            lop_config::ForceLaw::Linear => k.min(k_max),
+            lop_config::ForceLaw::Quadratic => k,
+        };
         HapticSettings {
             rate_hz: rate,
             stale_ns: (h.stale_frame_ms * 1e6) as u64,
@@ -92,12 +107,16 @@ impl HapticSettings {
             max_step: h.max_force_step_n,
             spin_ns: (h.spin_us * 1e3) as u64,
             workspace: scene.workspace.transform(),
-            tool: tool_sphere(&scene.tool, [0.0; 3]),
+            tool: {
+                let mut t = tool_sphere(&scene.tool, [0.0; 3]);
+                t.stiffness = clamp_k(t.stiffness);
+                t
+            },
             limits,
             body_stiffness: scene
                 .bodies
                 .iter()
-                .map(|b| b.tool_stiffness.unwrap_or(scene.tool.stiffness))
+                .map(|b| clamp_k(b.tool_stiffness.unwrap_or(scene.tool.stiffness)))
                 .collect(),
             damping: scene.tool.damping,
         }
@@ -321,7 +340,12 @@ impl HapticLoop {
             .context("tool blackboard entry")?;
         let rate = settings.rate_hz.round() as u64;
         Ok(HapticLoop {
-            safety: ForceSafety::new(settings.max_force, settings.max_step, settings.ramp_ticks),
+            // The device's continuous force, as a mean over about 2 s.
+            safety: ForceSafety::new(settings.max_force, settings.max_step, settings.ramp_ticks)
+                .with_continuous(
+                    settings.limits.max_continuous_force_n,
+                    (2.0 * settings.rate_hz) as u32,
+                ),
             settings,
             _node: node,
             frames,
@@ -743,4 +767,25 @@ pub type Ring<T> = (rtrb::Producer<T>, rtrb::Consumer<T>);
 /// Creates the two rings between the RT thread and the publisher thread.
 pub fn rings() -> (Ring<ToolState>, Ring<HapticTelemetry>) {
     (rtrb::RingBuffer::new(TOOL_RING), rtrb::RingBuffer::new(16))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tool_stiffness_is_clamped_to_what_the_device_renders() {
+        let path = lop_config::resolve_scene("organs").unwrap();
+        let scene = lop_config::load_scene(&path).unwrap();
+        let mut limits = lop_drivers::mock::MockDevice::omni_limits();
+        // The shipped 300 N/m at workspace scale 2 is 0.6 N/mm at the stylus.
+        let s = HapticSettings::new(&DaemonConfig::default(), &scene, limits);
+        assert_eq!(s.tool.stiffness, 300.0);
+        assert!(s.body_stiffness.iter().all(|&k| k == 300.0));
+        // A device that renders only 0.3 N/mm: 0.3 / (1e-3 · 2) = 150 N/m.
+        limits.max_stiffness_n_per_mm = 0.3;
+        let s = HapticSettings::new(&DaemonConfig::default(), &scene, limits);
+        assert!((s.tool.stiffness - 150.0).abs() < 1e-9);
+        assert!(s.body_stiffness.iter().all(|&k| (k - 150.0).abs() < 1e-9));
+    }
 }

@@ -7,6 +7,11 @@
 //!   recovering stream cannot kick the hand.
 //! - Otherwise the force changes by at most `max_step` per tick, except at contact onset (from
 //!   zero force), where the penalty law's own small value is allowed through at once.
+//! - With a continuous-force limit (the device's `HD_NOMINAL_MAX_CONTINUOUS_FORCE`, set by
+//!   [`ForceSafety::with_continuous`]): the motors heat with the square of the force, so the
+//!   root mean square of the output over the last seconds (an exponential average) is kept at
+//!   or under that limit by lowering the clamp towards it while the average is over. Peaks up to
+//!   the peak force stay possible; holding more than the continuous force for long is not.
 
 /// Force conditioning state. Pure and allocation-free.
 #[derive(Debug, Clone)]
@@ -18,6 +23,12 @@ pub struct ForceSafety {
     ramp_ticks: u32,
     level: u32,
     last: [f64; 3],
+    /// Continuous-force limit, N (infinite: none).
+    continuous: f64,
+    /// Weight of the newest tick in the mean square (1 / averaging ticks).
+    alpha: f64,
+    /// Exponential mean of |F|² over recent ticks, N².
+    mean_square: f64,
 }
 
 impl ForceSafety {
@@ -37,7 +48,33 @@ impl ForceSafety {
             ramp_ticks: ramp_ticks.max(1),
             level: ramp_ticks.max(1),
             last: [0.0; 3],
+            continuous: f64::INFINITY,
+            alpha: 0.0,
+            mean_square: 0.0,
         }
+    }
+
+    /// Adds a continuous-force limit `continuous` N, averaged over about `ticks` ticks (see the
+    /// module docs). A non-finite or non-positive limit means none.
+    pub fn with_continuous(mut self, continuous: f64, ticks: u32) -> ForceSafety {
+        if continuous.is_finite() && continuous > 0.0 {
+            self.continuous = continuous;
+            self.alpha = 1.0 / ticks.max(1) as f64;
+        }
+        self
+    }
+
+    /// The clamp this tick: the peak force while the recent mean square force is under 90 % of
+    /// the continuous limit's square, the continuous force once it reaches it, and in between
+    /// a linear blend — continuous in the average, which moves slowly, so the clamp never
+    /// chatters. A force held above the limit settles at it.
+    fn clamp_now(&self) -> f64 {
+        if !self.continuous.is_finite() || self.continuous >= self.max_force {
+            return self.max_force;
+        }
+        let c2 = self.continuous * self.continuous;
+        let over = ((self.mean_square - 0.9 * c2) / (0.1 * c2)).clamp(0.0, 1.0);
+        self.max_force + (self.continuous - self.max_force) * over
     }
 
     /// The force to write this tick for the `desired` force. `healthy` is false when the data
@@ -53,7 +90,7 @@ impl ForceSafety {
         }
         let gain = self.level as f64 / self.ramp_ticks as f64;
         let target = if healthy { desired } else { self.last };
-        let mut f = clamp_norm(target, self.max_force);
+        let mut f = clamp_norm(target, self.clamp_now());
         if healthy {
             let onset = self.last == [0.0; 3];
             if !onset {
@@ -68,6 +105,10 @@ impl ForceSafety {
         }
         if !f.iter().all(|c| c.is_finite()) {
             f = [0.0; 3];
+        }
+        if self.alpha > 0.0 {
+            let f2 = f[0] * f[0] + f[1] * f[1] + f[2] * f[2];
+            self.mean_square += self.alpha * (f2 - self.mean_square);
         }
         self.last = f;
         f
@@ -152,6 +193,29 @@ mod tests {
             .collect();
         assert!((back[0] - 0.4).abs() < 1e-12, "{back:?}");
         assert!((back[4] - 2.0).abs() < 1e-12, "{back:?}");
+    }
+
+    #[test]
+    fn continuous_limit_lowers_a_held_force_but_allows_peaks() {
+        // Peak 3.3 N, continuous 0.88 N averaged over 1000 ticks.
+        let mut s = ForceSafety::new(3.3, 10.0, 5).with_continuous(0.88, 1000);
+        // A short 3 N peak goes through.
+        for _ in 0..50 {
+            let f = s.condition([0.0, 3.0, 0.0], true);
+            assert!((f[1] - 3.0).abs() < 1e-12);
+        }
+        // Held for 10 s, the output's RMS settles at the continuous limit, never far above.
+        let mut last = 0.0;
+        for _ in 0..10_000 {
+            last = s.condition([0.0, 3.0, 0.0], true)[1];
+        }
+        assert!((last - 0.88).abs() < 0.05, "{last}");
+        // Without a limit nothing changes.
+        let mut s = ForceSafety::new(3.3, 10.0, 5);
+        for _ in 0..10_000 {
+            last = s.condition([0.0, 3.0, 0.0], true)[1];
+        }
+        assert_eq!(last, 3.0);
     }
 
     #[test]
