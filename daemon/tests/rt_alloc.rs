@@ -129,6 +129,9 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
     ALLOCATIONS.store(0, Ordering::Relaxed);
 
     let mut contact_ticks = 0;
+    let max_step = DaemonConfig::default().haptic.max_force_step_n;
+    let mut last_force = [0.0f64; 3];
+    let mut largest_step: f64 = 0.0;
     for i in 0..10_000u64 {
         if i % 10 == 0 {
             publish_frame(i / 10 + 1);
@@ -138,6 +141,17 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
         if out.state.flags & TOOL_FLAG_CONTACT != 0 {
             contact_ticks += 1;
         }
+        // Frames come at 100 Hz, the force is rendered at 1 kHz: it stays smooth — no step
+        // larger than the per-tick limit, except at contact onset (from zero force).
+        let f = out.state.force;
+        let step = ((f[0] - last_force[0]).powi(2)
+            + (f[1] - last_force[1]).powi(2)
+            + (f[2] - last_force[2]).powi(2))
+        .sqrt();
+        if last_force != [0.0; 3] {
+            largest_step = largest_step.max(step);
+        }
+        last_force = f;
         while tool_rx.pop().is_ok() {}
         while tel_rx.pop().is_ok() {}
     }
@@ -147,6 +161,10 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
         "the poke must exercise the contact path ({contact_ticks})"
     );
     assert_eq!(allocations, 0, "heap allocations on the haptic tick");
+    assert!(
+        largest_step <= max_step + 1e-12,
+        "force step {largest_step} N over the {max_step} N per-tick limit"
+    );
 
     // The counter does see allocations (the test can fail).
     counted(|| std::hint::black_box(vec![1u8; 16]));
