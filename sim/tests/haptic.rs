@@ -396,3 +396,55 @@ fn a_tick_allocates_nothing() {
     });
     assert_eq!(n, 0);
 }
+
+#[test]
+fn small_motions_skip_the_refit_and_stay_exact() {
+    let mesh = read_mesh(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../assets/meshes/liver"
+    )))
+    .unwrap();
+    let mut set = set_of(&mesh.nodes, &mesh.surface);
+    let (lo, hi) = lop_sim::mesh::bounds(&mesh.nodes);
+    let mid = [0, 1, 2].map(|k| (lo[k] + hi[k]) / 2.0);
+    set.closest_in_body(0, mid, f64::INFINITY);
+    let refits = set.stats().refits;
+    // Frames that move every node by up to 1.7 mm (under the 2 mm margin) need no refit ...
+    for frame in 1..=5 {
+        let a = 0.0002 * frame as f64;
+        let moved: Vec<[f64; 3]> = mesh
+            .nodes
+            .iter()
+            .map(|p| {
+                [
+                    p[0] + a * (p[1] * 300.0).sin(),
+                    p[1] - a,
+                    p[2] + a * (p[0] * 200.0).cos(),
+                ]
+            })
+            .collect();
+        set.set_body_positions(0, |i| moved[i]);
+        // ... and every answer is still the exact closest point.
+        for k in 0..200 {
+            let t = k as f64 / 200.0;
+            let p = [
+                lo[0] + (hi[0] - lo[0]) * t,
+                mid[1] + 0.01 * (t * 40.0).sin(),
+                hi[2] * t,
+            ];
+            let exact = closest_on_surface(moved.as_slice(), &mesh.surface, p).unwrap();
+            let got = set.closest_in_body(0, p, f64::INFINITY).unwrap();
+            assert!((got.hit.distance - exact.distance).abs() < 1e-12);
+        }
+    }
+    assert_eq!(set.stats().refits, refits);
+    // A larger motion refits.
+    let far: Vec<[f64; 3]> = mesh
+        .nodes
+        .iter()
+        .map(|p| [p[0] + 0.003, p[1], p[2]])
+        .collect();
+    set.set_body_positions(0, |i| far[i]);
+    set.closest_in_body(0, mid, f64::INFINITY);
+    assert_eq!(set.stats().refits, refits + 1);
+}

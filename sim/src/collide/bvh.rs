@@ -65,6 +65,8 @@ pub(crate) struct Bvh {
     built_cost: f64,
     /// Builds so far (the first one included).
     builds: u64,
+    /// Every box is grown by this much, m (see [`Bvh::set_margin`]).
+    margin: f64,
 }
 
 #[inline]
@@ -107,7 +109,19 @@ impl Bvh {
             built: false,
             built_cost: 0.0,
             builds: 0,
+            margin: 0.0,
         }
+    }
+
+    /// Grows every box by `margin` m from the next update on: the boxes then stay valid while
+    /// no vertex has moved farther than `margin` since, so a caller that tracks how far the
+    /// vertices moved can skip refits (queries stay exact, with slightly looser pruning).
+    pub fn set_margin(&mut self, margin: f64) {
+        self.margin = if margin.is_finite() {
+            margin.max(0.0)
+        } else {
+            0.0
+        };
     }
 
     /// Number of (re)builds so far.
@@ -166,7 +180,11 @@ impl Bvh {
         for &t in &self.order[s..e] {
             for &v in &tris[t as usize] {
                 let p = positions[v as usize];
-                union(&mut node, p, p);
+                union(
+                    &mut node,
+                    p.map(|c| c - self.margin),
+                    p.map(|c| c + self.margin),
+                );
             }
             let c = self.centroids[t as usize];
             for k in 0..3 {
@@ -215,7 +233,11 @@ impl Bvh {
                 for &t in &self.order[s..e] {
                     for &v in &tris[t as usize] {
                         let p = positions[v as usize];
-                        union(&mut fresh, p, p);
+                        union(
+                            &mut fresh,
+                            p.map(|c| c - self.margin),
+                            p.map(|c| c + self.margin),
+                        );
                     }
                 }
             } else {

@@ -9,6 +9,11 @@ use crate::collide::bvh::Bvh;
 use crate::contact::{closest_point_on_triangle, triangle_normal, SurfaceHit};
 use crate::vec3::{add, dot, scale, sub};
 
+/// Growth of every hierarchy box, m: a body's hierarchy is refitted only once one of its nodes
+/// has moved farther than this since the last refit. Tissue under the tool moves a few mm/s
+/// to cm/s, so at 100 frames/s most frames need no refit.
+pub const REFIT_MARGIN: f64 = 0.002;
+
 /// A surface query's answer: the body, the triangle (index into [`SurfaceSet::triangles`]) and
 /// the closest point on it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -60,6 +65,11 @@ pub struct SurfaceSet {
     bvh: Vec<Bvh>,
     dirty: Vec<bool>,
     x: Vec<[f64; 3]>,
+    /// Positions at each body's last refit, and per body the largest distance a node has
+    /// moved since (squared): the hierarchies' boxes carry [`REFIT_MARGIN`], so a body whose
+    /// nodes all stayed within it needs no refit.
+    refit_x: Vec<[f64; 3]>,
+    drift2: Vec<f64>,
     stats: QueryStats,
 }
 
@@ -118,7 +128,14 @@ impl SurfaceSet {
             .iter()
             .map(|&(s, e)| if s < e { tris[s][0] } else { 0 })
             .collect();
-        let bvh = body_tris.iter().map(|&(s, e)| Bvh::new(e - s)).collect();
+        let bvh = body_tris
+            .iter()
+            .map(|&(s, e)| {
+                let mut b = Bvh::new(e - s);
+                b.set_margin(REFIT_MARGIN);
+                b
+            })
+            .collect();
         let bodies = body_tris.len();
         let body_nodes = body_tris
             .iter()
@@ -145,6 +162,8 @@ impl SurfaceSet {
             bvh,
             dirty: vec![true; bodies],
             x: vec![[0.0; 3]; node_count],
+            refit_x: vec![[0.0; 3]; node_count],
+            drift2: vec![f64::INFINITY; bodies],
             stats: QueryStats::default(),
         }
     }
@@ -206,6 +225,7 @@ impl SurfaceSet {
             }
             self.body_box[b] = (lo, hi);
             self.dirty[b] = true;
+            self.drift2[b] = f64::INFINITY;
             self.active[b] = true;
         }
     }
@@ -218,15 +238,19 @@ impl SurfaceSet {
         };
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
+        let mut drift2 = self.drift2[b];
         for i in n0..n1 {
             let p = at(i);
             self.x[i] = p;
+            let d = sub(p, self.refit_x[i]);
+            drift2 = drift2.max(dot(d, d));
             for k in 0..3 {
                 lo[k] = lo[k].min(p[k]);
                 hi[k] = hi[k].max(p[k]);
             }
         }
         self.body_box[b] = (lo, hi);
+        self.drift2[b] = drift2;
         self.dirty[b] = true;
         self.active[b] = true;
     }
@@ -284,13 +308,22 @@ impl SurfaceSet {
         (0..3).all(|k| p[k] >= lo[k] - margin && p[k] <= hi[k] + margin)
     }
 
+    /// Refits body `b`'s hierarchy if a node has moved farther than the boxes' margin since the
+    /// last refit (a frame that barely moved the body costs nothing here).
     fn refit(&mut self, b: usize) {
-        if self.dirty[b] {
-            let (s, e) = self.body_tris[b];
-            self.bvh[b].update(&self.x, &self.tris[s..e]);
-            self.dirty[b] = false;
-            self.stats.refits += 1;
+        if !self.dirty[b] {
+            return;
         }
+        self.dirty[b] = false;
+        if self.drift2[b] <= REFIT_MARGIN * REFIT_MARGIN {
+            return;
+        }
+        let (s, e) = self.body_tris[b];
+        self.bvh[b].update(&self.x, &self.tris[s..e]);
+        let (n0, n1) = self.body_nodes[b];
+        self.refit_x[n0..n1].copy_from_slice(&self.x[n0..n1]);
+        self.drift2[b] = 0.0;
+        self.stats.refits += 1;
     }
 
     /// The greedy walk of thesis Algorithm 1: from `start`, move to the neighbour closest to `p`
