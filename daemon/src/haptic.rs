@@ -456,12 +456,10 @@ impl HapticLoop {
 
         // 3. God-object and force against the newest surface.
         let mut desired = [0.0; 3];
-        if let Some(s) = sample {
-            let p = self.settings.workspace.device_to_scene(s.position_mm);
+        if let (Some(s), Some(p)) = (sample, tip) {
             state.device_position = p;
             state.proxy_position = p;
             state.buttons = s.buttons;
-            self.settings.tool.center = p;
             if let (true, Some(ix)) = (surface_ready, self.index.as_deref_mut()) {
                 let grab = s.pressed(lop_drivers::BUTTON_GRAB);
                 let g = ix.god.update(&mut ix.set, p, grab);
