@@ -383,6 +383,12 @@ impl HapticLoop {
         self.overruns += 1;
     }
 
+    /// Whether the contact index of a topology has arrived from its thread (until then the
+    /// loop renders no contact).
+    pub fn contact_ready(&self) -> bool {
+        self.index.is_some()
+    }
+
     /// Ticks run so far.
     pub fn ticks(&self) -> u64 {
         self.tick

@@ -11,10 +11,11 @@
 #[path = "../../drivers/standin-hd/testing.rs"]
 mod standin;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+mod common;
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use common::{set_counting, DeformSide};
 use lop_config::{load_scene, resolve_scene, resolve_script, DaemonConfig};
 use lop_daemon::haptic::{rings, HapticSettings};
 use lop_daemon::scene;
@@ -22,34 +23,7 @@ use lop_daemon::servo::ServoTask;
 use lop_drivers::mock::MockScript;
 use lop_drivers::openhaptics::OpenHapticsDevice;
 use lop_drivers::{HapticDevice, ServoControl, ServoEnd};
-use lop_ipc::services::{self, Role};
 use lop_ipc::*;
-
-struct Counting;
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-// SAFETY: forwards to the system allocator; counting has no effect on the allocation.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-#[global_allocator]
-static GLOBAL: Counting = Counting;
 
 const COUNT_FROM: u64 = 200;
 const COUNT_UNTIL: u64 = 5200;
@@ -63,11 +37,11 @@ unsafe impl Send for SendTask<'_> {}
 impl SendTask<'_> {
     fn call(&mut self, d: &mut dyn HapticDevice, c: lop_drivers::ServoClock) -> ServoControl {
         if c.tick == COUNT_FROM {
-            ALLOCATIONS.store(0, Ordering::Relaxed);
-            COUNTING.with(|x| x.set(true));
+            common::reset();
+            set_counting(true);
         }
         if c.tick == COUNT_UNTIL {
-            COUNTING.with(|x| x.set(false));
+            set_counting(false);
             STOP.store(true, Ordering::Relaxed);
         }
         self.0.on_tick(d, c)
@@ -104,63 +78,9 @@ fn servo_path_allocates_nothing_after_the_first_callback() {
     let loaded = scene::load(scene_file.clone()).unwrap();
 
     // The deformation side.
-    let node = services::node("rtalloc-servo-deform").unwrap();
-    let topo_pub = services::topology_service(&node, &names, Role::Owner)
-        .unwrap()
-        .publisher_builder()
-        .initial_max_slice_len(loaded.topology_indices.len())
-        .create()
-        .unwrap();
-    let frame_pub = services::frame_service(&node, &names, Role::Owner)
-        .unwrap()
-        .publisher_builder()
-        .initial_max_slice_len(loaded.topology.node_count as usize)
-        .create()
-        .unwrap();
-    let mut topology = loaded.topology;
-    topology.topology_id = 42;
-    let publish_topology = || {
-        let mut s = topo_pub
-            .loan_slice_uninit(loaded.topology_indices.len())
-            .unwrap();
-        *s.user_header_mut() = topology;
-        s.write_from_slice(&loaded.topology_indices).send().unwrap();
-    };
-    let publish_frame = |seq: u64| {
-        let n = topology.node_count as usize;
-        let mut s = frame_pub.loan_slice_uninit(n).unwrap();
-        let h = s.user_header_mut();
-        h.contract_version = CONTRACT_VERSION;
-        h.topology_id = 42;
-        h.sequence = seq;
-        h.body_count = topology.body_count;
-        h.node_count = n as u32;
-        h.publish_ns = clock::monotonic_ns();
-        for (i, b) in loaded.world.bodies.iter().enumerate() {
-            let bf = &mut h.bodies[i];
-            bf.aabb_min = [f32::INFINITY; 3];
-            bf.aabb_max = [f32::NEG_INFINITY; 3];
-            for p in &b.mesh.nodes {
-                for (k, &v) in p.iter().enumerate() {
-                    bf.aabb_min[k] = bf.aabb_min[k].min(v as f32);
-                    bf.aabb_max[k] = bf.aabb_max[k].max(v as f32);
-                }
-            }
-        }
-        let mut s = s.write_from_fn(|_| NodeSample::default());
-        let mut k = 0;
-        for b in &loaded.world.bodies {
-            for p in &b.mesh.nodes {
-                s.payload_mut()[k] = NodeSample {
-                    position: [p[0] as f32, p[1] as f32, p[2] as f32],
-                    temperature: 37.0,
-                    flags: 0,
-                };
-                k += 1;
-            }
-        }
-        s.send().unwrap();
-    };
+    let deform = DeformSide::new("rtalloc-servo-deform", &names, &loaded);
+    let publish_topology = || deform.publish_topology();
+    let publish_frame = |seq: u64| deform.publish_frame(seq);
 
     let ((tool_tx, mut tool_rx), (tel_tx, mut tel_rx)) = rings();
     let header = lop_daemon::record::header(
@@ -214,7 +134,7 @@ fn servo_path_allocates_nothing_after_the_first_callback() {
     device.stop();
     let records = writer.finish().unwrap();
     let (run, summary) = run;
-    let allocations = ALLOCATIONS.load(Ordering::Relaxed);
+    let allocations = common::allocations();
     assert_eq!(run.end, ServoEnd::Requested);
     assert!(summary.ticks >= COUNT_UNTIL - 1, "{summary:?}");
     assert!(records >= COUNT_UNTIL - 1, "{records} records");
@@ -227,9 +147,7 @@ fn servo_path_allocates_nothing_after_the_first_callback() {
         "heap allocations on the servo thread after the first callback"
     );
     // The counter does see allocations (the test can fail).
-    COUNTING.with(|c| c.set(true));
-    std::hint::black_box(vec![1u8; 16]);
-    COUNTING.with(|c| c.set(false));
-    assert!(ALLOCATIONS.load(Ordering::Relaxed) > 0);
+    common::counted(|| std::hint::black_box(vec![1u8; 16]));
+    assert!(common::allocations() > 0);
     let _ = std::fs::remove_dir_all(&dir);
 }

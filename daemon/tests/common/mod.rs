@@ -1,0 +1,156 @@
+//! Shared by the real-time allocation tests: a counting global allocator and the deformation
+//! process's side of the IPC (the organs' topology once, a frame of rest positions on demand).
+#![allow(dead_code)] // each test binary uses what it needs
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use iceoryx2::prelude::*;
+use lop_daemon::scene::LoadedScene;
+use lop_ipc::services::{self, FramePublisher, Role, TopologyPublisher};
+use lop_ipc::*;
+
+struct Counting;
+
+/// Allocations counted since the last [`reset`].
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+thread_local! {
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+}
+
+// SAFETY: forwards to the system allocator; counting has no effect on the allocation.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if COUNTING.with(Cell::get) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        if COUNTING.with(Cell::get) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+/// Starts or stops counting this thread's allocations.
+pub fn set_counting(on: bool) {
+    COUNTING.with(|c| c.set(on));
+}
+
+/// Runs `f` with this thread's allocations counted.
+pub fn counted<R>(f: impl FnOnce() -> R) -> R {
+    set_counting(true);
+    let r = f();
+    set_counting(false);
+    r
+}
+
+/// Zeroes the count.
+pub fn reset() {
+    ALLOCATIONS.store(0, Ordering::Relaxed);
+}
+
+/// Allocations counted since the last [`reset`].
+pub fn allocations() -> u64 {
+    ALLOCATIONS.load(Ordering::Relaxed)
+}
+
+/// The topology id the fake deformation side publishes.
+pub const TOPOLOGY_ID: u64 = 42;
+
+/// The deformation process's side, played by a test: the scene's topology and frames of its
+/// rest positions.
+pub struct DeformSide {
+    _node: Node<ipc::Service>,
+    topo_pub: TopologyPublisher,
+    frame_pub: FramePublisher,
+    topology: TopologyHeader,
+    indices: Vec<u32>,
+    /// Per body: bounds of the rest nodes.
+    bounds: Vec<([f32; 3], [f32; 3])>,
+    nodes: Vec<NodeSample>,
+}
+
+impl DeformSide {
+    /// Creates the topology and frame publishers for `loaded` under `names`.
+    pub fn new(node_name: &str, names: &ServiceNames, loaded: &LoadedScene) -> DeformSide {
+        let node = services::node(node_name).unwrap();
+        let topo_pub = services::topology_service(&node, names, Role::Owner)
+            .unwrap()
+            .publisher_builder()
+            .initial_max_slice_len(loaded.topology_indices.len())
+            .create()
+            .unwrap();
+        let frame_pub = services::frame_service(&node, names, Role::Owner)
+            .unwrap()
+            .publisher_builder()
+            .initial_max_slice_len(loaded.topology.node_count as usize)
+            .create()
+            .unwrap();
+        let mut topology = loaded.topology;
+        topology.topology_id = TOPOLOGY_ID;
+        let bounds = loaded
+            .world
+            .bodies
+            .iter()
+            .map(|b| {
+                let (lo, hi) = lop_sim::mesh::bounds(&b.mesh.nodes);
+                (lo.map(|c| c as f32), hi.map(|c| c as f32))
+            })
+            .collect();
+        let nodes = loaded
+            .world
+            .bodies
+            .iter()
+            .flat_map(|b| &b.mesh.nodes)
+            .map(|p| NodeSample {
+                position: p.map(|c| c as f32),
+                temperature: 37.0,
+                flags: 0,
+            })
+            .collect();
+        DeformSide {
+            _node: node,
+            topo_pub,
+            frame_pub,
+            topology,
+            indices: loaded.topology_indices.clone(),
+            bounds,
+            nodes,
+        }
+    }
+
+    /// Publishes the topology.
+    pub fn publish_topology(&self) {
+        let mut s = self.topo_pub.loan_slice_uninit(self.indices.len()).unwrap();
+        *s.user_header_mut() = self.topology;
+        s.write_from_slice(&self.indices).send().unwrap();
+    }
+
+    /// Publishes frame `seq` of the rest positions, stamped now.
+    pub fn publish_frame(&self, seq: u64) {
+        let s = self.frame_pub.loan_slice_uninit(self.nodes.len()).unwrap();
+        let mut s = s.write_from_slice(&self.nodes);
+        let h = s.user_header_mut();
+        h.contract_version = CONTRACT_VERSION;
+        h.topology_id = TOPOLOGY_ID;
+        h.sequence = seq;
+        h.body_count = self.topology.body_count;
+        h.node_count = self.nodes.len() as u32;
+        h.publish_ns = clock::monotonic_ns();
+        for (bf, (lo, hi)) in h.bodies.iter_mut().zip(&self.bounds) {
+            bf.aabb_min = *lo;
+            bf.aabb_max = *hi;
+        }
+        s.send().unwrap();
+    }
+}
