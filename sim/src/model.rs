@@ -85,6 +85,57 @@ impl ToolAnchor {
     }
 }
 
+/// A unilateral penalty spring acting on one body during one step: organ-to-organ collision
+/// (built by [`crate::collide::Collisions::springs`]).
+///
+/// It pushes the material point `p = Σ weights[k] · x[nodes[k]]` along the unit `normal` with
+/// force `stiffness · (target − normal · p)` while that is positive. A penetrating vertex uses
+/// one node (`nodes = [i, i, i]`, `weights = [1, 0, 0]`); the point of the other body's
+/// surface it is in uses the three nodes of its triangle. The spring is active if it pushes at
+/// the start of the step, and is then integrated implicitly over the step with that active set
+/// (its stiffness enters the model's system matrix), so it holds stiff contacts on light tissue
+/// without the `m/Δt²` limit of an explicit or position-based response.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactSpring {
+    /// Nodes carrying the point.
+    pub nodes: [u32; 3],
+    /// Their weights (sum 1).
+    pub weights: [f64; 3],
+    /// Unit direction of the push.
+    pub normal: [f64; 3],
+    /// The spring pushes while `normal · p < target`, m.
+    pub target: f64,
+    /// N/m.
+    pub stiffness: f64,
+}
+
+impl ContactSpring {
+    /// The spring as a touch on positions `x`, if it pushes there (and its data is sound).
+    pub(crate) fn touch(&self, x: &[[f64; 3]]) -> Option<Touch> {
+        if self.nodes.iter().any(|&k| k as usize >= x.len()) {
+            return None;
+        }
+        let mut p = [0.0; 3];
+        for k in 0..3 {
+            p = add(p, scale(x[self.nodes[k] as usize], self.weights[k]));
+        }
+        let gap = self.target - dot(self.normal, p);
+        let f = self.stiffness * gap;
+        if !(gap > 0.0) || !f.is_finite() || !self.normal.iter().all(|c| c.is_finite()) {
+            return None;
+        }
+        Some(Touch {
+            tri: self.nodes,
+            weights: self.weights,
+            normal: self.normal,
+            depth: gap,
+            on_tissue: scale(self.normal, f),
+            stiffness: self.stiffness,
+            isotropic: false,
+        })
+    }
+}
+
 /// What the tool did to a body over a step.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct ContactReport {
@@ -183,7 +234,17 @@ impl Model {
         external: &[[f64; 3]],
         contact: Option<&ToolContact<'_>>,
     ) -> Result<ContactReport, BlowUp> {
-        dispatch!(self, m => m.step(gravity, external, contact))
+        self.step_colliding(gravity, external, contact, &[])
+    }
+    /// [`Model::step`] with organ-to-organ contact springs acting too.
+    pub fn step_colliding(
+        &mut self,
+        gravity: [f64; 3],
+        external: &[[f64; 3]],
+        contact: Option<&ToolContact<'_>>,
+        springs: &[ContactSpring],
+    ) -> Result<ContactReport, BlowUp> {
+        dispatch!(self, m => m.step_colliding(gravity, external, contact, springs))
     }
     /// Sub-steps (or solver iterations) per step, for logs.
     pub fn substeps(&self) -> usize {

@@ -5,10 +5,11 @@
 //! (`step_body`), so the deformation process can time each body and keep simulated time on the
 //! wall clock, while benchmarks and tests step as fast as they like, deterministically.
 
+use crate::collide::{CollisionBody, CollisionParams, CollisionStats, Collisions};
 use crate::contact::{closest_on_surface, scale, ToolSphere};
 use crate::lop::Lop;
 use crate::mesh::TetMesh;
-use crate::model::{BlowUp, ContactReport, Model, ToolAnchor, ToolContact};
+use crate::model::{BlowUp, ContactReport, ContactSpring, Model, ToolAnchor, ToolContact};
 use crate::msd::{MassSpring, MsdParameters};
 
 /// How far beyond the tool radius a body's bounding box is still checked for contact, m. Covers
@@ -68,6 +69,17 @@ pub struct World {
     pub gravity: [f64; 3],
     /// How the tool given to [`World::step_body`] acts on the bodies.
     pub coupling: Coupling,
+    /// Organ-to-organ collision, once [enabled](World::enable_collisions).
+    collisions: Option<Box<WorldCollisions>>,
+}
+
+/// Organ-to-organ collision in a world: detection structures, the response's law and the
+/// contact springs of the last detection, per body.
+#[derive(Debug, Clone)]
+struct WorldCollisions {
+    detector: Collisions,
+    params: CollisionParams,
+    springs: Vec<Vec<ContactSpring>>,
 }
 
 impl World {
@@ -77,7 +89,86 @@ impl World {
             bodies: Vec::new(),
             gravity,
             coupling: Coupling::Nearest,
+            collisions: None,
         }
+    }
+
+    /// Turns organ-to-organ collision on for the bodies added so far (add bodies first): each
+    /// [`World::detect_collisions`] finds the surface vertices inside other bodies and turns
+    /// them into contact springs of stiffness `params.stiffness` (see
+    /// [`Collisions::add_springs`]), which [`World::step_body`] hands to the body's model, to
+    /// be resolved implicitly in its step whatever model it runs. Contact starts `skin` metres
+    /// before the surfaces meet; vertices deeper than `depth_limit` are ignored (see
+    /// [`Collisions::set_depth_limit`]).
+    ///
+    /// # Panics
+    /// If the stiffness or skin is negative or not finite, or `depth_limit` is not positive.
+    pub fn enable_collisions(&mut self, params: CollisionParams, skin: f64, depth_limit: f64) {
+        assert!(
+            params.stiffness >= 0.0 && params.stiffness.is_finite(),
+            "collision stiffness must be finite and ≥ 0, got {}",
+            params.stiffness
+        );
+        let surfaces: Vec<&[[u32; 3]]> = self.bodies.iter().map(|b| &b.mesh.surface[..]).collect();
+        let mut detector = Collisions::new(&surfaces);
+        detector.set_skin(skin);
+        detector.set_depth_limit(depth_limit);
+        let springs = (0..self.bodies.len())
+            .map(|i| Vec::with_capacity(detector.spring_capacity(i)))
+            .collect();
+        self.collisions = Some(Box::new(WorldCollisions {
+            detector,
+            params,
+            springs,
+        }));
+    }
+
+    /// Turns organ-to-organ collision off.
+    pub fn disable_collisions(&mut self) {
+        self.collisions = None;
+    }
+
+    /// Whether organ-to-organ collision is on.
+    pub fn collisions_enabled(&self) -> bool {
+        self.collisions.is_some()
+    }
+
+    /// Detects organ-to-organ collisions at the current positions and sets each body's contact
+    /// springs for its next steps (until the next detection). Call it once per scheduling
+    /// round, before stepping the bodies due. `None` if collision is off. Allocation-free.
+    pub fn detect_collisions(&mut self) -> Option<CollisionStats> {
+        let c = self.collisions.as_mut()?;
+        // Positions of every body, borrowed for the detection (at most a handful of bodies,
+        // so a fixed array avoids allocating).
+        const MAX: usize = 32;
+        let n = self.bodies.len();
+        if n > MAX {
+            return None;
+        }
+        let empty: &[[f64; 3]] = &[];
+        let mut bodies = [CollisionBody {
+            positions: empty,
+            surface: &[],
+        }; MAX];
+        for (slot, b) in bodies.iter_mut().zip(&self.bodies) {
+            *slot = CollisionBody {
+                positions: b.model.positions(),
+                surface: &b.mesh.surface,
+            };
+        }
+        c.detector.detect(&bodies[..n]);
+        c.springs.iter_mut().for_each(Vec::clear);
+        c.detector
+            .add_springs(&c.params, &bodies[..n], &mut c.springs);
+        Some(c.detector.stats())
+    }
+
+    /// The contact springs acting on body `i` (from the last detection).
+    pub fn contact_springs(&self, i: usize) -> &[ContactSpring] {
+        self.collisions
+            .as_ref()
+            .and_then(|c| c.springs.get(i))
+            .map_or(&[], |s| &s[..])
     }
 
     /// Adds a mass-spring body; returns its index.
@@ -173,6 +264,10 @@ impl World {
             Coupling::GodObject(Some((body, a))) if body == i => (true, Some(a)),
             Coupling::GodObject(_) => (true, None),
         };
+        let springs: &[ContactSpring] = match &self.collisions {
+            Some(c) => &c.springs[i],
+            None => &[],
+        };
         let b = &mut self.bodies[i];
         b.candidates.clear();
         let mut touching = false;
@@ -209,7 +304,9 @@ impl World {
             }),
             _ => None,
         };
-        let r = b.model.step(gravity, &b.loads, contact.as_ref());
+        let r = b
+            .model
+            .step_colliding(gravity, &b.loads, contact.as_ref(), springs);
         match r {
             Ok(report) => {
                 b.last_contact = report;

@@ -139,7 +139,7 @@ use thiserror::Error;
 
 use crate::contact::{closest_on_surface, SurfaceHit};
 use crate::mesh::TetMesh;
-use crate::model::{BlowUp, ContactReport, ToolAnchor, ToolContact, RUNAWAY_SPEED};
+use crate::model::{BlowUp, ContactReport, ContactSpring, ToolAnchor, ToolContact, RUNAWAY_SPEED};
 
 use element::{
     add, apply_stiffness, cross, dot, lame, mat_mul_t, mat_t_mul, mat_t_vec, mat_vec, norm, scale,
@@ -615,6 +615,21 @@ impl Fem {
         external: &[[f64; 3]],
         contact: Option<&ToolContact<'_>>,
     ) -> Result<ContactReport, BlowUp> {
+        self.step_colliding(gravity, external, contact, &[])
+    }
+
+    /// [`Fem::step`] with organ-to-organ contact springs. While any spring pushes, the step
+    /// assembles the springs' stiffness into `K̃` and solves directly (refactorising, in both
+    /// modes: their number and place change every step, so neither the linear mode's
+    /// factor nor the lagged preconditioner can hold them); the tool still enters by
+    /// Sherman–Morrison–Woodbury on that factor.
+    pub fn step_colliding(
+        &mut self,
+        gravity: [f64; 3],
+        external: &[[f64; 3]],
+        contact: Option<&ToolContact<'_>>,
+        springs: &[ContactSpring],
+    ) -> Result<ContactReport, BlowUp> {
         let dt = self.params.dt;
         self.internal_forces();
         // b = f − f_int(x) + (M/Δt − D/2) v on the free DOFs.
@@ -631,7 +646,9 @@ impl Fem {
             }
         }
         let pressed = contact.and_then(|c| self.contact_setup(c));
+        let colliding = springs.iter().any(|s| s.touch(&self.x).is_some());
         let solved = match self.params.mode {
+            _ if colliding => self.solve_colliding(pressed, springs),
             FemMode::Linear => self.solve_linear(pressed),
             FemMode::Corotational => match self.solver {
                 CorotationalSolver::Refactor => self.solve_refactor(pressed),
@@ -674,6 +691,53 @@ impl Fem {
     /// Sherman–Morrison–Woodbury (dropping a push that would pull).
     fn solve_refactor(&mut self, pressed: Option<Pressed>) -> Result<ContactReport, Failed> {
         self.factor_dynamic(true)?;
+        self.last_iterations = 0;
+        self.s.sol.copy_from_slice(&self.s.rhs);
+        self.system.solve_in_place(&mut self.s.sol);
+        Ok(match pressed {
+            Some(p) => self.woodbury(&p),
+            None => ContactReport::default(),
+        })
+    }
+
+    /// With contact springs: `(K̃ + K_c) d = b + f_c`, assembled (warped in corotational mode)
+    /// and factorised for this step only (the factor is marked stale for the next).
+    fn solve_colliding(
+        &mut self,
+        pressed: Option<Pressed>,
+        springs: &[ContactSpring],
+    ) -> Result<ContactReport, Failed> {
+        let dt = self.params.dt;
+        let warped = self.params.mode == FemMode::Corotational;
+        self.factor = Factor::Stale;
+        self.assemble(1.0 / (dt * dt) + self.params.damping / (2.0 * dt), warped);
+        for s in springs {
+            let Some(t) = s.touch(&self.x) else {
+                continue;
+            };
+            let nn = outer(t.normal);
+            for p in 0..3 {
+                let dp = self.system.dof[t.tri[p] as usize];
+                if dp == NONE || t.weights[p] == 0.0 {
+                    continue;
+                }
+                for c in 0..3 {
+                    self.s.rhs[dp as usize + c] += t.weights[p] * t.on_tissue[c];
+                }
+                for q in 0..3 {
+                    let dq = self.system.dof[t.tri[q] as usize];
+                    // Each unordered pair once; repeated nodes (a vertex) only on the diagonal.
+                    if dq == NONE || t.weights[q] == 0.0 || dq < dp || (dq == dp && q != p) {
+                        continue;
+                    }
+                    let w = t.stiffness * t.weights[p] * t.weights[q];
+                    self.system.add_node_block(dp, dq, &nn, w);
+                }
+            }
+        }
+        self.system
+            .factorize(Precision::Double)
+            .map_err(|_| Failed)?;
         self.last_iterations = 0;
         self.s.sol.copy_from_slice(&self.s.rhs);
         self.system.solve_in_place(&mut self.s.sol);
@@ -1312,6 +1376,17 @@ fn turned_solve(system: &mut System, turn: &[element::Mat3], r: &[f64], z: &mut 
         let w = mat_vec(t, [z[d], z[d + 1], z[d + 2]]);
         z[d..d + 3].copy_from_slice(&w);
     }
+}
+
+/// `n nᵀ`.
+fn outer(n: [f64; 3]) -> element::Mat3 {
+    let mut m = [[0.0; 3]; 3];
+    for r in 0..3 {
+        for c in 0..3 {
+            m[r][c] = n[r] * n[c];
+        }
+    }
+    m
 }
 
 fn quat_dot(a: &[f64; 4], b: &[f64; 4]) -> f64 {

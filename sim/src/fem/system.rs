@@ -300,6 +300,54 @@ impl System {
         }
     }
 
+    /// Adds `s · b` to the node block of DOF blocks starting at `a` and `b` (first DOFs of two
+    /// free nodes; `b` is symmetric, and for `a == b` only the stored triangle is touched).
+    /// Returns false, adding nothing, if the two nodes share no tetrahedron (the block is not
+    /// in the pattern) or either is held.
+    pub fn add_node_block(&mut self, a: u32, b: u32, blk: &[[f64; 3]; 3], s: f64) -> bool {
+        if a == NONE || b == NONE {
+            return false;
+        }
+        if a == b {
+            for r in 0..3 {
+                for c in 0..=r {
+                    match self.position(a + r as u32, a + c as u32) {
+                        Some(at) => self.values[at] += s * blk[r][c],
+                        None => return false,
+                    }
+                }
+            }
+            return true;
+        }
+        if self.position(a, b).is_none() {
+            return false;
+        }
+        for r in 0..3 {
+            for c in 0..3 {
+                if let Some(at) = self.position(a + r as u32, b + c as u32) {
+                    self.values[at] += s * blk[r][c];
+                }
+            }
+        }
+        true
+    }
+
+    /// Index in `values` of the stored entry for `(row, col)` of the symmetric matrix.
+    fn position(&self, row: u32, col: u32) -> Option<usize> {
+        let lower = self.is_supernodal();
+        let (r, c) = if lower == (row >= col) {
+            (row, col)
+        } else {
+            (col, row)
+        };
+        let start = self.col_ptr[c as usize] as usize;
+        let end = self.col_ptr[c as usize + 1] as usize;
+        self.row_idx[start..end]
+            .binary_search(&r)
+            .ok()
+            .map(|p| start + p)
+    }
+
     /// Numeric Cholesky factorisation of `values` into the owned factor buffer of the given
     /// precision (allocated on its first use). Single precision halves the memory traffic of
     /// factorisation and solves; it serves as a preconditioner only.

@@ -7,7 +7,9 @@ use crate::gc::{
     box_cage, grid_box_cage, subdivided_box_cage, Cage, CageError, GcBinding, GreenCoordinates,
 };
 use crate::mesh::{extents, smallest_extent, TetMesh};
-use crate::model::{touch, BlowUp, ContactReport, Model, ToolContact, Touch, RUNAWAY_SPEED};
+use crate::model::{
+    touch, BlowUp, ContactReport, ContactSpring, Model, ToolContact, Touch, RUNAWAY_SPEED,
+};
 use crate::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 use crate::vec3::{add, dot, norm, scale, sub};
 
@@ -131,6 +133,13 @@ struct Reduced {
     correction_due: bool,
     /// The step's increment `d`, scratch.
     d: Vec<f64>,
+    /// `A = K̃_r`, column-major 3V × 3V, for steps with contact springs.
+    a: Vec<f64>,
+    /// Scratch for contact springs: `A + Σ k c cᵀ` and its Cholesky factor (in place), one
+    /// spring's `c = Gᵀ (w ⊗ n)`, and the right-hand side.
+    sys: Vec<f64>,
+    c: Vec<f64>,
+    rhs: Vec<f64>,
 }
 
 impl Reduced {
@@ -307,6 +316,7 @@ impl GcModel {
                     Damping::PerNode(gamma) => jacobian.transpose() * &jacobian * gamma,
                 };
                 let a = &m_r / (dt * dt) + &d_r / (2.0 * dt) + &k_r;
+                let a_dense = a.as_slice().to_vec();
                 let a_inv = Cholesky::new(a).ok_or(GcModelError::Singular)?.inverse();
                 let p = &a_inv * &k_r;
                 let q_mat = &a_inv * (&m_r / dt - &d_r * 0.5);
@@ -329,6 +339,10 @@ impl GcModel {
                     correction: vec![0.0; m],
                     correction_due: false,
                     d: vec![0.0; m],
+                    a: a_dense,
+                    sys: vec![0.0; m * m],
+                    c: vec![0.0; m],
+                    rhs: vec![0.0; m],
                 }))
             }
             CageDynamics::MassSpring {
@@ -584,6 +598,22 @@ impl GcModel {
         external: &[[f64; 3]],
         contact: Option<&ToolContact<'_>>,
     ) -> Result<ContactReport, BlowUp> {
+        self.step_colliding(gravity, external, contact, &[])
+    }
+
+    /// [`GcModel::step`] with organ-to-organ contact springs, resolved through the cage.
+    /// Projected dynamics: each pushing spring's stiffness is projected onto the cage,
+    /// `k (Gᵀ(w ⊗ n))(Gᵀ(w ⊗ n))ᵀ`, and the step solves the reduced system with it (a dense
+    /// 3V × 3V Cholesky factorisation, only in steps with contact), so the contact is implicit
+    /// as in the precise models. Mass-spring cage (the thesis' way): the springs' forces at the
+    /// start of the step are loads mapped to the cage vertices by φ, explicitly.
+    pub fn step_colliding(
+        &mut self,
+        gravity: [f64; 3],
+        external: &[[f64; 3]],
+        contact: Option<&ToolContact<'_>>,
+        springs: &[ContactSpring],
+    ) -> Result<ContactReport, BlowUp> {
         let dt = self.params.dt;
         // The tool, as a load on the current shape (explicit: a body pinned to GC is the cheap
         // level; a touched body normally switches to its precise model first).
@@ -621,6 +651,9 @@ impl GcModel {
                 gemv_acc(&r.gravity, &gravity, &mut r.d);
                 gemv_acc(&r.response, &r.state, &mut r.d);
                 r.d.iter_mut().zip(&r.correction).for_each(|(d, c)| *d += c);
+                if springs.iter().any(|sp| sp.touch(&self.x).is_some()) {
+                    resolve_springs(r, &self.jacobian_t, &self.x, springs);
+                }
                 let m = r.d.len();
                 let (q, qd) = r.state.split_at_mut(m);
                 for ((q, qd), d) in q.iter_mut().zip(qd).zip(&r.d) {
@@ -640,6 +673,16 @@ impl GcModel {
                         }
                     };
                     each_load(external, n, touch.as_ref(), &mut add_load);
+                }
+                for sp in springs {
+                    if let Some(t) = sp.touch(&self.x) {
+                        for (j, &node) in t.tri.iter().enumerate() {
+                            let f = scale(t.on_tissue, t.weights[j]);
+                            for (i, load) in self.cage_loads.iter_mut().enumerate() {
+                                *load = add(*load, scale(f, self.binding.phi(node as usize, i)));
+                            }
+                        }
+                    }
                 }
                 msd.step(gravity, &self.cage_loads, None)?;
             }
@@ -714,6 +757,100 @@ impl GcModel {
             *w = [d[0] as f32, d[1] as f32, d[2] as f32];
         }
         self.kernel.apply(&self.w, &mut self.disp);
+    }
+}
+
+/// Adds the contact springs to the reduced step: with `d₀` (in `r.d`) the increment without
+/// them, the increment with them solves `(A + Σ k c cᵀ) d = A d₀ + Σ c k g`, `g` each spring's
+/// gap at the start of the step and `c = Gᵀ (w ⊗ n)`; i.e. `d = d₀ + Δ` with
+/// `(A + Σ k c cᵀ) Δ = Σ c k (g − cᵀ d₀)`. Allocation-free; leaves `d₀` if the matrix cannot be
+/// factorised (non-finite input).
+fn resolve_springs(
+    r: &mut Reduced,
+    jacobian_t: &DMatrix<f64>,
+    x: &[[f64; 3]],
+    springs: &[ContactSpring],
+) {
+    let m = r.d.len();
+    r.sys.copy_from_slice(&r.a);
+    r.rhs.fill(0.0);
+    for sp in springs {
+        let Some(t) = sp.touch(x) else {
+            continue;
+        };
+        r.c.fill(0.0);
+        for (p, &node) in t.tri.iter().enumerate() {
+            if t.weights[p] == 0.0 {
+                continue;
+            }
+            for b in 0..3 {
+                let s = t.weights[p] * t.normal[b];
+                if s != 0.0 {
+                    let col = jacobian_t.column(3 * node as usize + b);
+                    r.c.iter_mut()
+                        .zip(col.iter())
+                        .for_each(|(c, g)| *c += s * g);
+                }
+            }
+        }
+        let gap = t.depth - r.c.iter().zip(&r.d).map(|(c, d)| c * d).sum::<f64>();
+        for j in 0..m {
+            r.rhs[j] += t.stiffness * gap * r.c[j];
+            let kc = t.stiffness * r.c[j];
+            if kc != 0.0 {
+                for i in 0..m {
+                    r.sys[j * m + i] += kc * r.c[i];
+                }
+            }
+        }
+    }
+    if cholesky_in_place(&mut r.sys, m) {
+        cholesky_solve(&r.sys, m, &mut r.rhs);
+        r.d.iter_mut()
+            .zip(&r.rhs)
+            .for_each(|(d, delta)| *d += delta);
+    }
+}
+
+/// Dense Cholesky factorisation `A = L Lᵀ` in place (column-major `m × m`, `L` in the lower
+/// triangle). False if `A` is not numerically positive definite.
+fn cholesky_in_place(a: &mut [f64], m: usize) -> bool {
+    for j in 0..m {
+        let mut d = a[j * m + j];
+        for k in 0..j {
+            d -= a[k * m + j] * a[k * m + j];
+        }
+        if !(d > 0.0) || !d.is_finite() {
+            return false;
+        }
+        let d = d.sqrt();
+        a[j * m + j] = d;
+        for i in j + 1..m {
+            let mut s = a[j * m + i];
+            for k in 0..j {
+                s -= a[k * m + i] * a[k * m + j];
+            }
+            a[j * m + i] = s / d;
+        }
+    }
+    true
+}
+
+/// Solves `L Lᵀ y = b` in place with the factor of [`cholesky_in_place`].
+fn cholesky_solve(l: &[f64], m: usize, b: &mut [f64]) {
+    for i in 0..m {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= l[k * m + i] * b[k];
+        }
+        b[i] = s / l[i * m + i];
+    }
+    for i in (0..m).rev() {
+        let mut s = b[i];
+        for k in i + 1..m {
+            s -= l[i * m + k] * b[k];
+        }
+        b[i] = s / l[i * m + i];
     }
 }
 

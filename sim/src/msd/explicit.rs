@@ -96,8 +96,8 @@ pub(super) fn verlet(
     }
 }
 
-/// The force for a Verlet half-kick: `force` itself, or, in contact, `force` plus the contact
-/// load copied into `total`.
+/// The force for a Verlet half-kick: `force` itself, or, in contact (tool or organ-to-organ),
+/// `force` plus the contact loads, in `total`.
 fn kick_force<'f>(
     net: &Network,
     x: &[[f64; 3]],
@@ -107,14 +107,19 @@ fn kick_force<'f>(
     force: &'f [[f64; 3]],
     total: &'f mut [[f64; 3]],
 ) -> &'f [[f64; 3]] {
-    match loads.contact {
-        None => force,
-        Some(c) => {
-            total.copy_from_slice(force);
-            net.add_contact_explicit(c, x, v, total, h);
-            total
+    if loads.contact.is_none() && loads.springs.is_empty() {
+        return force;
+    }
+    total.copy_from_slice(force);
+    if let Some(c) = loads.contact {
+        net.add_contact_explicit(c, x, v, total, h);
+    }
+    for s in loads.springs {
+        if let Some(t) = s.touch(x) {
+            net.add_touch_explicit(&t, v, total, h);
         }
     }
+    total
 }
 
 /// Classic RK4 on `(x, v)`: four force evaluations at the stage states, the derivatives

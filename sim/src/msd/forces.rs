@@ -2,8 +2,8 @@
 //! loads (position-only), and the tool's penalty contact.
 
 use crate::contact::{add, dot, norm, scale, sub};
-use crate::model::ToolContact;
 pub(super) use crate::model::{touch, Touch};
+use crate::model::{ContactSpring, ToolContact};
 
 /// A spring between nodes `a < b`.
 #[derive(Debug, Clone, Copy)]
@@ -36,6 +36,8 @@ pub(super) struct Loads<'a, 'c> {
     /// N, one per node; missing entries are zero.
     pub external: &'a [[f64; 3]],
     pub contact: Option<&'a ToolContact<'c>>,
+    /// Organ-to-organ contact springs.
+    pub springs: &'a [ContactSpring],
 }
 
 impl Network {
@@ -74,9 +76,13 @@ impl Network {
         force: &mut [[f64; 3]],
         h: f64,
     ) {
-        let Some(t) = touch(c, x) else {
-            return;
-        };
+        if let Some(t) = touch(c, x) {
+            self.add_touch_explicit(&t, v, force, h);
+        }
+    }
+
+    /// [`Network::add_contact_explicit`] for a touch already found.
+    pub fn add_touch_explicit(&self, t: &Touch, v: &[[f64; 3]], force: &mut [[f64; 3]], h: f64) {
         // Implicit along the normal; along every axis for a grab's isotropic spring.
         let axes = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
         let dirs: &[[f64; 3]] = if t.isotropic {
@@ -115,6 +121,11 @@ impl Network {
         self.conservative_forces(x, loads, out);
         if let Some(c) = loads.contact {
             self.add_contact_explicit(c, x, v, out, h);
+        }
+        for s in loads.springs {
+            if let Some(t) = s.touch(x) {
+                self.add_touch_explicit(&t, v, out, h);
+            }
         }
     }
 

@@ -241,6 +241,15 @@ impl ImplicitSolver {
         if let Some(t) = &touch {
             self.add_tool_jacobian(net, t, v, h2);
         }
+        for s in loads.springs {
+            if let Some(t) = s.touch(x) {
+                for k in 0..3 {
+                    let i = t.tri[k] as usize;
+                    self.force[i] = add(self.force[i], scale(t.on_tissue, t.weights[k]));
+                }
+                self.add_tool_jacobian(net, &t, v, h2);
+            }
+        }
 
         for (i, &d) in self.dof.iter().enumerate() {
             if d == NONE {

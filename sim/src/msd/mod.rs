@@ -123,7 +123,7 @@ mod implicit;
 
 use crate::contact::{add, dot, norm, scale, sub};
 use crate::mesh::TetMesh;
-use crate::model::{BlowUp, ContactReport, ToolContact, RUNAWAY_SPEED};
+use crate::model::{BlowUp, ContactReport, ContactSpring, ToolContact, RUNAWAY_SPEED};
 
 use forces::{Network, Spring};
 use implicit::ImplicitSolver;
@@ -536,11 +536,25 @@ impl MassSpring {
         external: &[[f64; 3]],
         contact: Option<&ToolContact<'_>>,
     ) -> Result<ContactReport, BlowUp> {
+        self.step_colliding(gravity, external, contact, &[])
+    }
+
+    /// [`MassSpring::step`] with organ-to-organ contact springs: implicit in the implicit
+    /// integrator (their stiffness joins the system matrix, like the tool's), normal-implicit in
+    /// the explicit ones (see [`ContactSpring`]).
+    pub fn step_colliding(
+        &mut self,
+        gravity: [f64; 3],
+        external: &[[f64; 3]],
+        contact: Option<&ToolContact<'_>>,
+        springs: &[ContactSpring],
+    ) -> Result<ContactReport, BlowUp> {
         let h = self.params.dt / self.substeps as f64;
         let loads = forces::Loads {
             gravity,
             external,
             contact,
+            springs,
         };
         let state = explicit::State {
             x: &mut self.x,
