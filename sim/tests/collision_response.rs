@@ -136,8 +136,8 @@ fn spring_force(w: &World, body: usize) -> ([f64; 3], usize) {
         let gap = s.target - (0..3).map(|c| s.normal[c] * p[c]).sum::<f64>();
         if gap > 0.0 {
             active += 1;
-            for c in 0..3 {
-                total[c] += s.stiffness * gap * s.normal[c];
+            for (t, n) in total.iter_mut().zip(s.normal) {
+                *t += s.stiffness * gap * n;
             }
         }
     }
