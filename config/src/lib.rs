@@ -166,6 +166,22 @@
 //! | `contact_conductance` | float | `500` | W/m²/K (>= 0) between touching organs, times the contact area (≈ tissue conductivity 0.5 W/m/K across a 1 mm layer; 0: no heat crosses) |
 //! | `dt` | float | one heat step per deformation step | heat time step, s (0 < dt <= 1); the scheme is stable at any step, so a longer one only costs accuracy |
 //!
+//! ## `[collision]` (optional): organs push each other (thesis §6.3.4.1)
+//! Every deformation step, surface vertices of each body inside another body (or within `skin`
+//! of it) become pairs of contact springs, one on the vertex and one on the other body's
+//! closest point, each pushing its side half the depth apart; every model resolves them
+//! implicitly in its own step, a cage through its cage (see `lop_sim::collide`). Stiffer
+//! springs let the surfaces sink less into each other (`2F/k` per vertex pair under a force
+//! `F`) but, being anchored where the contact was at the start of the step, also drag on a
+//! pushed body (a damper of `k·dt` along the normal).
+//!
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `enabled` | bool | `true` | whether bodies push each other |
+//! | `stiffness` | float | `20` | N/m (> 0) per contact spring |
+//! | `skin` | float | `0.0005` | m (0 to 0.01): contact starts this far before the surfaces meet. The shipped organs are about 1 mm apart at rest, so the default leaves them untouched until pushed |
+//! | `depth_limit` | float | `0.01` | m (> 0): vertices deeper than this inside another body are ignored (and the detection stops searching there) |
+//!
 //! ## `[[body]]` (one or more)
 //! | key | type | default | meaning |
 //! |---|---|---|---|
@@ -281,7 +297,7 @@ pub use resolve::{
 };
 pub use scene::{
     load_scene, parse_scene, BodySpec, CageKind, DeviceDefaults, FemMode, FemParams, ForceLaw,
-    GcDynamics, GcParams, HeatParams, HeatSpec, Importance, Integrator, LopSpec, MassSpec,
+    CollisionSpec, GcDynamics, GcParams, HeatParams, HeatSpec, Importance, Integrator, LopSpec, MassSpec,
     ModelPin, MsdParams, Rates, Scene, StartLevel, ToolSpec,
 };
 pub use workspace::{mat_t_vec, mat_vec, rotation_xyz_deg, Mat3, WorkspaceMap, WorkspaceTransform};

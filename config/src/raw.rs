@@ -25,6 +25,8 @@ pub(crate) struct RawScene {
     #[serde(default)]
     pub heat: RawHeat,
     #[serde(default)]
+    pub collision: RawCollision,
+    #[serde(default)]
     pub body: Vec<RawBody>,
 }
 
@@ -35,6 +37,15 @@ pub(crate) struct RawHeat {
     pub air_coefficient: Option<f64>,
     pub contact_conductance: Option<f64>,
     pub dt: Option<f64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawCollision {
+    pub enabled: Option<bool>,
+    pub stiffness: Option<f64>,
+    pub skin: Option<f64>,
+    pub depth_limit: Option<f64>,
 }
 
 #[derive(Debug, Default, Deserialize)]

@@ -9,7 +9,7 @@ use serde::Deserialize;
 use crate::check::{fmt_f64, fmt_f64s, Check};
 use crate::error::ConfigError;
 use crate::raw::{
-    RawBody, RawBodyHeat, RawDevice, RawFem, RawGc, RawHeat, RawLop, RawMsd, RawRates, RawScene,
+    RawBody, RawBodyHeat, RawCollision, RawDevice, RawFem, RawGc, RawHeat, RawLop, RawMsd, RawRates, RawScene,
     RawTool, RawWorkspace,
 };
 use crate::source::{KeyPath, Source};
@@ -40,6 +40,8 @@ pub struct Scene {
     pub lop: LopSpec,
     /// Air and contact for the heat model, `[heat]`.
     pub heat: HeatSpec,
+    /// Organ-to-organ collision, `[collision]`.
+    pub collision: CollisionSpec,
 }
 
 impl Scene {
@@ -279,6 +281,30 @@ impl Default for GcParams {
     }
 }
 
+/// Organ-to-organ collision (thesis §6.3.4.1), `[collision]`: see `lop_sim::collide`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CollisionSpec {
+    /// Whether bodies push each other.
+    pub enabled: bool,
+    /// Stiffness of each contact spring, N/m (> 0).
+    pub stiffness: f64,
+    /// Contact starts this far before the surfaces meet, m (>= 0).
+    pub skin: f64,
+    /// Vertices deeper than this inside another body are ignored, m (> 0).
+    pub depth_limit: f64,
+}
+
+impl Default for CollisionSpec {
+    fn default() -> Self {
+        CollisionSpec {
+            enabled: true,
+            stiffness: 20.0,
+            skin: 0.0005,
+            depth_limit: 0.01,
+        }
+    }
+}
+
 /// Scene-level heat settings (thesis §5.3), `[heat]`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HeatSpec {
@@ -474,6 +500,7 @@ fn validate_scene(src: &Source<'_>, raw: RawScene) -> Result<Scene, ConfigError>
     let device = validate_device(&c, raw.device, &dir)?;
     let lop = validate_lop(&c, raw.lop)?;
     let heat = validate_heat(&c, raw.heat)?;
+    let collision = validate_collision(&c, raw.collision)?;
 
     if raw.body.is_empty() {
         return Err(c.invalid(
@@ -513,6 +540,35 @@ fn validate_scene(src: &Source<'_>, raw: RawScene) -> Result<Scene, ConfigError>
         device,
         lop,
         heat,
+        collision,
+    })
+}
+
+fn validate_collision(c: &Check<'_, '_>, raw: RawCollision) -> Result<CollisionSpec, ConfigError> {
+    let k = KeyPath::top("collision");
+    let d = CollisionSpec::default();
+    let skin = c.non_negative(&k.key("skin"), raw.skin.unwrap_or(d.skin), "collision skin (m)")?;
+    let depth_limit = c.positive(
+        &k.key("depth_limit"),
+        raw.depth_limit.unwrap_or(d.depth_limit),
+        "collision depth limit (m)",
+    )?;
+    if skin > 0.01 {
+        return Err(c.invalid(
+            &k.key("skin"),
+            skin.to_string(),
+            "collision skin (m): at most 0.01 (10 mm); bodies would push each other from afar",
+        ));
+    }
+    Ok(CollisionSpec {
+        enabled: raw.enabled.unwrap_or(d.enabled),
+        stiffness: c.positive(
+            &k.key("stiffness"),
+            raw.stiffness.unwrap_or(d.stiffness),
+            "collision stiffness (N/m)",
+        )?,
+        skin,
+        depth_limit,
     })
 }
 

@@ -197,6 +197,10 @@ pub fn run(opts: DeformOptions) -> Result<()> {
         // frames keep coming with frozen positions.
         let paused = control.poll(&mut world, sim_now);
         let step_start = rt::now_ns();
+        // Organ-to-organ contacts at the current shapes, for the steps about to be taken.
+        if !paused && (0..world.bodies.len()).any(|i| world.body_due(i, sim_now)) {
+            world.detect_collisions();
+        }
         let mut stepped = paused;
         for (i, last_ns) in step_ns.iter_mut().enumerate().filter(|_| !paused) {
             let mut steps = 0;

@@ -227,6 +227,15 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
             None => world.add_model(&spec.name, mesh, model),
         };
     }
+    if scene.collision.enabled {
+        world.enable_collisions(
+            lop_sim::collide::CollisionParams {
+                stiffness: scene.collision.stiffness,
+            },
+            scene.collision.skin,
+            scene.collision.depth_limit,
+        );
+    }
     topology.node_count = node_offset as u32;
     topology.triangle_count = (triangles.len() / 3) as u32;
     topology.tet_count = (tets.len() / 4) as u32;

@@ -2,9 +2,13 @@
 //! what happened: per-step timings (`steps.csv`), final node positions (`final_<body>.vtk` and
 //! `final_positions.csv`) and a summary (`summary.json`).
 //!
-//! Every body takes steps of its own `dt`; `--steps N` means N steps of every body. A mock
-//! script (`--script`) moves the tool through the scene on simulated time, so a run is
-//! deterministic and can be compared bit for bit. `--static` solves the static equilibrium of the
+//! Every body takes steps of its own `dt`; `--steps N` means N steps of every body. The bodies
+//! are stepped interleaved, as `lopd deform` steps them: each round, every body due at the
+//! earliest next step time steps, after organ-to-organ contacts (the scene's `[collision]`)
+//! have been found. A mock script (`--script`, or a recording with `--device replay:PATH`)
+//! moves the device on simulated time and a god-object decides the contact, as the haptic loop
+//! does live (`lop_sim::haptic::WorldProbe`); so a run is deterministic and can be compared bit
+//! for bit. `--static` solves the static equilibrium of the
 //! FEM bodies (K u = f) instead, for validation and calibration.
 
 use std::io::Write;
@@ -13,6 +17,8 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use lop_config::Scene;
+use lop_drivers::BUTTON_GRAB;
+use lop_sim::haptic::WorldProbe;
 use lop_sim::lop::SwitchReason;
 use lop_sim::mesh::{write_vtk, TetMesh};
 use lop_sim::model::Model;
@@ -91,6 +97,8 @@ pub fn run(opts: SimulateOptions) -> Result<PathBuf> {
     let script = ToolSource::load(opts.script.as_deref(), opts.replay.as_deref())?;
     let workspace = opts.scene.workspace.transform();
     let tool_spec = opts.scene.tool.clone();
+    let body_tool_stiffness: Vec<Option<f64>> =
+        opts.scene.bodies.iter().map(|b| b.tool_stiffness).collect();
     let loaded = scene::load(opts.scene)?;
     let scene_name = loaded.scene.name.clone();
     let scene_path = loaded.scene.path.display().to_string();
@@ -130,12 +138,46 @@ pub fn run(opts: SimulateOptions) -> Result<PathBuf> {
             times[i].push(t0.elapsed().as_secs_f64() * 1e6);
         }
     } else {
-        for i in 0..n_bodies {
-            while steps_done[i] < opts.steps {
-                let t = world.bodies[i].time;
-                let tool = script.as_ref().map(|s| {
-                    let sample = s.sample(t);
-                    tool_sphere(&tool_spec, workspace.device_to_scene(sample.position_mm))
+        // Interleaved, as the deformation process steps them: each round advances every body
+        // due at the earliest next step time, after the god-object has moved (with a script)
+        // and organ-to-organ contacts have been found, so bodies push each other.
+        let mut probe = script
+            .as_ref()
+            .map(|_| WorldProbe::new(&world, tool_spec.radius));
+        let mut active: Vec<bool> = vec![opts.steps > 0; n_bodies];
+        loop {
+            let next = (0..n_bodies)
+                .filter(|&i| active[i])
+                .map(|i| world.bodies[i].time + world.bodies[i].model.dt())
+                .min_by(f64::total_cmp);
+            let Some(next) = next else {
+                break;
+            };
+            let now = (0..n_bodies)
+                .filter(|&i| active[i])
+                .map(|i| world.bodies[i].time)
+                .fold(f64::INFINITY, f64::min);
+            let device = script.as_ref().map(|s| {
+                let sample = s.sample(now);
+                (
+                    workspace.device_to_scene(sample.position_mm),
+                    sample.pressed(BUTTON_GRAB),
+                )
+            });
+            if let (Some(p), Some((at, grab))) = (probe.as_mut(), device) {
+                p.tick(&mut world, at, grab);
+            }
+            world.detect_collisions();
+            for i in 0..n_bodies {
+                if !active[i] || !world.body_due(i, next) {
+                    continue;
+                }
+                let tool = device.map(|(at, _)| {
+                    let mut t = tool_sphere(&tool_spec, at);
+                    if let Some(k) = body_tool_stiffness[i] {
+                        t.stiffness = k;
+                    }
+                    t
                 });
                 let t0 = Instant::now();
                 let r = world.step_body(i, tool.as_ref());
@@ -163,6 +205,9 @@ pub fn run(opts: SimulateOptions) -> Result<PathBuf> {
                     b.model.max_speed(),
                     (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
                 )?;
+                if steps_done[i] >= opts.steps {
+                    active[i] = false;
+                }
                 if opts.until_converged {
                     if b.model.max_speed() < SETTLED_SPEED {
                         settled_for[i] += 1;
@@ -170,7 +215,7 @@ pub fn run(opts: SimulateOptions) -> Result<PathBuf> {
                         settled_for[i] = 0;
                     }
                     if settled_for[i] >= SETTLED_STEPS {
-                        break;
+                        active[i] = false;
                     }
                 }
             }
