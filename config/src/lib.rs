@@ -296,8 +296,8 @@ pub use resolve::{
     scene_dirs, script_dirs,
 };
 pub use scene::{
-    load_scene, parse_scene, BodySpec, CageKind, DeviceDefaults, FemMode, FemParams, ForceLaw,
-    CollisionSpec, GcDynamics, GcParams, HeatParams, HeatSpec, Importance, Integrator, LopSpec, MassSpec,
-    ModelPin, MsdParams, Rates, Scene, StartLevel, ToolSpec,
+    load_scene, parse_scene, BodySpec, CageKind, CollisionSpec, DeviceDefaults, FemMode, FemParams,
+    ForceLaw, GcDynamics, GcParams, HeatParams, HeatSpec, Importance, Integrator, LopSpec,
+    MassSpec, ModelPin, MsdParams, Rates, Scene, StartLevel, ToolSpec,
 };
 pub use workspace::{mat_t_vec, mat_vec, rotation_xyz_deg, Mat3, WorkspaceMap, WorkspaceTransform};

@@ -9,8 +9,8 @@ use serde::Deserialize;
 use crate::check::{fmt_f64, fmt_f64s, Check};
 use crate::error::ConfigError;
 use crate::raw::{
-    RawBody, RawBodyHeat, RawCollision, RawDevice, RawFem, RawGc, RawHeat, RawLop, RawMsd, RawRates, RawScene,
-    RawTool, RawWorkspace,
+    RawBody, RawBodyHeat, RawCollision, RawDevice, RawFem, RawGc, RawHeat, RawLop, RawMsd,
+    RawRates, RawScene, RawTool, RawWorkspace,
 };
 use crate::source::{KeyPath, Source};
 use crate::workspace::{mat_vec, rotation_xyz_deg, WorkspaceMap};
@@ -547,7 +547,11 @@ fn validate_scene(src: &Source<'_>, raw: RawScene) -> Result<Scene, ConfigError>
 fn validate_collision(c: &Check<'_, '_>, raw: RawCollision) -> Result<CollisionSpec, ConfigError> {
     let k = KeyPath::top("collision");
     let d = CollisionSpec::default();
-    let skin = c.non_negative(&k.key("skin"), raw.skin.unwrap_or(d.skin), "collision skin (m)")?;
+    let skin = c.non_negative(
+        &k.key("skin"),
+        raw.skin.unwrap_or(d.skin),
+        "collision skin (m)",
+    )?;
     let depth_limit = c.positive(
         &k.key("depth_limit"),
         raw.depth_limit.unwrap_or(d.depth_limit),

@@ -416,3 +416,21 @@ fn never_panics_on_mangled_input() {
         }
     }
 }
+
+#[test]
+fn collision_keys_out_of_range() {
+    let text = format!("[collision]\nstiffness = -5.0\n\n{GOOD}");
+    let err = expect_err(&text, &["collision.stiffness", "-5", "N/m"]);
+    assert_eq!(err.line(), Some(line_of(&text, "stiffness = -5.0")));
+    let text = format!("[collision]\nskin = 0.5\n\n{GOOD}");
+    expect_err(&text, &["collision.skin", "0.5", "at most 0.01"]);
+    let text = format!("[collision]\nenabled = \"yes\"\n\n{GOOD}");
+    expect_err(&text, &["enabled"]);
+    let scene = parse_scene(
+        &format!("[collision]\nenabled = false\n\n{GOOD}"),
+        &scene_path(),
+    )
+    .unwrap();
+    assert!(!scene.collision.enabled);
+    assert_eq!(scene.collision.stiffness, 20.0);
+}
