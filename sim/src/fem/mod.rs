@@ -631,9 +631,17 @@ impl Fem {
         springs: &[ContactSpring],
     ) -> Result<ContactReport, BlowUp> {
         let dt = self.params.dt;
-        self.internal_forces();
-        // b = f − f_int(x) + (M/Δt − D/2) v on the free DOFs.
+        let colliding = springs.iter().any(|s| s.touch(&self.x).is_some());
+        // Linear mode without contact springs solves for the new displacement directly (see
+        // `solve_linear_total`): no elastic forces to evaluate.
+        let total = self.params.mode == FemMode::Linear && !colliding;
+        if !total {
+            self.internal_forces();
+        }
+        // b = f − f_int(x) + (M/Δt − D/2) v on the free DOFs; in linear mode without springs
+        // K̃ u + b = f + (M/Δt² + D/(2Δt)) u + (M/Δt − D/2) v instead (f_int = K u cancels).
         let vel_coef = 1.0 / dt - self.params.damping / 2.0;
+        let disp_coef = 1.0 / (dt * dt) + self.params.damping / (2.0 * dt);
         for (i, &d) in self.system.dof.iter().enumerate() {
             if d == NONE {
                 continue;
@@ -641,15 +649,19 @@ impl Fem {
             let m = self.mass[i];
             let ext = external.get(i).copied().unwrap_or([0.0; 3]);
             for c in 0..3 {
+                let state = if total {
+                    m * disp_coef * self.u[i][c]
+                } else {
+                    self.s.force[i][c]
+                };
                 self.s.rhs[d as usize + c] =
-                    self.s.force[i][c] + m * gravity[c] + ext[c] + m * vel_coef * self.v[i][c];
+                    state + m * gravity[c] + ext[c] + m * vel_coef * self.v[i][c];
             }
         }
         let pressed = contact.and_then(|c| self.contact_setup(c));
-        let colliding = springs.iter().any(|s| s.touch(&self.x).is_some());
         let solved = match self.params.mode {
             _ if colliding => self.solve_colliding(pressed, springs),
-            FemMode::Linear => self.solve_linear(pressed),
+            FemMode::Linear => self.solve_linear_total(pressed),
             FemMode::Corotational => match self.solver {
                 CorotationalSolver::Refactor => self.solve_refactor(pressed),
                 CorotationalSolver::LaggedFactorPcg => self.solve_pcg(pressed),
@@ -673,13 +685,23 @@ impl Fem {
     }
 
     /// Linear mode: the scene's factor of `K̃`, contact by Sherman–Morrison–Woodbury (module
-    /// docs). Leaves the increment in `sol`.
-    fn solve_linear(&mut self, pressed: Option<Pressed>) -> Result<ContactReport, Failed> {
+    /// docs). `rhs` holds `K̃ u + b` (the step's right-hand side plus `K̃` times the current
+    /// displacement, which needs no stiffness product since `K u = f_int`): the solve gives the
+    /// new displacement, and the increment `K̃⁻¹ b` is its difference with `u` — one sparse
+    /// triangular solve pair per step and nothing else. Leaves the increment in `sol`.
+    fn solve_linear_total(&mut self, pressed: Option<Pressed>) -> Result<ContactReport, Failed> {
         if self.factor != Factor::RestDynamic {
             self.factor_dynamic(false)?;
         }
         self.system.solve_in_place(&mut self.s.rhs);
-        self.s.sol.copy_from_slice(&self.s.rhs);
+        for (i, &d) in self.system.dof.iter().enumerate() {
+            if d != NONE {
+                for c in 0..3 {
+                    let k = d as usize + c;
+                    self.s.sol[k] = self.s.rhs[k] - self.u[i][c];
+                }
+            }
+        }
         self.last_iterations = 0;
         Ok(match pressed {
             Some(p) => self.woodbury(&p),
