@@ -348,7 +348,19 @@ struct Scratch {
     cg_z: Vec<f64>,
     cg_p: Vec<f64>,
     cg_q: Vec<f64>,
+    /// Linear mode only (empty otherwise): the columns of `K̃⁻¹` for the DOF blocks the tool
+    /// touched most recently, [`INVERSE_SLOTS`] slots of three `n_dof` columns; the key of each
+    /// slot (the block's first DOF, or `NONE`) and when it was last used. Filled by
+    /// `inverse_columns`, cleared by `factor_dynamic`.
+    inv_cols: Vec<f64>,
+    inv_key: Vec<u32>,
+    inv_used: Vec<u64>,
+    inv_clock: u64,
 }
+
+/// Node blocks of `K̃⁻¹` columns kept by a linear body (see `Scratch::inv_cols`): a touched
+/// triangle's three nodes and those around it as the god-object slides.
+const INVERSE_SLOTS: usize = 12;
 
 /// What the system's Cholesky factor currently holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -445,6 +457,18 @@ impl Fem {
             cg_z: vec![0.0; n_dof],
             cg_p: vec![0.0; n_dof],
             cg_q: vec![0.0; n_dof],
+            inv_cols: if params.mode == FemMode::Linear {
+                vec![0.0; 3 * INVERSE_SLOTS * n_dof]
+            } else {
+                Vec::new()
+            },
+            inv_key: if params.mode == FemMode::Linear {
+                vec![NONE; INVERSE_SLOTS]
+            } else {
+                Vec::new()
+            },
+            inv_used: vec![0; INVERSE_SLOTS],
+            inv_clock: 0,
         });
         let mut fem = Fem {
             params,
@@ -703,8 +727,9 @@ impl Fem {
             }
         }
         self.last_iterations = 0;
+        // K̃⁻¹ c from the cached columns of the touched nodes (the factor never changes).
         Ok(match pressed {
-            Some(p) => self.woodbury(&p),
+            Some(p) => self.woodbury_cached(&p),
             None => ContactReport::default(),
         })
     }
@@ -769,14 +794,79 @@ impl Fem {
         })
     }
 
+    /// [`Fem::woodbury`] with `K̃⁻¹ c_a` assembled from cached columns of `K̃⁻¹` (linear mode:
+    /// the factor is fixed, and `c_a` only involves the touched triangle's nodes), computed by
+    /// three solves the first time a node is touched instead of one solve per direction every
+    /// step.
+    fn woodbury_cached(&mut self, p: &Pressed) -> ContactReport {
+        let mut slots = [None; 3];
+        for k in 0..3 {
+            if p.dofs[k] != NONE && p.weights[k] != 0.0 {
+                slots[k] = self.inverse_columns(p.dofs[k]);
+                if slots[k].is_none() {
+                    return self.woodbury(p);
+                }
+            }
+        }
+        let n = self.system.n_dof;
+        for a in 0..p.m {
+            let z = &mut self.s.contact_dir[a];
+            z.fill(0.0);
+            for (k, slot) in slots.iter().enumerate() {
+                let Some(slot) = *slot else {
+                    continue;
+                };
+                for b in 0..3 {
+                    let w = p.weights[k] * p.dirs[a][b];
+                    if w != 0.0 {
+                        let col = &self.s.inv_cols[(3 * slot + b) * n..(3 * slot + b + 1) * n];
+                        z.iter_mut().zip(col).for_each(|(z, c)| *z += w * c);
+                    }
+                }
+            }
+        }
+        self.woodbury_solved(p)
+    }
+
+    /// The cache slot holding the three columns of `K̃⁻¹` for the DOF block starting at `d`,
+    /// computed into the least recently used slot if missing. `None` without a cache (not
+    /// linear mode) or without the rest factor.
+    fn inverse_columns(&mut self, d: u32) -> Option<usize> {
+        if self.s.inv_key.is_empty() || self.factor != Factor::RestDynamic {
+            return None;
+        }
+        self.s.inv_clock += 1;
+        let clock = self.s.inv_clock;
+        if let Some(k) = self.s.inv_key.iter().position(|&key| key == d) {
+            self.s.inv_used[k] = clock;
+            return Some(k);
+        }
+        let k = (0..self.s.inv_key.len()).min_by_key(|&k| self.s.inv_used[k])?;
+        let n = self.system.n_dof;
+        for b in 0..3 {
+            let col = &mut self.s.inv_cols[(3 * k + b) * n..(3 * k + b + 1) * n];
+            col.fill(0.0);
+            col[d as usize + b] = 1.0;
+            self.system.solve_in_place(col);
+        }
+        self.s.inv_key[k] = d;
+        self.s.inv_used[k] = clock;
+        Some(k)
+    }
+
     /// With `sol = K̃⁻¹ b`: the increment of `(K̃ + k' C Cᵀ) d = b − C F` is
     /// `d = sol − Z λ`, `Z = K̃⁻¹ C`, `(I + k' Cᵀ Z) λ = F + k' Cᵀ sol`; `λ` is the contact
     /// force after the step. A press whose `λ` would pull is dropped.
     fn woodbury(&mut self, p: &Pressed) -> ContactReport {
-        let m = p.m;
-        for a in 0..m {
+        for a in 0..p.m {
             self.system.solve_in_place(&mut self.s.contact_dir[a]);
         }
+        self.woodbury_solved(p)
+    }
+
+    /// [`Fem::woodbury`] once `contact_dir` holds `Z = K̃⁻¹ C`.
+    fn woodbury_solved(&mut self, p: &Pressed) -> ContactReport {
+        let m = p.m;
         let mut sm = [[0.0; 3]; 3];
         let mut r = [0.0; 3];
         for a in 0..m {
@@ -1213,6 +1303,7 @@ impl Fem {
         }
         self.extra_iterations = 0;
         self.baseline_iterations = None;
+        self.s.inv_key.iter_mut().for_each(|k| *k = NONE);
         if warped {
             self.factor = Factor::WarpedDynamic;
             self.s.node_rot_lag.copy_from_slice(&self.s.node_rot);
