@@ -34,7 +34,10 @@
 //!
 //! with `f_int(u) = K u` (linear mode). The right-hand side holds the true elastic forces, so
 //! an equilibrium of the dynamics is exactly the static equilibrium, whatever the accuracy of
-//! the linear solve. The scheme is unconditionally stable and dissipative in the stiffness
+//! the linear solve. Linear mode adds `K̃ u` to both sides, where `K u` cancels:
+//! `K̃ u⁺ = f + (M/Δt² + D/(2Δt)) u + (M/Δt − D/2) v`, a right-hand side of diagonal terms
+//! only, so its step evaluates no element at all (one pair of triangular solves with the
+//! factor made once; `d = u⁺ − u` then feeds the tool's update below). The scheme is unconditionally stable and dissipative in the stiffness
 //! (undamped amplification `1/√(1+ω²Δt²)`), so the thesis' Δt = 0.01 s on milligram nodes is
 //! fine.
 //!
@@ -106,7 +109,10 @@
 //! λ = (F + k' cᵀy) / (1 + k' cᵀz),     d = y − λ z
 //! ```
 //!
-//! (one extra pair of triangular solves); the corotational CG includes it in its operator and
+//! (one extra pair of triangular solves, which linear mode saves: its factor never changes, so
+//! it keeps the three columns of `K̃⁻¹` of each of the last 12 node blocks the tool touched and
+//! builds `z` from them, paying three solves when the tool reaches a new node); the
+//! corotational CG includes it in its operator and
 //! preconditioner. `λ = F + k' cᵀd` is the force the step applies. If `λ ≤ 0` the tissue leaves
 //! the tool during the step and the contact is dropped: the linearised penalty never pulls.
 //!
