@@ -86,7 +86,7 @@ impl ToolAnchor {
 }
 
 /// A unilateral penalty spring acting on one body during one step: organ-to-organ collision
-/// (built by [`crate::collide::Collisions::springs`]).
+/// (built by [`crate::collide::Collisions::add_springs`]).
 ///
 /// It pushes the material point `p = Σ weights[k] · x[nodes[k]]` along the unit `normal` with
 /// force `stiffness · (target − normal · p)` while that is positive. A penetrating vertex uses
