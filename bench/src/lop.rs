@@ -228,15 +228,6 @@ fn write_file(path: &Path, text: &str) -> Result<()> {
 // ---------------------------------------------------------------------------------------------
 // Report.
 
-/// A trial of the thesis that is not run, and why.
-#[derive(Debug, Clone, Serialize)]
-pub struct Pending {
-    pub scene: String,
-    pub trial: String,
-    pub thesis: String,
-    pub reason: String,
-}
-
 /// One target of the levels-of-precision work, measured.
 #[derive(Debug, Clone, Serialize)]
 pub struct Target {
@@ -264,8 +255,6 @@ pub struct LopReport {
     pub optimized_build: bool,
     /// Part 1.
     pub efficiency: Vec<efficiency::RunRow>,
-    /// Thesis trials not run.
-    pub pending: Vec<Pending>,
     /// Part 2.
     pub speedup: Vec<speedup::SpeedRow>,
     /// Part 3.
@@ -287,21 +276,6 @@ pub fn run(a: LopArgs) -> Result<()> {
 
     let efficiency = efficiency::run(a.quick, &a.out, &mut files)?;
     print!("{}", efficiency::render(&efficiency));
-    let pending = vec![Pending {
-        scene: "cylinders".into(),
-        trial: "interaction-collision".into(),
-        thesis: "§6.3.3, Fig. 6.7 (and the organ-to-organ propagation of §6.3.4)".into(),
-        reason: "pending: object-to-object collision response is not integrated in the world \
-                 (World::step_body applies no lop_sim::collide loads), so the poked cylinder \
-                 cannot push the other one; not run"
-            .into(),
-    }];
-    for p in &pending {
-        println!(
-            "\nPart 1, {} / {} ({}): {}",
-            p.scene, p.trial, p.thesis, p.reason
-        );
-    }
     println!();
 
     let speed = speedup::run(a.quick)?;
@@ -327,7 +301,6 @@ pub fn run(a: LopArgs) -> Result<()> {
         cpu_model: crate::models::cpu_model(),
         optimized_build: !cfg!(debug_assertions),
         efficiency,
-        pending,
         speedup: speed,
         effectiveness,
         targets,
