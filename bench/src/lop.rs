@@ -17,7 +17,7 @@
 //!
 //! Organ-to-organ collision (the scenes' `[collision]`, on by default) is switched off
 //! (`World::disable_collisions`) in every trial but the third: the thesis runs those without it
-//! (§6.3.2: the times do "not includ[e] the collision detection between objects").
+//! (§6.3.2: the times are "not including the collision detection between objects").
 //!
 //! - `cylinders`, trial **gravity** (Figs. 6.4/6.5): no tool, from rest, 4 s simulated. Each
 //!   pair (A, B) ∈ {FEM, MSD}² runs *without GC* (both bodies pinned) and *with GC* (both
