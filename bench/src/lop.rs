@@ -110,8 +110,9 @@ use crate::models::workspace_root;
 #[derive(Args, Debug, Clone)]
 pub struct LopArgs {
     /// Small and fast (for the smoke test): 0.5 s of simulated time per efficiency and
-    /// effectiveness run (the interaction scripts started 1 s in, so the tool reaches the body),
-    /// 30 timed steps per speed-up row.
+    /// effectiveness run (the poke scripts started 1 s in, so the tool reaches the body; the
+    /// push 1.9 s in, so the pushed cylinder reaches the other), 30 timed steps per speed-up
+    /// row.
     #[arg(long)]
     quick: bool,
     /// Where the CSV and SVG files go (created if missing).
