@@ -1,8 +1,9 @@
 //! Smoke test of `lop-bench lop --quick`: every efficiency run has every body with positive
 //! timings, the poked body of every with-GC interaction run switched level, the collision trial
-//! is reported as pending, every speed-up and effectiveness row is there with positive finite
-//! numbers, and every CSV/SVG file it lists exists. No wall-clock bound on any figure (speed
-//! goes in `docs/benchmarks.md`, not in tests).
+//! detected collisions every round (and only it) and its push moved the other cylinder, every
+//! speed-up and effectiveness row is there with positive finite numbers, and every CSV/SVG file
+//! it lists exists. No wall-clock bound on any figure (speed goes in `docs/benchmarks.md`, not
+//! in tests).
 
 mod common;
 
@@ -11,36 +12,36 @@ use std::time::Duration;
 
 use serde_json::Value;
 
+/// The eight configurations of the cylinders' trials.
+const CYLINDER_CONFIGS: &[&str] = &[
+    "fem-fem-nogc",
+    "fem-fem-gc",
+    "fem-msd-nogc",
+    "fem-msd-gc",
+    "msd-fem-nogc",
+    "msd-fem-gc",
+    "msd-msd-nogc",
+    "msd-msd-gc",
+];
+
 /// Part 1's runs: (scene, trial, configuration keys, bodies).
-const EFFICIENCY: [(&str, &str, &[&str], &[&str]); 3] = [
+const EFFICIENCY: [(&str, &str, &[&str], &[&str]); 4] = [
     (
         "cylinders",
         "gravity",
-        &[
-            "fem-fem-nogc",
-            "fem-fem-gc",
-            "fem-msd-nogc",
-            "fem-msd-gc",
-            "msd-fem-nogc",
-            "msd-fem-gc",
-            "msd-msd-nogc",
-            "msd-msd-gc",
-        ],
+        CYLINDER_CONFIGS,
         &["cylinder_a", "cylinder_b"],
     ),
     (
         "cylinders",
         "interaction",
-        &[
-            "fem-fem-nogc",
-            "fem-fem-gc",
-            "fem-msd-nogc",
-            "fem-msd-gc",
-            "msd-fem-nogc",
-            "msd-fem-gc",
-            "msd-msd-nogc",
-            "msd-msd-gc",
-        ],
+        CYLINDER_CONFIGS,
+        &["cylinder_a", "cylinder_b"],
+    ),
+    (
+        "cylinders",
+        "interaction-collision",
+        CYLINDER_CONFIGS,
         &["cylinder_a", "cylinder_b"],
     ),
     (
@@ -161,7 +162,7 @@ fn lop_quick_reports_every_run_and_writes_its_files() {
                     assert_eq!(b["gc_steps"], 0, "{what}");
                 }
             }
-            if with_gc && trial == "interaction" {
+            if with_gc && trial.starts_with("interaction") {
                 let poked = if scene == "organs" {
                     "liver"
                 } else {
@@ -177,13 +178,51 @@ fn lop_quick_reports_every_run_and_writes_its_files() {
         }
     }
     assert_eq!(runs.len(), expected_runs);
-    // The collision trial is pending, not faked.
-    let pending = v["pending"].as_array().expect("pending");
-    assert!(
-        pending.iter().any(|p| p["trial"] == "interaction-collision"
-            && p["reason"].as_str().unwrap().contains("pending")),
-        "{pending:?}"
-    );
+    assert!(v.get("pending").is_none(), "no trial is left pending");
+    // Collision is detected in the collision trial only, once per round; the push reaches the
+    // other cylinder and moves it along +x.
+    for run in runs {
+        let key = run["key"].as_str().unwrap();
+        let c = &run["collision"];
+        if run["trial"] != "interaction-collision" {
+            assert!(c.is_null(), "{key}: collision on: {c}");
+            continue;
+        }
+        let rounds = run["bodies"][0]["steps"].as_u64().unwrap();
+        assert_eq!(c["detections"].as_u64().unwrap(), rounds, "{key}: {c}");
+        positive(&c["median_us"], &format!("{key} detection median"));
+        positive(&c["mean_us"], &format!("{key} detection mean"));
+        assert!(c["contact_detections"].as_u64().unwrap() >= 1, "{key}: {c}");
+        assert!(c["max_penetrations"].as_u64().unwrap() >= 1, "{key}: {c}");
+        assert_eq!(c["pushed"], "cylinder_b", "{key}");
+        let b = run["bodies"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|b| b["body"] == "cylinder_b")
+            .unwrap();
+        let control = c["control_pushed_max_dx_mm"].as_f64().unwrap();
+        assert!(
+            b["max_dx_mm"].as_f64().unwrap() >= control + 0.1 && c["propagated"] == true,
+            "{key}: the push did not move cylinder_b: {b}\n{c}"
+        );
+        positive(
+            &b["max_contact_force_x_mn"],
+            &format!("{key} force on cylinder_b"),
+        );
+        // Without collision the pusher goes into the other cylinder: the script pushes it there.
+        positive(
+            &c["control_max_interpenetration_mm"],
+            &format!("{key} control interpenetration"),
+        );
+        let csv = dir.join(c["csv"].as_str().unwrap());
+        let body = std::fs::read_to_string(&csv).unwrap_or_else(|_| panic!("{csv:?}"));
+        assert!(
+            body.starts_with("round,time_s,detect_us,penetrations,max_depth_mm,tree_builds\n"),
+            "{csv:?}"
+        );
+        assert_eq!(body.lines().count() as u64, rounds + 1, "{csv:?}");
+    }
 
     // Part 2: every variant on every body, with a positive speed-up figure.
     let speed = v["speedup"].as_array().expect("speedup");
@@ -261,7 +300,7 @@ fn lop_quick_reports_every_run_and_writes_its_files() {
 
     // Every listed file exists; the plots have lines.
     let files = v["files"].as_array().unwrap();
-    assert!(files.len() >= 18 + 3 + 4 + 2, "{files:?}");
+    assert!(files.len() >= 26 + 8 + 4 + 4 + 2, "{files:?}");
     for f in files {
         let path = PathBuf::from(f.as_str().unwrap());
         assert!(path.is_file(), "listed file {f} missing");
@@ -272,12 +311,10 @@ fn lop_quick_reports_every_run_and_writes_its_files() {
                 "{path:?}"
             );
         }
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
         if path.extension().is_some_and(|e| e == "csv")
-            && path
-                .file_name()
-                .unwrap()
-                .to_string_lossy()
-                .starts_with("part1-")
+            && name.starts_with("part1-")
+            && !name.ends_with("-collision.csv")
         {
             let body = std::fs::read_to_string(&path).unwrap();
             assert!(
@@ -290,6 +327,7 @@ fn lop_quick_reports_every_run_and_writes_its_files() {
     for svg in [
         "part1-cylinders-gravity.svg",
         "part1-cylinders-interaction.svg",
+        "part1-cylinders-interaction-collision.svg",
         "part1-organs-interaction.svg",
         "part3-cylinder.svg",
         "part3-liver.svg",

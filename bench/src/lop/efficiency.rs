@@ -1,32 +1,36 @@
-//! Part 1 of `lop-bench lop`: time per iteration per body under gravity and under a scripted
-//! poke, with and without the levels-of-precision controller (thesis §6.3, Figs. 6.4–6.9). See
-//! the parent module's docs for the set-up; this file runs it and writes the CSV and SVG files.
+//! Part 1 of `lop-bench lop`: time per iteration per body under gravity, under a scripted
+//! poke and under a scripted push of one body into another, with and without the
+//! levels-of-precision controller (thesis §6.3, Figs. 6.4–6.9). See the parent module's docs
+//! for the set-up; this file runs it and writes the CSV and SVG files.
 
 use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use lop_config::{Importance, ModelPin, Scene, StartLevel};
 use lop_daemon::scene::tool_sphere;
 use lop_drivers::mock::MockScript;
-use lop_sim::model::ModelKind;
+use lop_sim::collide::{CollisionBody, Collisions};
+use lop_sim::model::{ContactSpring, ModelKind};
 use serde::Serialize;
 
 use super::{kind_label, listed, median, quantile_sorted, shipped_scene, write_file};
-use crate::models::{table, us, Align};
+use crate::models::{table, us, workspace_root, Align};
 use crate::pipeline;
 use crate::plot::{self, Panel, Series};
 
 /// Simulated time of the gravity trial, s.
 const GRAVITY_SECONDS: f64 = 4.0;
-/// Simulated time of an interaction trial, s (the poke scripts last 4.3–4.4 s).
+/// Simulated time of an interaction trial, s (the poke scripts last 4.3–4.4 s, the push 4.6 s).
 const INTERACTION_SECONDS: f64 = 6.0;
-/// `--quick`: simulated time of every run, s …
+/// `--quick`: simulated time of every run, s (where the scripts start is [`Trial::quick_offset`]).
 const QUICK_SECONDS: f64 = 0.5;
-/// … and where the interaction scripts start, s (past their initial rest, so the tool reaches
-/// the body within the run).
-const QUICK_SCRIPT_OFFSET: f64 = 1.0;
+/// How much farther along +x the pushed body's nodes must go with collision than in the
+/// control run without it (same push, same models), m, for the push to count as propagated:
+/// ten times what a pinned cylinder moves along x under gravity alone (0.01 mm; the Table 6.1
+/// material's Poisson ratio is 0.0023).
+const PROPAGATED_M: f64 = 0.1e-3;
 
 /// A body's precise model in a configuration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -63,37 +67,70 @@ impl Precise {
     }
 }
 
-/// One trial: a scene, with or without the tool script.
+/// One trial: a scene, with or without a tool script, with or without organ-to-organ
+/// collision.
 #[derive(Debug, Clone, Copy)]
 struct Trial {
     scene: &'static str,
-    /// "gravity" or "interaction".
+    /// "gravity", "interaction" or "interaction-collision".
     name: &'static str,
     /// Thesis figures it reproduces.
     thesis: &'static str,
+    /// The mock script driving the tool (a file in `config/scripts/`), if any.
+    script: Option<&'static str>,
+    /// `--quick`: where the script starts, s (past its initial rest, so the tool reaches the
+    /// body within the short run; the push: into the pushing phase, so it reaches the other
+    /// body too).
+    quick_offset: f64,
+    /// Organ-to-organ collision on (the scene's `[collision]`, detected once per tick as
+    /// `lopd` does) or off (`World::disable_collisions`, as in the thesis' trials without it).
+    collision: bool,
+    /// With `collision`: the body pushed by the other one, whose motion is checked.
+    pushed: Option<&'static str>,
 }
 
-const TRIALS: [Trial; 3] = [
+const TRIALS: [Trial; 4] = [
     Trial {
         scene: "cylinders",
         name: "gravity",
         thesis: "Figs. 6.4 (without GC) and 6.5 (with GC)",
+        script: None,
+        quick_offset: 0.0,
+        collision: false,
+        pushed: None,
     },
     Trial {
         scene: "cylinders",
         name: "interaction",
         thesis: "Fig. 6.6",
+        script: Some("cylinders-poke.toml"),
+        quick_offset: 1.0,
+        collision: false,
+        pushed: None,
+    },
+    Trial {
+        scene: "cylinders",
+        name: "interaction-collision",
+        thesis: "Fig. 6.7",
+        script: Some("cylinders-push.toml"),
+        quick_offset: 1.9,
+        collision: true,
+        pushed: Some("cylinder_b"),
     },
     Trial {
         scene: "organs",
         name: "interaction",
         thesis: "Figs. 6.8 (with GC) and 6.9 (without GC)",
+        script: Some("organs-poke.toml"),
+        quick_offset: 1.0,
+        collision: false,
+        pushed: None,
     },
 ];
 
 impl Trial {
     fn scripted(&self) -> bool {
-        self.name == "interaction"
+        self.script.is_some()
     }
 }
 
@@ -175,6 +212,10 @@ pub struct BodyRow {
     pub median_gc_us: Option<f64>,
     /// Median µs of the steps taken by the precise model (`None`: none).
     pub median_precise_us: Option<f64>,
+    /// Steps taken with contact springs (organ-to-organ collision found the body touching
+    /// another), by either model, and their median µs (`None`: none).
+    pub colliding_steps: usize,
+    pub median_colliding_us: Option<f64>,
     /// Over every step, µs.
     pub mean_us: f64,
     pub p99_us: f64,
@@ -188,6 +229,56 @@ pub struct BodyRow {
     pub final_model: String,
     /// Blow-ups (the body reset itself).
     pub resets: u32,
+    /// Largest displacement of any node from its rest position over the run, mm (gravity's
+    /// sag included).
+    pub max_displacement_mm: f64,
+    /// Largest displacement of any node along +x (the push's direction) over the run, mm.
+    pub max_dx_mm: f64,
+    /// Largest total force of the body's contact springs (organ-to-organ collision) at the
+    /// end of a step, over the run, mN: its magnitude and its x component's (0: collision off
+    /// or no contact).
+    pub max_contact_force_mn: f64,
+    pub max_contact_force_x_mn: f64,
+}
+
+/// Organ-to-organ collision detection in one run: one `World::detect_collisions` per tick
+/// with a body due, timed on its own (not in the bodies' step times).
+#[derive(Debug, Clone, Serialize)]
+pub struct CollisionRow {
+    /// The scene's `[collision]`: spring stiffness N/m, skin and depth limit mm.
+    pub stiffness_n_per_m: f64,
+    pub skin_mm: f64,
+    pub depth_limit_mm: f64,
+    /// Detections (one per tick).
+    pub detections: usize,
+    /// Over the detections, µs.
+    pub median_us: f64,
+    /// Median over the detections that found a penetrating vertex / found none, µs.
+    pub median_contact_us: Option<f64>,
+    pub median_apart_us: Option<f64>,
+    pub mean_us: f64,
+    pub p99_us: f64,
+    pub max_us: f64,
+    /// Detections that found at least one penetrating vertex.
+    pub contact_detections: usize,
+    /// Most penetrating vertices in one detection (both bodies).
+    pub max_penetrations: usize,
+    /// Largest penetration depth, mm; it counts the skin (a vertex touching the other surface
+    /// has depth = skin).
+    pub max_depth_mm: f64,
+    /// Detection's share of the run's computing time (detections + every step), %.
+    pub share_pct: f64,
+    /// The body pushed through the contact.
+    pub pushed: Option<String>,
+    /// The control run (the same push, collision off): the pushed body's `max_dx_mm`, and the
+    /// deepest any surface vertex went into the other body, mm (no skin).
+    pub control_pushed_max_dx_mm: Option<f64>,
+    pub control_max_interpenetration_mm: Option<f64>,
+    /// Whether the pushed body went at least 0.1 mm farther along +x than in the control: the
+    /// trial is only meaningful if it did.
+    pub propagated: bool,
+    /// The per-detection CSV.
+    pub csv: String,
 }
 
 /// One run (scene × trial × configuration).
@@ -196,7 +287,7 @@ pub struct RunRow {
     /// Stable machine name, e.g. `cylinders-interaction-fem-msd-gc`.
     pub key: String,
     pub scene: String,
-    /// "gravity" or "interaction".
+    /// "gravity", "interaction" or "interaction-collision".
     pub trial: String,
     /// The precise model of each body, e.g. "FEM+MSD".
     pub configuration: String,
@@ -215,6 +306,12 @@ pub struct RunRow {
     /// The per-step CSV.
     pub csv: String,
     pub bodies: Vec<BodyRow>,
+    /// Organ-to-organ collision detection (`None`: collision off).
+    pub collision: Option<CollisionRow>,
+    /// A control run (collision off): the deepest any surface vertex went into another body,
+    /// mm. Not in the report (the control's figures go into the timed run's [`CollisionRow`]).
+    #[serde(skip)]
+    control_interpenetration_mm: Option<f64>,
 }
 
 /// One timed step.
@@ -224,6 +321,37 @@ struct Sample {
     time: f64,
     kind: ModelKind,
     us: f64,
+    /// The body had contact springs (organ-to-organ collision) in this step.
+    colliding: bool,
+}
+
+/// One timed collision detection.
+struct Detection {
+    /// Tick (round) number, from 1.
+    round: usize,
+    /// Simulated time of the positions it saw, s.
+    time: f64,
+    us: f64,
+    penetrations: usize,
+    max_depth: f64,
+    /// Hierarchies built from scratch (the others were refitted).
+    tree_builds: usize,
+}
+
+/// How a run is made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Mode {
+    /// The trial as specified, timed.
+    Timed,
+    /// A collision trial's control: collision off, the interpenetration measured after every
+    /// round (by a detector of its own, untimed); only the motion is reported.
+    Control,
+}
+
+/// Everything timed in one run.
+struct Trace {
+    samples: Vec<Sample>,
+    detections: Vec<Detection>,
 }
 
 /// Runs every trial and configuration; writes a CSV per run and an SVG per trial.
@@ -233,10 +361,21 @@ pub fn run(quick: bool, out: &Path, files: &mut Vec<String>) -> Result<Vec<RunRo
         let base = shipped_scene(trial.scene)?;
         let mut traces = Vec::new();
         for (precise, with_gc) in configurations(trial, base.bodies.len()) {
-            let (row, samples) = run_one(&base, trial, &precise, with_gc, quick)?;
-            write_csv(&out.join(&row.csv), &row, &samples)?;
+            let (mut row, trace) = run_one(&base, trial, &precise, with_gc, quick, Mode::Timed)?;
+            if let Some(c) = &mut row.collision {
+                // The control: the same push without collision, to tell the pushed body's
+                // motion from what it does on its own, and to show how far the pusher would go
+                // into it unopposed.
+                let (control, _) = run_one(&base, trial, &precise, with_gc, quick, Mode::Control)?;
+                c.add_control(&row.bodies, &control);
+            }
+            write_csv(&out.join(&row.csv), &row, &trace.samples)?;
             files.push(listed(out, &row.csv));
-            traces.push((row, samples));
+            if let Some(c) = &row.collision {
+                write_detection_csv(&out.join(&c.csv), &trace.detections)?;
+                files.push(listed(out, &c.csv));
+            }
+            traces.push((row, trace));
         }
         let name = format!("part1-{}-{}.svg", trial.scene, trial.name);
         write_svg(&out.join(&name), trial, &traces)?;
@@ -252,14 +391,23 @@ fn run_one(
     precise: &[Precise],
     with_gc: bool,
     quick: bool,
-) -> Result<(RunRow, Vec<Sample>)> {
+    mode: Mode,
+) -> Result<(RunRow, Trace)> {
     let key = format!(
         "{}-{}-{}",
         trial.scene,
         trial.name,
         config_key(precise, with_gc)
     );
-    eprintln!("lop: part 1: {key}");
+    let collide = trial.collision && mode == Mode::Timed;
+    eprintln!(
+        "lop: part 1: {key}{}",
+        if mode == Mode::Control {
+            " (control: collision off)"
+        } else {
+            ""
+        }
+    );
     let mut scene = base.clone();
     for (b, p) in scene.bodies.iter_mut().zip(precise) {
         b.importance = p.importance();
@@ -275,21 +423,35 @@ fn run_one(
     if with_gc {
         scene.lop.start = start;
     }
-    let script = if trial.scripted() {
-        let path = scene
-            .device
-            .mock_script
-            .clone()
-            .with_context(|| format!("scene {} names no mock script", scene.name))?;
-        Some((MockScript::load(&path).map_err(anyhow::Error::from)?, path))
-    } else {
-        None
+    let script = match trial.script {
+        Some(name) => {
+            let path = workspace_root().join("config/scripts").join(name);
+            Some((MockScript::load(&path).map_err(anyhow::Error::from)?, path))
+        }
+        None => None,
     };
     let workspace = scene.workspace.transform();
     let tool_spec = scene.tool.clone();
+    let collision_spec = scene.collision.clone();
     let loaded = lop_daemon::scene::load(scene)?;
     let mut world = loaded.world;
+    if collide {
+        if !world.collisions_enabled() {
+            bail!("{key}: the scene's [collision] is disabled; the collision trial needs it on");
+        }
+    } else {
+        // The thesis' trials without object-to-object collision (§6.3.1, §6.3.2, §6.3.4), and
+        // the collision trial's control.
+        world.disable_collisions();
+    }
+    // The control's interpenetration gauge: every depth, no skin.
+    let mut gauge = (mode == Mode::Control).then(|| {
+        let surfaces: Vec<&[[u32; 3]]> = world.bodies.iter().map(|b| &b.mesh.surface[..]).collect();
+        Collisions::new(&surfaces)
+    });
+    let mut max_interpenetration: f64 = 0.0;
     let n = world.bodies.len();
+    let rest: Vec<Vec<[f64; 3]>> = world.bodies.iter().map(|b| b.mesh.nodes.clone()).collect();
     let tick = world
         .bodies
         .iter()
@@ -302,18 +464,40 @@ fn run_one(
     } else {
         GRAVITY_SECONDS
     };
-    let offset = if quick && trial.scripted() {
-        QUICK_SCRIPT_OFFSET
-    } else {
-        0.0
-    };
+    let offset = if quick { trial.quick_offset } else { 0.0 };
     let ticks = (seconds / tick).round() as usize;
     let mut samples = Vec::with_capacity(ticks * n * 2);
+    let mut detections = Vec::with_capacity(if trial.collision { ticks } else { 0 });
     let mut iterations = vec![0usize; n];
     let mut switch_logs: Vec<Vec<SwitchRow>> = vec![Vec::new(); n];
+    let mut max_disp = vec![0.0f64; n];
+    let mut max_dx = vec![0.0f64; n];
+    let mut max_force = vec![0.0f64; n];
+    let mut max_force_x = vec![0.0f64; n];
     let wall = Instant::now();
     for k in 1..=ticks {
         let t = k as f64 * tick;
+        // As `lopd deform` does: organ-to-organ contacts at the current shapes, once per round
+        // with a body due, before stepping the bodies due. Timed on its own.
+        if world.collisions_enabled() && (0..n).any(|i| world.body_due(i, t)) {
+            let time = world
+                .bodies
+                .iter()
+                .map(|b| b.time)
+                .fold(f64::INFINITY, f64::min);
+            let t0 = Instant::now();
+            let stats = world.detect_collisions();
+            let detect_us = t0.elapsed().as_secs_f64() * 1e6;
+            let stats = stats.unwrap_or_default();
+            detections.push(Detection {
+                round: k,
+                time,
+                us: detect_us,
+                penetrations: stats.penetrations,
+                max_depth: stats.max_depth,
+                tree_builds: stats.tree_builds,
+            });
+        }
         for i in 0..n {
             while world.body_due(i, t) {
                 let body_time = world.bodies[i].time;
@@ -329,9 +513,13 @@ fn run_one(
                     })
                 });
                 let before = world.bodies[i].model.kind();
+                let colliding = !world.contact_springs(i).is_empty();
                 let t0 = Instant::now();
                 let _ = world.step_body(i, tool.as_ref());
                 let step_us = t0.elapsed().as_secs_f64() * 1e6;
+                let f = contact_force(world.contact_springs(i), world.bodies[i].model.positions());
+                max_force[i] = max_force[i].max(super::norm3(f));
+                max_force_x[i] = max_force_x[i].max(f[0].abs());
                 let b = &mut world.bodies[i];
                 let after = b.model.kind();
                 // Switches go cage ↔ precise: a switch to the precise model happens before the
@@ -348,7 +536,13 @@ fn run_one(
                     time: b.time,
                     kind,
                     us: step_us,
+                    colliding,
                 });
+                for (x, r) in b.model.positions().iter().zip(&rest[i]) {
+                    let d = [x[0] - r[0], x[1] - r[1], x[2] - r[2]];
+                    max_disp[i] = max_disp[i].max(super::norm3(d));
+                    max_dx[i] = max_dx[i].max(d[0]);
+                }
                 if let Some(sw) = b.lop.as_mut().and_then(|l| l.take_switch()) {
                     switch_logs[i].push(SwitchRow {
                         time_s: sw.time,
@@ -360,6 +554,18 @@ fn run_one(
                     });
                 }
             }
+        }
+        if let Some(g) = &mut gauge {
+            let bodies: Vec<CollisionBody<'_>> = world
+                .bodies
+                .iter()
+                .map(|b| CollisionBody {
+                    positions: b.model.positions(),
+                    surface: &b.mesh.surface,
+                })
+                .collect();
+            g.detect(&bodies);
+            max_interpenetration = max_interpenetration.max(g.stats().max_depth);
         }
         if pipeline::interrupted() {
             bail!("interrupted");
@@ -380,6 +586,7 @@ fn run_one(
             .filter(|s| s.kind != ModelKind::Gc)
             .map(|s| s.us)
             .collect();
+        let mut colliding: Vec<f64> = mine.iter().filter(|s| s.colliding).map(|s| s.us).collect();
         let mut all: Vec<f64> = mine.iter().map(|s| s.us).collect();
         all.sort_by(f64::total_cmp);
         let steps = all.len();
@@ -392,6 +599,8 @@ fn run_one(
             precise_steps: pr.len(),
             median_gc_us: median(&mut gc),
             median_precise_us: median(&mut pr),
+            colliding_steps: colliding.len(),
+            median_colliding_us: median(&mut colliding),
             mean_us: all.iter().sum::<f64>() / steps.max(1) as f64,
             p99_us: quantile_sorted(&all, 0.99),
             max_us: all.last().copied().unwrap_or(0.0),
@@ -401,8 +610,55 @@ fn run_one(
             switch_log: std::mem::take(&mut switch_logs[i]),
             final_model: kind_label(b.model.kind()).into(),
             resets: b.resets,
+            max_displacement_mm: max_disp[i] * 1e3,
+            max_dx_mm: max_dx[i] * 1e3,
+            max_contact_force_mn: max_force[i] * 1e3,
+            max_contact_force_x_mn: max_force_x[i] * 1e3,
         });
     }
+    let collision = (trial.collision && mode == Mode::Timed).then(|| {
+        let mut d: Vec<f64> = detections.iter().map(|x| x.us).collect();
+        d.sort_by(f64::total_cmp);
+        let total: f64 = d.iter().sum();
+        let steps_total: f64 = samples.iter().map(|s| s.us).sum();
+        let pushed = trial
+            .pushed
+            .and_then(|name| bodies.iter().find(|b| b.body == name));
+        CollisionRow {
+            stiffness_n_per_m: collision_spec.stiffness,
+            skin_mm: collision_spec.skin * 1e3,
+            depth_limit_mm: collision_spec.depth_limit * 1e3,
+            detections: d.len(),
+            median_us: median(&mut d.clone()).unwrap_or(0.0),
+            median_contact_us: median(
+                &mut detections
+                    .iter()
+                    .filter(|x| x.penetrations > 0)
+                    .map(|x| x.us)
+                    .collect::<Vec<_>>(),
+            ),
+            median_apart_us: median(
+                &mut detections
+                    .iter()
+                    .filter(|x| x.penetrations == 0)
+                    .map(|x| x.us)
+                    .collect::<Vec<_>>(),
+            ),
+            mean_us: total / d.len().max(1) as f64,
+            p99_us: quantile_sorted(&d, 0.99),
+            max_us: d.last().copied().unwrap_or(0.0),
+            contact_detections: detections.iter().filter(|x| x.penetrations > 0).count(),
+            max_penetrations: detections.iter().map(|x| x.penetrations).max().unwrap_or(0),
+            max_depth_mm: detections.iter().map(|x| x.max_depth).fold(0.0, f64::max) * 1e3,
+            share_pct: 100.0 * total / (total + steps_total).max(f64::MIN_POSITIVE),
+            pushed: pushed.map(|b| b.body.clone()),
+            control_pushed_max_dx_mm: None,
+            control_max_interpenetration_mm: None,
+            propagated: false,
+            csv: format!("part1-{key}-collision.csv"),
+        }
+    });
+    let control_interpenetration_mm = gauge.is_some().then_some(max_interpenetration * 1e3);
     let row = RunRow {
         csv: format!("part1-{key}.csv"),
         key,
@@ -423,8 +679,59 @@ fn run_one(
         script_offset_s: offset,
         wall_s,
         bodies,
+        collision,
+        control_interpenetration_mm,
     };
-    Ok((row, samples))
+    Ok((
+        row,
+        Trace {
+            samples,
+            detections,
+        },
+    ))
+}
+
+impl CollisionRow {
+    /// Takes in the control run of the same configuration; `bodies` are the timed run's.
+    fn add_control(&mut self, bodies: &[BodyRow], control: &RunRow) {
+        let dx = |rows: &[BodyRow]| {
+            self.pushed
+                .as_ref()
+                .and_then(|name| rows.iter().find(|b| &b.body == name))
+                .map(|b| b.max_dx_mm)
+        };
+        self.control_pushed_max_dx_mm = dx(&control.bodies);
+        self.control_max_interpenetration_mm = control.control_interpenetration_mm;
+        self.propagated = match (dx(bodies), self.control_pushed_max_dx_mm) {
+            (Some(with), Some(without)) => with - without >= PROPAGATED_M * 1e3,
+            _ => false,
+        };
+    }
+}
+
+/// Total force of contact springs on positions `x`, N: each pushes `stiffness × gap` along its
+/// normal while its gap is positive (the springs' law, evaluated at the end of the step in
+/// which they were integrated).
+fn contact_force(springs: &[ContactSpring], x: &[[f64; 3]]) -> [f64; 3] {
+    let mut total = [0.0; 3];
+    for s in springs {
+        let mut p = [0.0; 3];
+        for k in 0..3 {
+            let Some(xk) = x.get(s.nodes[k] as usize) else {
+                continue;
+            };
+            for c in 0..3 {
+                p[c] += s.weights[k] * xk[c];
+            }
+        }
+        let gap = s.target - (0..3).map(|c| s.normal[c] * p[c]).sum::<f64>();
+        if gap > 0.0 {
+            for (t, n) in total.iter_mut().zip(s.normal) {
+                *t += s.stiffness * gap * n;
+            }
+        }
+    }
+    total
 }
 
 fn write_csv(path: &Path, row: &RunRow, samples: &[Sample]) -> Result<()> {
@@ -443,12 +750,32 @@ fn write_csv(path: &Path, row: &RunRow, samples: &[Sample]) -> Result<()> {
     write_file(path, &s)
 }
 
+fn write_detection_csv(path: &Path, detections: &[Detection]) -> Result<()> {
+    let mut s = String::from("round,time_s,detect_us,penetrations,max_depth_mm,tree_builds\n");
+    for d in detections {
+        let _ = writeln!(
+            s,
+            "{},{:.6},{:.3},{},{:.4},{}",
+            d.round,
+            d.time,
+            d.us,
+            d.penetrations,
+            d.max_depth * 1e3,
+            d.tree_builds
+        );
+    }
+    write_file(path, &s)
+}
+
+/// Colour of the collision detection's line.
+const DETECTION_COLOR: usize = 4;
+
 /// Colour of body `i` (the same in every plot of a scene).
 fn body_color(i: usize) -> usize {
     [1, 5, 2, 3, 0, 6][i % 6]
 }
 
-fn write_svg(path: &Path, trial: &Trial, traces: &[(RunRow, Vec<Sample>)]) -> Result<()> {
+fn write_svg(path: &Path, trial: &Trial, traces: &[(RunRow, Trace)]) -> Result<()> {
     // One y scale per configuration (the row of panels: without GC | with GC), so the saving
     // is visible at a glance; set by the largest 99.9th percentile of the row, not its single
     // largest step (one preempted step would flatten every line). Steps above it are drawn at
@@ -456,9 +783,10 @@ fn write_svg(path: &Path, trial: &Trial, traces: &[(RunRow, Vec<Sample>)]) -> Re
     let mut panels = Vec::new();
     for pair in traces.chunks(2) {
         let mut top: f64 = 0.0;
-        for (row, samples) in pair {
+        for (row, trace) in pair {
             for i in 0..row.bodies.len() {
-                let mut v: Vec<f64> = samples
+                let mut v: Vec<f64> = trace
+                    .samples
                     .iter()
                     .filter(|s| s.body == i)
                     .map(|s| s.us / 1e3)
@@ -469,8 +797,9 @@ fn write_svg(path: &Path, trial: &Trial, traces: &[(RunRow, Vec<Sample>)]) -> Re
         }
         // Headroom for the legend (upper left).
         let top = if top > 0.0 { top * 1.6 } else { 1.0 };
-        for (row, samples) in pair {
-            let series = row
+        for (row, trace) in pair {
+            let samples = &trace.samples;
+            let mut series: Vec<Series> = row
                 .bodies
                 .iter()
                 .enumerate()
@@ -489,6 +818,19 @@ fn write_svg(path: &Path, trial: &Trial, traces: &[(RunRow, Vec<Sample>)]) -> Re
                     color: body_color(i),
                 })
                 .collect();
+            // The detection, once per round (x = round: the bodies' iteration when they step
+            // every tick, as the cylinders do).
+            if row.collision.is_some() {
+                series.push(Series {
+                    label: "collision detection (per round)".into(),
+                    points: trace
+                        .detections
+                        .iter()
+                        .map(|d| (d.round as f64, (d.us / 1e3).min(top)))
+                        .collect(),
+                    color: DETECTION_COLOR,
+                });
+            }
             let steps = row.bodies.iter().map(|b| b.steps).max().unwrap_or(1);
             panels.push(Panel {
                 title: format!(
@@ -524,7 +866,7 @@ fn opt_us(v: Option<f64>) -> String {
 pub fn render(rows: &[RunRow]) -> String {
     let mut s = String::from(
         "Part 1: efficiency, time per iteration per body (every World::step_body call timed, \
-         no warm-up), µs\n",
+         no warm-up; organ-to-organ collision detection timed on its own), µs\n",
     );
     for trial in &TRIALS {
         let mine: Vec<&RunRow> = rows
@@ -536,7 +878,7 @@ pub fn render(rows: &[RunRow]) -> String {
         };
         let _ = writeln!(
             s,
-            "\n{} / {} ({}): {:.1} s simulated, tick {} s{}{}",
+            "\n{} / {} ({}): {:.1} s simulated, tick {} s{}{}{}",
             trial.scene,
             trial.name,
             trial.thesis,
@@ -563,6 +905,14 @@ pub fn render(rows: &[RunRow]) -> String {
             {
                 Some(l) => format!("; with GC the bodies start at {l}"),
                 None => String::new(),
+            },
+            match &first.collision {
+                Some(c) => format!(
+                    "; collision on (springs {} N/m, skin {} mm, depth limit {} mm), detected \
+                     once per round",
+                    c.stiffness_n_per_m, c.skin_mm, c.depth_limit_mm
+                ),
+                None => "; collision off".into(),
             }
         );
         let mut cells = Vec::new();
@@ -573,7 +923,7 @@ pub fn render(rows: &[RunRow]) -> String {
                     .iter()
                     .map(|w| format!("{:.2}s {}>{}", w.time_s, w.from, w.to))
                     .collect();
-                cells.push(vec![
+                let mut row = vec![
                     format!(
                         "{}, {}",
                         r.configuration,
@@ -590,25 +940,140 @@ pub fn render(rows: &[RunRow]) -> String {
                     b.final_model.clone(),
                     b.resets.to_string(),
                     log.join(", "),
-                ]);
+                ];
+                if trial.collision {
+                    row.insert(7, b.colliding_steps.to_string());
+                    row.insert(8, opt_us(b.median_colliding_us));
+                }
+                cells.push(row);
             }
         }
-        s += &table(
-            &[
-                ("configuration", Align::Left),
-                ("body", Align::Left),
-                ("precise", Align::Left),
-                ("steps", Align::Right),
-                ("GC median", Align::Right),
-                ("precise median", Align::Right),
-                ("mean", Align::Right),
-                ("on GC", Align::Right),
-                ("switches", Align::Right),
-                ("final", Align::Left),
-                ("resets", Align::Right),
-                ("switch log", Align::Left),
-            ],
-            &cells,
+        let mut columns = vec![
+            ("configuration", Align::Left),
+            ("body", Align::Left),
+            ("precise", Align::Left),
+            ("steps", Align::Right),
+            ("GC median", Align::Right),
+            ("precise median", Align::Right),
+            ("mean", Align::Right),
+            ("on GC", Align::Right),
+            ("switches", Align::Right),
+            ("final", Align::Left),
+            ("resets", Align::Right),
+            ("switch log", Align::Left),
+        ];
+        if trial.collision {
+            columns.insert(7, ("colliding", Align::Right));
+            columns.insert(8, ("colliding median", Align::Right));
+        }
+        s += &table(&columns, &cells);
+        if trial.collision {
+            s += &render_collision(trial, &mine);
+        }
+    }
+    s
+}
+
+/// The collision trial's second table: the detection's cost per round and whether the push
+/// reached the other body.
+fn render_collision(trial: &Trial, runs: &[&RunRow]) -> String {
+    let pushed = trial.pushed.unwrap_or("-");
+    let mut s = String::from(
+        "Collision detection: one World::detect_collisions per round, timed on its own (not in \
+         the step times above), µs.\n\
+         \x20 median: over all rounds / the rounds in contact (a penetrating vertex found) / \
+         apart; the first detection builds the trees\n\
+         \x20 of compute: share of the run's detections + steps; contact: rounds in contact; \
+         max depth: mm, counts the skin\n",
+    );
+    let _ = writeln!(
+        s,
+        "  the push: max +x = largest displacement of any node along +x, mm; control = \
+         {pushed}'s max +x in the same run without collision\n\
+         \x20 force: largest x component of the contact springs' total force on {pushed}, mN; \
+         control depth: deepest vertex of one cylinder\n\
+         \x20 inside the other without collision, mm; moved: {pushed} went at least {} mm \
+         farther along +x than in the control",
+        PROPAGATED_M * 1e3
+    );
+    let mut cells = Vec::new();
+    let mut failed = Vec::new();
+    for r in runs {
+        let Some(c) = &r.collision else {
+            continue;
+        };
+        let disp = |name: &str| {
+            r.bodies
+                .iter()
+                .find(|b| b.body == name)
+                .map_or("-".into(), |b| format!("{:.2}", b.max_dx_mm))
+        };
+        let other = r
+            .bodies
+            .iter()
+            .find(|b| b.body != pushed)
+            .map_or("-", |b| b.body.as_str());
+        let moved = r.bodies.iter().find(|b| b.body == pushed);
+        if !c.propagated {
+            failed.push(r.key.clone());
+        }
+        cells.push(vec![
+            format!(
+                "{}, {}",
+                r.configuration,
+                if r.with_gc { "GC" } else { "no GC" }
+            ),
+            c.detections.to_string(),
+            us(c.median_us),
+            opt_us(c.median_contact_us),
+            opt_us(c.median_apart_us),
+            us(c.mean_us),
+            us(c.p99_us),
+            us(c.max_us),
+            format!("{:.1} %", c.share_pct),
+            c.contact_detections.to_string(),
+            c.max_penetrations.to_string(),
+            format!("{:.2}", c.max_depth_mm),
+            disp(other),
+            disp(pushed),
+            c.control_pushed_max_dx_mm
+                .map_or("-".into(), |v| format!("{v:.2}")),
+            moved.map_or("-".into(), |b| format!("{:.1}", b.max_contact_force_x_mn)),
+            c.control_max_interpenetration_mm
+                .map_or("-".into(), |v| format!("{v:.1}")),
+            if c.propagated { "yes" } else { "NO" }.into(),
+        ]);
+    }
+    s += &table(
+        &[
+            ("configuration", Align::Left),
+            ("detections", Align::Right),
+            ("median", Align::Right),
+            ("in contact", Align::Right),
+            ("apart", Align::Right),
+            ("mean", Align::Right),
+            ("p99", Align::Right),
+            ("max", Align::Right),
+            ("of compute", Align::Right),
+            ("contact", Align::Right),
+            ("max vertices", Align::Right),
+            ("max depth mm", Align::Right),
+            ("pusher max +x", Align::Right),
+            ("pushed max +x", Align::Right),
+            ("control", Align::Right),
+            ("force mN", Align::Right),
+            ("control depth", Align::Right),
+            ("moved", Align::Left),
+        ],
+        &cells,
+    );
+    if !failed.is_empty() {
+        let _ = writeln!(
+            s,
+            "WARNING: the push did not move {pushed} ({} mm or more farther along +x than without \
+             collision) in: {}",
+            PROPAGATED_M * 1e3,
+            failed.join(", ")
         );
     }
     s

@@ -2,7 +2,8 @@
 //! records every force it is sent in a fixed-capacity ring.
 //!
 //! Shipped scripts live in `config/scripts/*.toml`, four per scene (`poke`, `drag`, `grab`,
-//! `heat`); `--device mock:beam-poke` plays `config/scripts/beam-poke.toml`.
+//! `heat`) and `cylinders-push` (cylinder A pushed sideways into cylinder B); `--device
+//! mock:beam-poke` plays `config/scripts/beam-poke.toml`.
 
 mod device;
 mod record;
