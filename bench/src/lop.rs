@@ -31,7 +31,7 @@
 //!   start as cages (the scene's `start = "gc"`).
 //! - `cylinders`, trial **interaction-collision** (§6.3.3, Fig. 6.7: "an interaction with the
 //!   Model A in a way that it collides with Model B"): the same eight configurations, from rest,
-//!   collision on with the scene's `[collision]` (defaults: springs of 20 N/m, 0.5 mm skin,
+//!   collision on with the scene's `[collision]` (`cylinders.toml`: springs of 200 N/m, 0.5 mm skin,
 //!   10 mm depth limit), `config/scripts/cylinders-push.toml` played the same way for 6 s: the
 //!   tip approaches cylinder A from −x at 3/4 of its height, pushes 12 mm in along +x (1.5 →
 //!   2.5 s), holds 1 s, withdraws by 4.6 s, so A bends into B across the 2 mm gap. As
