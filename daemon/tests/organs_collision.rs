@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use lop_sim::collide::{CollisionBody, Collisions};
+use lop_sim::collide::Collisions;
 use lop_sim::world::World;
 
 fn organs() -> World {
@@ -18,14 +18,7 @@ fn organs() -> World {
 fn contacts(w: &World, skin: f64) -> (f64, Vec<lop_sim::collide::Penetration>) {
     let surfaces: Vec<&[[u32; 3]]> = w.bodies.iter().map(|b| &b.mesh.surface[..]).collect();
     let mut c = Collisions::new(&surfaces);
-    let bodies: Vec<CollisionBody<'_>> = w
-        .bodies
-        .iter()
-        .map(|b| CollisionBody {
-            positions: b.model.positions(),
-            surface: &b.mesh.surface,
-        })
-        .collect();
+    let bodies = w.collision_bodies();
     c.detect(&bodies);
     let deepest = c.stats().max_depth;
     c.set_skin(skin);

@@ -163,6 +163,18 @@ impl World {
         Some(c.detector.stats())
     }
 
+    /// Every body as collision detection sees it (current positions and surface), in scene
+    /// order: for measuring penetrations with a [`Collisions`] of one's own (allocates).
+    pub fn collision_bodies(&self) -> Vec<CollisionBody<'_>> {
+        self.bodies
+            .iter()
+            .map(|b| CollisionBody {
+                positions: b.model.positions(),
+                surface: &b.mesh.surface,
+            })
+            .collect()
+    }
+
     /// The contact springs acting on body `i` (from the last detection).
     pub fn contact_springs(&self, i: usize) -> &[ContactSpring] {
         self.collisions

@@ -12,7 +12,7 @@ mod alloc;
 mod common;
 
 use common::{cylinder, cylinder_fem_params};
-use lop_sim::collide::{CollisionBody, CollisionParams, Collisions};
+use lop_sim::collide::{CollisionParams, Collisions};
 use lop_sim::fem::Fem;
 use lop_sim::lop::{CageDynamics, CageShape, GcModel, GcParameters};
 use lop_sim::mesh::TetMesh;
@@ -109,15 +109,7 @@ fn press(w: &mut World, steps: usize) {
 fn interpenetration(w: &World) -> f64 {
     let surfaces: Vec<&[[u32; 3]]> = w.bodies.iter().map(|b| &b.mesh.surface[..]).collect();
     let mut c = Collisions::new(&surfaces);
-    let bodies: Vec<CollisionBody<'_>> = w
-        .bodies
-        .iter()
-        .map(|b| CollisionBody {
-            positions: b.model.positions(),
-            surface: &b.mesh.surface,
-        })
-        .collect();
-    c.detect(&bodies);
+    c.detect(&w.collision_bodies());
     c.stats().max_depth
 }
 

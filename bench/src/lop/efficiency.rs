@@ -11,7 +11,7 @@ use anyhow::{bail, Result};
 use lop_config::{Importance, ModelPin, Scene, StartLevel};
 use lop_daemon::scene::tool_sphere;
 use lop_drivers::mock::MockScript;
-use lop_sim::collide::{CollisionBody, Collisions};
+use lop_sim::collide::Collisions;
 use lop_sim::model::{ContactSpring, ModelKind};
 use serde::Serialize;
 
@@ -556,15 +556,7 @@ fn run_one(
             }
         }
         if let Some(g) = &mut gauge {
-            let bodies: Vec<CollisionBody<'_>> = world
-                .bodies
-                .iter()
-                .map(|b| CollisionBody {
-                    positions: b.model.positions(),
-                    surface: &b.mesh.surface,
-                })
-                .collect();
-            g.detect(&bodies);
+            g.detect(&world.collision_bodies());
             max_interpenetration = max_interpenetration.max(g.stats().max_depth);
         }
         if pipeline::interrupted() {
