@@ -135,7 +135,8 @@ impl World {
 
     /// Detects organ-to-organ collisions at the current positions and sets each body's contact
     /// springs for its next steps (until the next detection). Call it once per scheduling
-    /// round, before stepping the bodies due. `None` if collision is off. Allocation-free.
+    /// round, before stepping the bodies due. `None` if collision is off, or (nothing detected)
+    /// in a world of more than 32 bodies. Allocation-free.
     pub fn detect_collisions(&mut self) -> Option<CollisionStats> {
         let c = self.collisions.as_mut()?;
         // Positions of every body, borrowed for the detection (at most a handful of bodies,
