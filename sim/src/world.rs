@@ -136,14 +136,17 @@ impl World {
     /// Detects organ-to-organ collisions at the current positions and sets each body's contact
     /// springs for its next steps (until the next detection). Call it once per scheduling
     /// round, before stepping the bodies due. `None` if collision is off, or (nothing detected)
-    /// in a world of more than 32 bodies. Allocation-free.
+    /// in a world of more than 32 bodies or with bodies added since collision was enabled.
+    /// Allocation-free.
     pub fn detect_collisions(&mut self) -> Option<CollisionStats> {
         let c = self.collisions.as_mut()?;
         // Positions of every body, borrowed for the detection (at most a handful of bodies,
         // so a fixed array avoids allocating).
         const MAX: usize = 32;
         let n = self.bodies.len();
-        if n > MAX {
+        // Bodies added after `enable_collisions` are not known to the detector: detect nothing
+        // rather than fail (enable again to include them).
+        if n > MAX || n != c.springs.len() {
             return None;
         }
         let empty: &[[f64; 3]] = &[];
@@ -278,7 +281,7 @@ impl World {
             Coupling::GodObject(_) => (true, None),
         };
         let springs: &[ContactSpring] = match &self.collisions {
-            Some(c) => &c.springs[i],
+            Some(c) => c.springs.get(i).map_or(&[], |v| &v[..]),
             None => &[],
         };
         let b = &mut self.bodies[i];
