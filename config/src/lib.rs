@@ -232,7 +232,7 @@
 //! | `cage` | `"fitted"` \| `"box"` \| `"subdivided-box"` | `"fitted"` | `fitted`: the padded bounding box cut into roughly cubic cells, `round(extent / smallest extent)` segments per axis (a cylinder twice as tall as wide gets 1 × 2 × 1); `box`: the thesis' padded bounding box (8 vertices, 12 triangles), cheapest, but a long body cannot bend inside it; `subdivided-box`: the box with each edge cut into `subdivisions` segments (`6n²+2` vertices), closest to the precise model, dearest per step |
 //! | `subdivisions` | integer | `2` | segments per edge for `subdivided-box` (1..=8) |
 //! | `padding` | float | 5 % of the body's smallest extent | m (> 0): gap between the body's bounding box and the cage (no node may lie on the cage) |
-//! | `dynamics` | `"projected"` \| `"mass-spring"` | `"projected"` | `projected`: the body's precise model (FEM if important, else mass-spring) projected onto the cage's motions, nothing to tune, the accurate default; `mass-spring`: the thesis' cage with the hand-tuned parameters below |
+//! | `dynamics` | `"projected"` \| `"galerkin"` \| `"mass-spring"` | `"projected"` | `projected`: the body's precise model (FEM if important, else mass-spring) projected onto the cage's motions with the stiffness matched to its compliance, nothing to tune, the accurate default; `galerkin`: the plain Galerkin projection (stiffer than the body, for comparison); `mass-spring`: the thesis' cage with the hand-tuned parameters below |
 //! | `stiffness` | float | required for `mass-spring` | N/m (> 0), between every pair of cage vertices |
 //! | `density` | float | required for `mass-spring` | kg/m³ (> 0): cage volume × density, shared by its vertices |
 //! | `damping` | float | required for `mass-spring` | N·s/m per cage vertex (>= 0) |

@@ -225,10 +225,12 @@ pub enum CageKind {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum GcDynamics {
-    /// The body's precise model (FEM if important, else mass-spring) projected onto the cage:
-    /// nothing to tune.
+    /// The body's precise model (FEM if important, else mass-spring) projected onto the cage,
+    /// with the stiffness matched to its compliance: nothing to tune.
     #[default]
     Projected,
+    /// The plain Galerkin projection (`GᵀKG`): stiffer than the body, kept for comparison.
+    Galerkin,
     /// The thesis' mass-spring cage with the hand-tuned `stiffness`, `density` and `damping`.
     MassSpring,
 }

@@ -120,6 +120,7 @@ pub fn gc_parameters(spec: &BodySpec, mesh: &TetMesh, precise_dt: f64) -> GcPara
         padding,
         dynamics: match gc.dynamics {
             lop_config::GcDynamics::Projected => CageDynamics::Projected,
+            lop_config::GcDynamics::Galerkin => CageDynamics::Galerkin,
             lop_config::GcDynamics::MassSpring => CageDynamics::MassSpring {
                 stiffness: gc.stiffness.unwrap_or(50.0),
                 density: gc.density.unwrap_or(20.0),

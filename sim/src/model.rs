@@ -311,6 +311,24 @@ pub(crate) struct Touch {
     pub isotropic: bool,
 }
 
+impl Touch {
+    /// The push along the normal in the form of a [`ContactSpring`]'s touch, for a solver that
+    /// resolves springs implicitly: `normal` the direction of the force on the tissue, `depth`
+    /// the gap `F / k'` (so that `k'·(gap − change)` is the linearised force law), `stiffness`
+    /// `k'`. `None` for an isotropic (grab) touch, a zero force or no stiffness.
+    pub(crate) fn as_spring(&self) -> Option<Touch> {
+        let f = norm(self.on_tissue);
+        if self.isotropic || !(f > 0.0 && f.is_finite()) || !(self.stiffness > 0.0) {
+            return None;
+        }
+        Some(Touch {
+            normal: scale(self.on_tissue, 1.0 / f),
+            depth: f / self.stiffness,
+            ..*self
+        })
+    }
+}
+
 /// The tool's contact on positions `x`: the closest candidate triangle, if the tool penetrates
 /// it. Allocation-free.
 pub(crate) fn touch(c: &ToolContact<'_>, x: &[[f64; 3]]) -> Option<Touch> {

@@ -13,6 +13,7 @@ use crate::model::{
 use crate::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 use crate::vec3::{add, dot, norm, scale, sub};
 
+use super::compliance::matched_stiffness;
 use super::kernel::{gemv_acc, Kernel};
 
 /// The cage's shape.
@@ -25,17 +26,26 @@ pub enum CageShape {
     SubdividedBox(usize),
     /// The padded bounding box cut into roughly cubic cells: each axis gets
     /// `max(1, round(extent / smallest extent))` segments (a 60 × 120 × 60 mm cylinder gets
-    /// 1 × 2 × 1, 12 vertices). Cheap like the box, but a long body can bend along its length.
+    /// 1 × 2 × 1, 12 vertices), with at most [`MAX_FITTED_VERTICES`] vertices (see
+    /// [`fitted_cells`]). Cheap like the box, but a long body can bend along its length.
     Fitted,
 }
 
 /// How the cage moves.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum CageDynamics {
-    /// Derived from the body's precise model with nothing to tune: the precise model's rest
-    /// stiffness, mass and damping projected onto the cage's deformation space (a Galerkin
-    /// reduced model; see the module docs). The default: it is the more accurate one.
+    /// Derived from the body's precise model with nothing to tune: its mass and damping
+    /// projected onto the cage's deformation space, and a stiffness matched to its rest
+    /// *compliance*, so that the cage's static response to a load is the best fit of the
+    /// precise model's (see the module docs). The default: it is the most accurate one. A body
+    /// without fixed nodes has no rest compliance; it gets the [`CageDynamics::Galerkin`]
+    /// stiffness.
     Projected,
+    /// The precise model's rest stiffness, mass and damping all projected onto the cage's
+    /// deformation space (a plain Galerkin reduced model, `K_r = GᵀKG`). Nothing to tune
+    /// either, but stiffer than the body when the cage cannot bend exactly like it: kept for
+    /// comparison.
+    Galerkin,
     /// The thesis' way (§4.3): a mass-spring system on the cage vertices with its own,
     /// hand-tuned parameters (the GC columns of Tables 6.1 and 6.2).
     MassSpring {
@@ -140,6 +150,8 @@ struct Reduced {
     sys: Vec<f64>,
     c: Vec<f64>,
     rhs: Vec<f64>,
+    /// The tool's `c`, kept to report the force it left.
+    c_tool: Vec<f64>,
 }
 
 impl Reduced {
@@ -199,18 +211,43 @@ pub fn build_cage(shape: CageShape, points: &[[f64; 3]], padding: f64) -> Cage {
     }
 }
 
-/// Segments per axis of a [`CageShape::Fitted`] cage around `points`.
+/// Most vertices a [`CageShape::Fitted`] cage gets. A cage step costs about `N × (V + T)` for
+/// the nodes plus `3V × 6V` for the dynamics, so this keeps a fitted cage at or above 50× the
+/// speed of the body's corotational FEM step on the shipped organs (`lop-bench lop`, Part 2);
+/// without it the long, flat pancreas got 5 × 2 × 1 cells, 36 vertices, and only 31×.
+pub const MAX_FITTED_VERTICES: usize = 20;
+
+/// Vertices of a grid cage with `cells` segments per axis (its surface points).
+fn grid_vertices(cells: [usize; 3]) -> usize {
+    let [a, b, c] = cells;
+    (a + 1) * (b + 1) * (c + 1) - (a - 1) * (b - 1) * (c - 1)
+}
+
+/// Segments per axis of a [`CageShape::Fitted`] cage around `points`: roughly cubic cells
+/// (`round(extent / smallest extent)` segments per axis, at most 8), then, while the cage has
+/// more than [`MAX_FITTED_VERTICES`] vertices, one segment fewer on the axis with the shortest
+/// cells — so a long body keeps its segments along its length, where it bends.
 pub fn fitted_cells(points: &[[f64; 3]]) -> [usize; 3] {
     let ext = extents(points);
     let smallest = smallest_extent(points);
-    ext.map(|e| {
+    let mut cells = ext.map(|e| {
         let r = (e / smallest).round();
         if r.is_finite() && r >= 1.0 {
             (r as usize).min(8)
         } else {
             1
         }
-    })
+    });
+    while grid_vertices(cells) > MAX_FITTED_VERTICES {
+        let Some(axis) = (0..3)
+            .filter(|&a| cells[a] > 1)
+            .min_by(|&a, &b| (ext[a] / cells[a] as f64).total_cmp(&(ext[b] / cells[b] as f64)))
+        else {
+            break;
+        };
+        cells[axis] -= 1;
+    }
+    cells
 }
 
 impl GcModel {
@@ -289,7 +326,7 @@ impl GcModel {
 
         let dt = params.dt;
         let dynamics = match params.dynamics {
-            CageDynamics::Projected => {
+            CageDynamics::Projected | CageDynamics::Galerkin => {
                 // K G, column by column, through the precise model.
                 let mut kg = DMatrix::zeros(3 * n, m);
                 let mut u = vec![[0.0; 3]; n];
@@ -311,6 +348,12 @@ impl GcModel {
                 }
                 let mut k_r = jacobian.transpose() * kg;
                 k_r = (&k_r + k_r.transpose()) * 0.5;
+                if params.dynamics == CageDynamics::Projected {
+                    if let Some(matched) = matched_stiffness(mesh, &held, ops.stiffness, &mg, &m_r)?
+                    {
+                        k_r = matched;
+                    }
+                }
                 let d_r = match ops.damping {
                     Damping::MassProportional(alpha) => &m_r * alpha,
                     Damping::PerNode(gamma) => jacobian.transpose() * &jacobian * gamma,
@@ -343,6 +386,7 @@ impl GcModel {
                     sys: vec![0.0; m * m],
                     c: vec![0.0; m],
                     rhs: vec![0.0; m],
+                    c_tool: vec![0.0; m],
                 }))
             }
             CageDynamics::MassSpring {
@@ -620,8 +664,21 @@ impl GcModel {
         let touch = contact.and_then(|c| touch(c, &self.x));
         let has_loads = touch.is_some() || external.iter().any(|f| *f != [0.0; 3]);
         let n = self.rest.len();
+        let mut report = touch.map_or_else(ContactReport::default, |t| ContactReport {
+            force_on_tissue: t.on_tissue,
+            depth: t.depth,
+        });
         match &mut self.dynamics {
             Dynamics::Projected(r) => {
+                // The tool's push along its normal joins the implicit solve (linearised like a
+                // contact spring: `F + k'·(depth change)`), as in the precise models: a cage
+                // as soft as its body would ring or blow up under an explicit 300 N/m tool.
+                let implicit_tool = touch.as_ref().and_then(Touch::as_spring);
+                let explicit_touch = if implicit_tool.is_some() {
+                    None
+                } else {
+                    touch.as_ref()
+                };
                 // f_r = Gᵀ f over the loaded nodes only (gravity is folded in at set-up).
                 if has_loads {
                     self.load_r.fill(0.0);
@@ -633,7 +690,7 @@ impl GcModel {
                             }
                         }
                     };
-                    each_load(external, n, touch.as_ref(), &mut add_load);
+                    each_load(external, n, explicit_touch, &mut add_load);
                 }
                 r.d.fill(0.0);
                 if has_loads {
@@ -651,8 +708,22 @@ impl GcModel {
                 gemv_acc(&r.gravity, &gravity, &mut r.d);
                 gemv_acc(&r.response, &r.state, &mut r.d);
                 r.d.iter_mut().zip(&r.correction).for_each(|(d, c)| *d += c);
-                if springs.iter().any(|sp| sp.touch(&self.x).is_some()) {
-                    resolve_springs(r, &self.jacobian_t, &self.x, springs);
+                if implicit_tool.is_some() || springs.iter().any(|sp| sp.touch(&self.x).is_some()) {
+                    let gap = resolve_springs(
+                        r,
+                        &self.jacobian_t,
+                        &self.x,
+                        springs,
+                        implicit_tool.as_ref(),
+                    );
+                    if let (Some(t), Some(gap), Some(orig)) = (&implicit_tool, gap, &touch) {
+                        // The force the step applied and the depth it left.
+                        let g = gap.max(0.0);
+                        report = ContactReport {
+                            force_on_tissue: scale(t.normal, t.stiffness * g),
+                            depth: (orig.depth - (t.depth - gap)).max(0.0),
+                        };
+                    }
                 }
                 let m = r.d.len();
                 let (q, qd) = r.state.split_at_mut(m);
@@ -721,12 +792,7 @@ impl GcModel {
             self.reset();
             return Err(BlowUp::Runaway);
         }
-        Ok(
-            touch.map_or_else(ContactReport::default, |t| ContactReport {
-                force_on_tissue: t.on_tissue,
-                depth: t.depth,
-            }),
-        )
+        Ok(report)
     }
 
     /// Copies the dynamics' cage into `self.cage`.
@@ -760,24 +826,27 @@ impl GcModel {
     }
 }
 
-/// Adds the contact springs to the reduced step: with `d₀` (in `r.d`) the increment without
-/// them, the increment with them solves `(A + Σ k c cᵀ) d = A d₀ + Σ c k g`, `g` each spring's
-/// gap at the start of the step and `c = Gᵀ (w ⊗ n)`; i.e. `d = d₀ + Δ` with
-/// `(A + Σ k c cᵀ) Δ = Σ c k (g − cᵀ d₀)`. Allocation-free; leaves `d₀` if the matrix cannot be
-/// factorised (non-finite input).
+/// Adds the contact springs (and the tool, in the same spring form) to the reduced step: with
+/// `d₀` (in `r.d`) the increment without them, the increment with them solves
+/// `(A + Σ k c cᵀ) d = A d₀ + Σ c k g`, `g` each spring's gap at the start of the step and
+/// `c = Gᵀ (w ⊗ n)`; i.e. `d = d₀ + Δ` with `(A + Σ k c cᵀ) Δ = Σ c k (g − cᵀ d₀)`.
+/// Allocation-free; leaves `d₀` if the matrix cannot be factorised (non-finite input). Returns
+/// the tool's gap at the end of the step (`g − cᵀ d`), if it was given and the solve ran.
 fn resolve_springs(
     r: &mut Reduced,
     jacobian_t: &DMatrix<f64>,
     x: &[[f64; 3]],
     springs: &[ContactSpring],
-) {
+    tool: Option<&Touch>,
+) -> Option<f64> {
     let m = r.d.len();
     r.sys.copy_from_slice(&r.a);
     r.rhs.fill(0.0);
-    for sp in springs {
-        let Some(t) = sp.touch(x) else {
-            continue;
-        };
+    let touches = tool
+        .copied()
+        .into_iter()
+        .chain(springs.iter().filter_map(|sp| sp.touch(x)));
+    for (i, t) in touches.enumerate() {
         r.c.fill(0.0);
         for (p, &node) in t.tri.iter().enumerate() {
             if t.weights[p] == 0.0 {
@@ -793,6 +862,9 @@ fn resolve_springs(
                 }
             }
         }
+        if i == 0 && tool.is_some() {
+            r.c_tool.copy_from_slice(&r.c);
+        }
         let gap = t.depth - r.c.iter().zip(&r.d).map(|(c, d)| c * d).sum::<f64>();
         for j in 0..m {
             r.rhs[j] += t.stiffness * gap * r.c[j];
@@ -804,12 +876,14 @@ fn resolve_springs(
             }
         }
     }
-    if cholesky_in_place(&mut r.sys, m) {
-        cholesky_solve(&r.sys, m, &mut r.rhs);
-        r.d.iter_mut()
-            .zip(&r.rhs)
-            .for_each(|(d, delta)| *d += delta);
+    if !cholesky_in_place(&mut r.sys, m) {
+        return None;
     }
+    cholesky_solve(&r.sys, m, &mut r.rhs);
+    r.d.iter_mut()
+        .zip(&r.rhs)
+        .for_each(|(d, delta)| *d += delta);
+    tool.map(|t| t.depth - r.c_tool.iter().zip(&r.d).map(|(c, d)| c * d).sum::<f64>())
 }
 
 /// Dense Cholesky factorisation `A = L Lᵀ` in place (column-major `m × m`, `L` in the lower

@@ -19,21 +19,31 @@
 //!   (a triangle-edge shell folds flat at no cost).
 //! - **Projected** (beyond the thesis; the default): nothing is tuned. With `q` the cage-vertex
 //!   displacements and `G = ∂x/∂q` at rest (3N × 3V; zero rows on fixed nodes), the node motions
-//!   the cage can make are `u = G q`. Restricting the precise model's equations of motion
-//!   `M ü + D u̇ + K u = f` to them (Galerkin) gives
+//!   the cage can make are `u = G q`, and the cage obeys
 //!
 //!   ```text
-//!   M_r q̈ + D_r q̇ + K_r q = Gᵀ f,    M_r = GᵀMG,  D_r = GᵀDG,  K_r = GᵀKG
+//!   M_r q̈ + D_r q̇ + K_r q = Gᵀ f,    M_r = GᵀMG,  D_r = GᵀDG,  K_r = M_r C_r⁻¹ M_r,
+//!   C_r = (MG)ᵀ K⁻¹ (MG)
 //!   ```
 //!
 //!   with the precise model's own lumped masses, damping (`αM` for FEM, `γI` for mass-spring)
-//!   and rest stiffness, the fixed nodes held exactly (their rows of `G` are zero, so the
-//!   stiffness of the elements joining them to free nodes resists every cage motion that would
-//!   tear the body off its support). Of all the shapes the cage can take, the static solution
-//!   is the one closest to the precise model's in the energy norm, so the cage sags, bulges and
-//!   rings like the body it stands for. It is integrated with the FEM's implicit scheme
-//!   (eq. 4.20) in dense 3V × 3V matrices folded at set-up: per step a few small matrix–vector
-//!   products, plus `Gᵀ f` when there are loads.
+//!   and rest stiffness `K`, the fixed nodes held exactly (their rows of `G` are zero). The
+//!   stiffness is matched to the body's *compliance* (`compliance.rs`): the cage's static
+//!   response to a load is the mass-weighted best fit of the precise model's response to the
+//!   same load smoothed onto the cage (same total force and moment). The plain Galerkin
+//!   restriction `K_r = GᵀKG` ([`CageDynamics::Galerkin`], kept for comparison) is the best fit
+//!   in the energy norm instead, which *locks*: a cage that cannot bend exactly like the body
+//!   is stiffer than it, by 2–5× on the shipped bodies. Measured by `lop-bench lop` (Part 3):
+//!   the projected cage's error against the FEM is at the best-fit bound on the liver (box
+//!   0.66 %, fitted 0.48 % of the smallest dimension, where Galerkin gave 2.6 % and 2.0 %).
+//!   `K` is assembled from the precise model's `u ↦ K u` by probing (a distance-2 colouring of
+//!   the nodes, three products per colour) and factorised once, sparse; a body with no fixed
+//!   node has no compliance and gets the Galerkin stiffness. It is integrated with the FEM's
+//!   implicit scheme (eq. 4.20) in dense 3V × 3V matrices folded at set-up: per step a few
+//!   small matrix–vector products, plus `Gᵀ f` when there are loads. The tool and organ
+//!   contacts join the step implicitly (their stiffness projected onto the cage, a dense
+//!   3V × 3V solve in contact steps only): a cage as soft as its body would ring under an
+//!   explicit 300 N/m tool.
 //!
 //! # Switching without a pop
 //!
@@ -57,6 +67,7 @@
 //! displacements, not positions, so 24 bits are far more than enough), both compiled for AVX2
 //! and FMA when the CPU has them. `lop-bench lop` measures it against the FEM step.
 
+mod compliance;
 mod controller;
 mod gc_model;
 mod kernel;
@@ -64,5 +75,5 @@ mod kernel;
 pub use controller::{Lop, LopPolicy, StartLevel, Switch, SwitchReason};
 pub use gc_model::{
     build_cage, fitted_cells, CageDynamics, CageShape, Damping, GcModel, GcModelError,
-    GcParameters, PreciseOperators,
+    GcParameters, PreciseOperators, MAX_FITTED_VERTICES,
 };
