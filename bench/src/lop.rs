@@ -121,6 +121,10 @@ pub struct LopArgs {
     /// Also write every number as JSON to this file.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Run only these parts (1 efficiency, 2 speed-up, 3 effectiveness), e.g. `--part 2,3`;
+    /// all three by default.
+    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u8).range(1..=3))]
+    part: Vec<u8>,
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -185,28 +189,57 @@ fn shape_label(s: CageShape) -> String {
     }
 }
 
+/// Cage dynamics compared in Part 3.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum DynKind {
+    /// Projected, stiffness matched to the precise model's compliance (the default).
+    Projected,
+    /// Plain Galerkin projection (`GᵀKG`).
+    Galerkin,
+    /// The thesis' hand-tuned mass-spring cage.
+    MassSpring,
+}
+
+impl DynKind {
+    /// Stable machine name.
+    pub(crate) fn key(self) -> &'static str {
+        match self {
+            DynKind::Projected => "projected",
+            DynKind::Galerkin => "galerkin",
+            DynKind::MassSpring => "mass-spring",
+        }
+    }
+    /// Human name.
+    pub(crate) fn label(self) -> &'static str {
+        match self {
+            DynKind::Projected => "projected",
+            DynKind::Galerkin => "Galerkin",
+            DynKind::MassSpring => "mass-spring (thesis)",
+        }
+    }
+}
+
 /// The body's GC parameters (`[body.gc]`: padding, the mass-spring cage's parameters) with
-/// `shape`, `dynamics` and `dt` replaced. `mass_spring` picks the thesis' hand-tuned dynamics
-/// over the projected one.
+/// `shape`, `dynamics` and `dt` replaced.
 fn gc_variant(
     spec: &BodySpec,
     mesh: &TetMesh,
     shape: CageShape,
-    mass_spring: bool,
+    dynamics: DynKind,
     dt: f64,
 ) -> GcParameters {
     let base = lop_daemon::scene::gc_parameters(spec, mesh, dt);
     let gc = spec.gc.clone().unwrap_or_default();
     GcParameters {
         shape,
-        dynamics: if mass_spring {
-            CageDynamics::MassSpring {
+        dynamics: match dynamics {
+            DynKind::MassSpring => CageDynamics::MassSpring {
                 stiffness: gc.stiffness.unwrap_or(50.0),
                 density: gc.density.unwrap_or(20.0),
                 damping: gc.damping.unwrap_or(0.3),
-            }
-        } else {
-            CageDynamics::Projected
+            },
+            DynKind::Galerkin => CageDynamics::Galerkin,
+            DynKind::Projected => CageDynamics::Projected,
         },
         dt,
         ..base
@@ -302,17 +335,27 @@ pub fn run(a: LopArgs) -> Result<()> {
     }
     let mut files = Vec::new();
 
-    let efficiency = efficiency::run(a.quick, &a.out, &mut files)?;
-    print!("{}", efficiency::render(&efficiency));
-    println!();
+    let wanted = |p: u8| a.part.is_empty() || a.part.contains(&p);
+    let mut efficiency = Vec::new();
+    if wanted(1) {
+        efficiency = efficiency::run(a.quick, &a.out, &mut files)?;
+        print!("{}", efficiency::render(&efficiency));
+        println!();
+    }
 
-    let speed = speedup::run(a.quick)?;
-    print!("{}", speedup::render(&speed));
-    println!();
+    let mut speed = Vec::new();
+    if wanted(2) {
+        speed = speedup::run(a.quick)?;
+        print!("{}", speedup::render(&speed));
+        println!();
+    }
 
-    let effectiveness = effectiveness::run(a.quick, &a.out, &mut files)?;
-    print!("{}", effectiveness::render(&effectiveness));
-    println!();
+    let mut effectiveness = Vec::new();
+    if wanted(3) {
+        effectiveness = effectiveness::run(a.quick, &a.out, &mut files)?;
+        print!("{}", effectiveness::render(&effectiveness));
+        println!();
+    }
 
     let mut targets = speedup::targets(&speed);
     targets.extend(effectiveness::targets(&effectiveness));

@@ -14,7 +14,7 @@ use serde::Serialize;
 
 use super::{
     dist3, gc_variant, median, placed_bodies, quantile_sorted, shape_key, shape_label,
-    shipped_scene, Target, SHAPES,
+    shipped_scene, DynKind, Target, SHAPES,
 };
 use crate::models::{table, us, Align};
 use crate::pipeline;
@@ -256,7 +256,7 @@ pub fn run(quick: bool) -> Result<Vec<SpeedRow>> {
             let gc_dt = lop_daemon::scene::gc_parameters(&spec, &mesh, fem.dt()).dt;
             for loaded in [true, false] {
                 for shape in SHAPES {
-                    let params = gc_variant(&spec, &mesh, shape, false, gc_dt);
+                    let params = gc_variant(&spec, &mesh, shape, DynKind::Projected, gc_dt);
                     let t0 = Instant::now();
                     let gc = GcModel::from_precise(&mesh, params, &fem).map_err(|e| {
                         anyhow!("body {}: {} cage: {e}", spec.name, shape_label(shape))
