@@ -152,13 +152,14 @@ pub fn body_models(scene: &Scene, spec: &BodySpec, mesh: &TetMesh) -> Result<(Mo
         return Ok((precise, None));
     }
     let params = gc_parameters(spec, mesh, precise.dt());
-    let gc = GcModel::from_precise(mesh, params, &precise).with_context(|| {
-        format!(
-            "{}: body {:?}: Green-coordinates cage",
-            scene.path.display(),
-            spec.name
-        )
-    })?;
+    let gc =
+        GcModel::from_precise_under(mesh, params, &precise, scene.gravity).with_context(|| {
+            format!(
+                "{}: body {:?}: Green-coordinates cage",
+                scene.path.display(),
+                spec.name
+            )
+        })?;
     if spec.model == ModelPin::Gc {
         return Ok((Model::Gc(Box::new(gc)), None));
     }

@@ -300,14 +300,16 @@ fn run_reference(
     for shape in SHAPES {
         for dynamics in [DynKind::Projected, DynKind::Galerkin, DynKind::MassSpring] {
             let params = gc_variant(spec, mesh, shape, dynamics, dt);
-            let gc = GcModel::from_precise(mesh, params, &precise).map_err(|e| {
-                anyhow!(
-                    "{}: {} cage, {} dynamics: {e}",
-                    case.body,
-                    shape_label(shape),
-                    dynamics.key()
-                )
-            })?;
+            let gc = GcModel::from_precise_under(mesh, params, &precise, scene.gravity).map_err(
+                |e| {
+                    anyhow!(
+                        "{}: {} cage, {} dynamics: {e}",
+                        case.body,
+                        shape_label(shape),
+                        dynamics.key()
+                    )
+                },
+            )?;
             let vertices = gc.coordinates().vertex_count();
             let (variant, label) = variant_names(shape, dynamics);
             runners.push(Runner {
@@ -335,7 +337,7 @@ fn run_reference(
     }
     for shape in SHAPES {
         let params = gc_variant(spec, mesh, shape, DynKind::Projected, dt);
-        let gc = GcModel::from_precise(mesh, params, &precise)
+        let gc = GcModel::from_precise_under(mesh, params, &precise, scene.gravity)
             .map_err(|e| anyhow!("{}: {} cage: {e}", case.body, shape_label(shape)))?;
         let vertices = gc.coordinates().vertex_count();
         runners.push(Runner {

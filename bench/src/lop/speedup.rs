@@ -258,9 +258,10 @@ pub fn run(quick: bool) -> Result<Vec<SpeedRow>> {
                 for shape in SHAPES {
                     let params = gc_variant(&spec, &mesh, shape, DynKind::Projected, gc_dt);
                     let t0 = Instant::now();
-                    let gc = GcModel::from_precise(&mesh, params, &fem).map_err(|e| {
-                        anyhow!("body {}: {} cage: {e}", spec.name, shape_label(shape))
-                    })?;
+                    let gc = GcModel::from_precise_under(&mesh, params, &fem, scene.gravity)
+                        .map_err(|e| {
+                            anyhow!("body {}: {} cage: {e}", spec.name, shape_label(shape))
+                        })?;
                     let setup = t0.elapsed().as_secs_f64() * 1e3;
                     let cage = (
                         gc.coordinates().vertex_count(),

@@ -37,13 +37,16 @@ const NONE: usize = usize::MAX;
 /// The cage stiffness `K_r = M_r C_r⁻¹ M_r` matched to the precise model's rest compliance.
 /// `mg` is `MG` (3N × 3V, zero rows on held nodes), `m_r` is `GᵀMG`. `Ok(None)` when the rest
 /// stiffness is singular on the free nodes (a body with no support): compliance is undefined
-/// there, and the caller falls back to the Galerkin stiffness.
+/// there, and the caller falls back to the Galerkin stiffness. `tolerance`: how closely (relative
+/// to the largest force) the assembled matrix must reproduce one more product; a product by
+/// finite differences needs a looser one.
 pub(super) fn matched_stiffness(
     mesh: &TetMesh,
     held: &[bool],
     stiffness: StiffnessProduct<'_>,
     mg: &DMatrix<f64>,
     m_r: &DMatrix<f64>,
+    tolerance: f64,
 ) -> Result<Option<DMatrix<f64>>, GcModelError> {
     let n = mesh.nodes.len();
     let m = mg.ncols();
@@ -101,7 +104,7 @@ pub(super) fn matched_stiffness(
     }
     let k_ff = SparseColMat::<usize, f64>::try_new_from_triplets(nf, nf, &triplets)
         .map_err(|e| GcModelError::Parameter(format!("assembling the rest stiffness: {e:?}")))?;
-    check_assembly(&k_ff, &free, n, stiffness)?;
+    check_assembly(&k_ff, &free, n, stiffness, tolerance)?;
 
     let Ok(llt) = k_ff.sp_cholesky(Side::Lower) else {
         return Ok(None);
@@ -187,6 +190,7 @@ fn check_assembly(
     free: &[usize],
     n: usize,
     stiffness: StiffnessProduct<'_>,
+    tolerance: f64,
 ) -> Result<(), GcModelError> {
     let mut u = vec![[0.0; 3]; n];
     let mut x = vec![0.0; 3 * free.len()];
@@ -216,7 +220,7 @@ fn check_assembly(
             size = size.max(y[k][b].abs());
         }
     }
-    if diff <= 1e-9 * size.max(f64::MIN_POSITIVE) {
+    if diff <= tolerance * size.max(f64::MIN_POSITIVE) {
         Ok(())
     } else {
         Err(GcModelError::Parameter(format!(

@@ -83,6 +83,17 @@ pub enum Damping {
 /// `u ↦ K u`: a model's rest stiffness applied to a displacement field, N.
 pub type StiffnessProduct<'a> = &'a dyn Fn(&[[f64; 3]]) -> Vec<[f64; 3]>;
 
+/// The precise model's equilibrium under a constant gravity, about which a projected cage is
+/// linearised instead of about the rest shape (see [`GcModel::from_precise_under`]).
+pub struct Prestress<'a> {
+    /// The gravity of the equilibrium, m/s².
+    pub gravity: [f64; 3],
+    /// Node displacements from rest at the equilibrium, m.
+    pub displacement: &'a [[f64; 3]],
+    /// `u ↦ K_t u`: the precise model's tangent stiffness at the equilibrium, N.
+    pub tangent: StiffnessProduct<'a>,
+}
+
 /// The precise model's operators at rest, which [`CageDynamics::Projected`] projects.
 pub struct PreciseOperators<'a> {
     /// Lumped nodal masses, kg.
@@ -93,6 +104,8 @@ pub struct PreciseOperators<'a> {
     pub damping: Damping,
     /// `u ↦ K u` at rest, N.
     pub stiffness: StiffnessProduct<'a>,
+    /// The equilibrium under the scene's gravity, if the cage is to be linearised about it.
+    pub prestress: Option<Prestress<'a>>,
 }
 
 /// Why a GC model could not be built.
@@ -140,6 +153,9 @@ struct Reduced {
     /// otherwise drift to its own, slightly different one). `None` until the first step after
     /// a hand-over computes it; zero from rest.
     correction: Vec<f64>,
+    /// The correction from rest: zero, or the prestressed equilibrium's (see
+    /// [`GcModel::from_precise_under`]).
+    rest_correction: Vec<f64>,
     correction_due: bool,
     /// The step's increment `d`, scratch.
     d: Vec<f64>,
@@ -348,9 +364,39 @@ impl GcModel {
                 }
                 let mut k_r = jacobian.transpose() * kg;
                 k_r = (&k_r + k_r.transpose()) * 0.5;
+                // The static correction a cage starting from rest carries: zero about the rest
+                // shape; about a prestressed equilibrium `q_g`, `A⁻¹(K_r q_g − Gᵀ M g)`, which
+                // makes `q_g` the cage's equilibrium under that gravity.
+                let mut rest_load: Option<DVector<f64>> = None;
                 if params.dynamics == CageDynamics::Projected {
-                    if let Some(matched) = matched_stiffness(mesh, &held, ops.stiffness, &mg, &m_r)?
-                    {
+                    let mut matched = None;
+                    if let Some(pre) = &ops.prestress {
+                        matched = matched_stiffness(mesh, &held, pre.tangent, &mg, &m_r, 1e-6)?;
+                        if let Some(k_t) = &matched {
+                            // q_g: the mass-weighted fit of the equilibrium.
+                            let mut mu = DVector::zeros(3 * n);
+                            for k in (0..n).filter(|&k| !held[k]) {
+                                for b in 0..3 {
+                                    mu[3 * k + b] = ops.masses[k] * pre.displacement[k][b];
+                                }
+                            }
+                            let q_g = fit.solve(&(jacobian.transpose() * mu));
+                            let mut f_g = DVector::zeros(m);
+                            for c in 0..m {
+                                let col = mg.column(c);
+                                f_g[c] = (0..n)
+                                    .map(|k| {
+                                        (0..3).map(|a| col[3 * k + a] * pre.gravity[a]).sum::<f64>()
+                                    })
+                                    .sum::<f64>();
+                            }
+                            rest_load = Some(k_t * q_g - f_g);
+                        }
+                    }
+                    if matched.is_none() {
+                        matched = matched_stiffness(mesh, &held, ops.stiffness, &mg, &m_r, 1e-9)?;
+                    }
+                    if let Some(matched) = matched {
                         k_r = matched;
                     }
                 }
@@ -374,12 +420,17 @@ impl GcModel {
                     }
                 }
                 let gravity = &a_inv * g1;
+                let rest_correction = match rest_load {
+                    Some(b) => (&a_inv * b).as_slice().to_vec(),
+                    None => vec![0.0; m],
+                };
                 Dynamics::Projected(Box::new(Reduced {
                     a_inv: a_inv.as_slice().to_vec(),
                     response,
                     gravity: gravity.as_slice().to_vec(),
                     state: vec![0.0; 2 * m],
-                    correction: vec![0.0; m],
+                    correction: rest_correction.clone(),
+                    rest_correction,
                     correction_due: false,
                     d: vec![0.0; m],
                     a: a_dense,
@@ -485,6 +536,84 @@ impl GcModel {
                 held: &held,
                 damping,
                 stiffness: &stiffness,
+                prestress: None,
+            },
+        )
+    }
+
+    /// [`GcModel::from_precise`] for a body that lives under a constant `gravity` (a scene's):
+    /// a projected cage is linearised about the precise model's equilibrium under it, with the
+    /// *tangent* stiffness there, instead of about the rest shape. A soft, tall body sagging
+    /// under its own weight is far more compliant sideways than at rest (the corotational FEM
+    /// cylinder of Table 6.1 bends 2.3× farther under the same side load), which a cage built
+    /// on the rest stiffness cannot follow. The equilibrium becomes the cage's own under that
+    /// gravity; under a different gravity the cage is wrong by the difference, so use the
+    /// scene's. Only a corotational FEM body has this effect and a static solver to find the
+    /// equilibrium; for other bodies, zero gravity, or an equilibrium that cannot be found or
+    /// whose tangent is not positive definite, this is [`GcModel::from_precise`].
+    pub fn from_precise_under(
+        mesh: &TetMesh,
+        params: GcParameters,
+        precise: &Model,
+        gravity: [f64; 3],
+    ) -> Result<GcModel, GcModelError> {
+        let fem = match precise {
+            Model::Fem(f)
+                if f.parameters().mode == crate::fem::FemMode::Corotational
+                    && gravity != [0.0; 3]
+                    && params.dynamics == CageDynamics::Projected =>
+            {
+                f
+            }
+            _ => return GcModel::from_precise(mesh, params, precise),
+        };
+        let mut eq = fem.clone();
+        eq.reset();
+        if eq.solve_static(gravity, &[]).is_err() {
+            return GcModel::from_precise(mesh, params, precise);
+        }
+        let x_g = eq.positions().to_vec();
+        let n = x_g.len();
+        let u_g: Vec<[f64; 3]> = (0..n).map(|k| sub(x_g[k], mesh.nodes[k])).collect();
+        // Central differences of the elastic forces about the equilibrium. The step is 1e-7 of
+        // the body's size: far below the equilibrium's own displacements, far above the
+        // rounding of the forces.
+        let size = extents(&mesh.nodes).into_iter().fold(0.0, f64::max);
+        let h = 1e-7 * size;
+        let zero = vec![[0.0; 3]; n];
+        let probe = std::cell::RefCell::new(eq);
+        let tangent = |u: &[[f64; 3]]| {
+            let mut f = probe.borrow_mut();
+            let shifted = |sign: f64| -> Vec<[f64; 3]> {
+                (0..n).map(|k| add(x_g[k], scale(u[k], sign * h))).collect()
+            };
+            f.set_state(&shifted(1.0), &zero);
+            let plus = f.elastic_forces();
+            f.set_state(&shifted(-1.0), &zero);
+            let minus = f.elastic_forces();
+            plus.iter()
+                .zip(&minus)
+                .map(|(p, q)| scale(sub(*p, *q), -0.5 / h))
+                .collect()
+        };
+        let damping = precise.damping().ok_or_else(|| {
+            GcModelError::Parameter("a cage needs a precise model to stand for".into())
+        })?;
+        let held: Vec<bool> = (0..n).map(|i| precise.is_held(i)).collect();
+        let stiffness = |u: &[[f64; 3]]| precise.rest_stiffness_product(u).unwrap_or_default();
+        GcModel::new(
+            mesh,
+            params,
+            &PreciseOperators {
+                masses: precise.masses(),
+                held: &held,
+                damping,
+                stiffness: &stiffness,
+                prestress: Some(Prestress {
+                    gravity,
+                    displacement: &u_g,
+                    tangent: &tangent,
+                }),
             },
         )
     }
@@ -535,7 +664,7 @@ impl GcModel {
         match &mut self.dynamics {
             Dynamics::Projected(r) => {
                 r.state.fill(0.0);
-                r.correction.fill(0.0);
+                r.correction.copy_from_slice(&r.rest_correction);
                 r.correction_due = false;
             }
             Dynamics::MassSpring(msd) => msd.reset(),

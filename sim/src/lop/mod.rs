@@ -45,6 +45,15 @@
 //!   3V × 3V solve in contact steps only): a cage as soft as its body would ring under an
 //!   explicit 300 N/m tool.
 //!
+//! - **Under gravity** ([`GcModel::from_precise_under`], what `lopd` builds): a corotational
+//!   FEM body is first solved to its static equilibrium under the scene's gravity, and the
+//!   projected cage is linearised about *that* shape, with the FEM's tangent stiffness there
+//!   (central differences of its elastic forces, probed like `K`) in `C_r`, and a constant
+//!   correction that makes the equilibrium the cage's own. A soft, tall body carrying its own
+//!   weight is much softer sideways than at rest — the Table 6.1 cylinder bends 2.3× farther
+//!   under the same side load — and a cage built on the rest stiffness misses it (cylinder,
+//!   `lop-bench lop` Part 3: 3.4 % of the diameter about rest, 1.2 % about the equilibrium).
+//!
 //! # Switching without a pop
 //!
 //! - Cage → precise: the precise model takes the cage's exact node positions and velocities; the
