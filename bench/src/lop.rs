@@ -82,8 +82,10 @@
 //! run to 5 s (`--quick`: 0.5 s). The loads are sized for a few millimetres of FEM motion: the
 //! Table 6.1 cylinder (E = 600 Pa) bends by about 0.1 m, more than its diameter, under 50 mN. References: corotational FEM and implicit-Euler MSD (pinned,
 //! the scene's parameters). Approximations: a GC model for each cage shape × dynamics
-//! {projected from the reference it approximates, mass-spring with the scene's `[body.gc]`
-//! stiffness/density/damping (the thesis' way)}, and the rest shape ("no deformation"). All
+//! {projected from the reference it approximates (built as `lopd` builds it, under the scene's
+//! gravity), plain Galerkin, mass-spring with the scene's `[body.gc]` stiffness/density/damping
+//! (the thesis' way)}, the cage fitted to the reference's shape every iteration ("best fit", the
+//! bound for any dynamics on that cage), and the rest shape ("no deformation"). All
 //! step in lockstep with identical loads at the reference's `dt` (the cage too, whatever its
 //! scene `dt`). Per iteration, over all nodes: mean and max of `|x_gc − x_ref|` divided by the
 //! body's smallest rest extent, in %.
