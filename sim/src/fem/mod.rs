@@ -137,6 +137,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub(crate) mod element;
+mod ordering;
 mod rotation;
 mod shapes;
 mod system;
@@ -152,6 +153,8 @@ use element::{
     stress, sub, Element,
 };
 use rotation::{closest_rotation, quat_to_mat, quat_to_mat_minus_identity, QUAT_IDENTITY};
+#[doc(hidden)]
+pub use system::NodeOrdering;
 use system::{Precision, System, NONE};
 
 #[doc(hidden)]
@@ -313,8 +316,23 @@ pub struct Fem {
     /// and the iterations beyond that count summed over the later steps (refactor policy).
     baseline_iterations: Option<usize>,
     extra_iterations: usize,
+    /// Running totals since construction, for benchmarks ([`Fem::solver_counters`]).
+    counters: SolverCounters,
     /// Scratch buffers (boxed: keeps `Model` small).
     s: Box<Scratch>,
+}
+
+/// Running totals of a body's solver work since it was built: for benchmarks and logs.
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SolverCounters {
+    /// Steps taken.
+    pub steps: u64,
+    /// Conjugate-gradient iterations, summed over the corotational steps.
+    pub cg_iterations: u64,
+    /// Numeric factorisations (set-up, refactorisations of the lagged preconditioner, direct
+    /// solves).
+    pub factorizations: u64,
 }
 
 /// Scratch of a [`Fem`]: every buffer `step` uses, allocated once.
@@ -392,6 +410,17 @@ impl Fem {
         Fem::with_factorization(mesh, params, None)
     }
 
+    /// [`Fem::new`] with the fill-reducing ordering forced instead of the smaller-fill one of
+    /// AMD and nested dissection: for benchmarks and tests.
+    #[doc(hidden)]
+    pub fn with_ordering(
+        mesh: &TetMesh,
+        params: FemParameters,
+        ordering: NodeOrdering,
+    ) -> Result<Fem, FemError> {
+        Fem::build(mesh, params, None, ordering)
+    }
+
     /// [`Fem::new`] with the factorisation forced supernodal (`Some(true)`) or simplicial
     /// (`Some(false)`) instead of faer's choice: for benchmarks.
     #[doc(hidden)]
@@ -399,6 +428,15 @@ impl Fem {
         mesh: &TetMesh,
         params: FemParameters,
         supernodal: Option<bool>,
+    ) -> Result<Fem, FemError> {
+        Fem::build(mesh, params, supernodal, NodeOrdering::Auto)
+    }
+
+    fn build(
+        mesh: &TetMesh,
+        params: FemParameters,
+        supernodal: Option<bool>,
+        ordering: NodeOrdering,
     ) -> Result<Fem, FemError> {
         validate(&params)?;
         let (lambda, mu) = lame(params.young, params.poisson);
@@ -423,7 +461,7 @@ impl Fem {
         for &f in &mesh.fixed {
             held[f as usize] = true;
         }
-        let system = System::new(n, &elements, &held, supernodal)
+        let system = System::new(&mesh.nodes, &elements, &held, supernodal, ordering)
             .map_err(|e| FemError::Solver(format!("{e:?}")))?;
         let n_dof = system.n_dof;
         let element_dofs = elements
@@ -497,6 +535,7 @@ impl Fem {
             last_iterations: 0,
             baseline_iterations: None,
             extra_iterations: 0,
+            counters: SolverCounters::default(),
             s,
         };
         fem.factor_dynamic(false)
@@ -542,6 +581,36 @@ impl Fem {
     pub fn solver_info(&self) -> (usize, usize, bool) {
         let (a, l) = self.system.nnz();
         (a, l, self.system.is_supernodal())
+    }
+    /// The fill-reducing ordering of the system (AMD or nested dissection): for benchmarks.
+    #[doc(hidden)]
+    pub fn ordering(&self) -> NodeOrdering {
+        self.system.ordering()
+    }
+    /// Factorises `K̃` at rest again, in the precision the body's solver uses (single for the
+    /// corotational preconditioner, double otherwise): for benchmarks of the factorisation.
+    /// Allocation-free after the first call.
+    #[doc(hidden)]
+    pub fn refactorize_at_rest(&mut self) -> bool {
+        self.factor_dynamic(false).is_ok()
+    }
+    /// Solves `K̃ x = rhs` in place (one DOF vector, [`Fem::dofs`] long) with the body's
+    /// current factor: for benchmarks of the triangular solves.
+    ///
+    /// # Panics
+    /// If `rhs` does not have one entry per DOF.
+    #[doc(hidden)]
+    pub fn solve_with_factor(&mut self, rhs: &mut [f64]) {
+        assert_eq!(rhs.len(), self.system.n_dof, "one entry per DOF");
+        self.system.solve_in_place(rhs);
+    }
+    /// Steps, CG iterations and factorisations since the body was built: for benchmarks.
+    #[doc(hidden)]
+    pub fn solver_counters(&self) -> SolverCounters {
+        SolverCounters {
+            factorizations: self.system.factorizations(),
+            ..self.counters
+        }
     }
     /// Chooses how corotational steps are solved: for benchmarks.
     #[doc(hidden)]
@@ -697,6 +766,7 @@ impl Fem {
                 CorotationalSolver::LaggedFactorPcg => self.solve_pcg(pressed),
             },
         };
+        self.counters.steps += 1;
         let Ok(report) = solved else {
             return self.blow_up(BlowUp::NonFinite);
         };
@@ -931,6 +1001,7 @@ impl Fem {
             }
         }
         self.last_iterations = iterations;
+        self.counters.cg_iterations += iterations as u64;
         // Ski rental: refresh the lagged factor once the iterations it has cost beyond what a
         // fresh factor needs (its first step's count) add up to about the price of a
         // refactorisation.
