@@ -97,6 +97,9 @@ pub(crate) struct System {
     factorizations: u64,
     /// The fill-reducing ordering in use.
     ordering: NodeOrdering,
+    /// Floating-point operations of one numeric factorisation, estimated from the symbolic
+    /// structure.
+    factor_flops: f64,
 }
 
 impl System {
@@ -254,6 +257,7 @@ impl System {
             symbolic.solve_in_place_scratch::<f32>(1, Par::Seq),
         ]);
         let values = vec![0.0; row_idx.len()];
+        let factor_flops = factor_flops(&symbolic);
         Ok(System {
             dof,
             n_dof,
@@ -271,6 +275,7 @@ impl System {
             work: Workspace::new(req)?,
             factorizations: 0,
             ordering: chosen,
+            factor_flops,
         })
     }
 
@@ -282,6 +287,20 @@ impl System {
     /// The fill-reducing ordering chosen (never `Auto`).
     pub fn ordering(&self) -> NodeOrdering {
         self.ordering
+    }
+
+    /// The cost of a numeric factorisation in preconditioned CG iterations, estimated from
+    /// the structure as `√(flops / nnz(L))`, at least [`MIN_REFACTOR_PRICE`].
+    ///
+    /// An iteration is dominated by the two triangular solves, which stream the factor
+    /// (memory-bound: ∝ nnz(L)); a factorisation by its dense updates (∝ flops), which run
+    /// faster the larger the supernodes, so the price grows more slowly than the flop ratio.
+    /// Measured on the 2-core development machine (single precision, refactorisation incl.
+    /// assembly over iteration incl. the matrix-free product): liver ~10, 10k-tet box ~14,
+    /// 30k ~22, 50k ~26, 100k ~25-30; the estimate gives 9.4, 16.5, 23, 27 and 33.
+    pub fn refactor_price(&self) -> usize {
+        let flops_per_entry = self.factor_flops / self.symbolic.len_val().max(1) as f64;
+        (flops_per_entry.sqrt().round() as usize).max(MIN_REFACTOR_PRICE)
     }
 
     /// Numeric factorisations attempted since construction.
@@ -475,6 +494,34 @@ impl System {
     }
 }
 
+/// Floor of [`System::refactor_price`]: on small meshes a factorisation costs about ten
+/// iterations (it was the fixed price before the estimate).
+pub(crate) const MIN_REFACTOR_PRICE: usize = 10;
+
+/// Floating-point operations of a numeric Cholesky factorisation with this structure: per
+/// supernode of `w` columns with `m` rows below them, `w³/3 + w²m + wm²` (the diagonal block,
+/// the panel solve and the update it sends to its ancestors); per simplicial column with `m`
+/// entries below the diagonal, `m²`.
+fn factor_flops(symbolic: &SymbolicCholesky<u32>) -> f64 {
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Supernodal(sn) => (0..sn.n_supernodes())
+            .map(|k| {
+                let w = (sn.supernode_end()[k] - sn.supernode_begin()[k]) as f64;
+                let m = (sn.col_ptr_for_row_idx()[k + 1] - sn.col_ptr_for_row_idx()[k]) as f64;
+                w * w * w / 3.0 + w * w * m + w * m * m
+            })
+            .sum(),
+        SymbolicCholeskyRaw::Simplicial(sc) => sc
+            .col_ptr()
+            .windows(2)
+            .map(|c| {
+                let m = (c[1] - c[0]).saturating_sub(1) as f64;
+                m * m
+            })
+            .sum(),
+    }
+}
+
 /// Fill-reducing ordering of the free nodes (`ordering.rs`).
 #[doc(hidden)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -594,6 +641,7 @@ impl Clone for System {
             work: self.work.clone(),
             factorizations: self.factorizations,
             ordering: self.ordering,
+            factor_flops: self.factor_flops,
         }
     }
 }
