@@ -82,7 +82,8 @@
 //!   mean rate so far predicts that it will not, the factor is refreshed within the step.
 //!
 //! Measured on one core (release, per step median / mean; `E` 140 Pa, `ν` 0.023, `ρ` 10,
-//! `α` 10, `Δt` 0.01 s):
+//! `α` 10, `Δt` 0.01 s), *before* nested dissection, the warm start, the early give-up and the
+//! structural refactor price (fixed at 10 iterations then):
 //!
 //! | body | corotational, lagged-factor CG | corotational, refactorised | linear |
 //! |---|---|---|---|
@@ -96,9 +97,30 @@
 //! The means include the refactorisations (single precision: 1 ms on the liver, 0.15 s at
 //! 52k), frequent in the violent transients and rare once a body has settled.
 //!
+//! After them (2026-11-21, `lop-bench models` part 2: soft bars, `E` 3 kPa, `ν` 0.45, `ρ`
+//! 1000, `α` 1, fixed at one end, sagging from rest; the same 40 steps at every size — about
+//! 30 smooth ones, then the bar folds at its clamp with thousands of inverted elements; the
+//! same harness on the code before, on a busy machine: both columns are inflated alike):
+//!
+//! | box | before: median / mean / p99 | after: median / mean / p99 | CG iterations (40 steps) |
+//! |---|---|---|---|
+//! | 30k tets | 26 / 46 / 137 ms | 22 / 28 / 107 ms | 149 → 139 |
+//! | 50k tets | 67 / 209 / 642 ms | 45 / 92 / 260 ms | 299 → 168 |
+//! | 100k tets | 321 / 1024 / 2811 ms | 211 / 406 / 1024 ms | 352 → 179 |
+//!
+//! At 50k a step of the smooth phase costs ~29 ms with 3 CG iterations and ~37 ms with 4:
+//! 4 × 5.4 ms of preconditioning (two single-precision triangular solves, memory-bound), 5 ×
+//! 1.1 ms of matrix-free products, 8.7 ms of element forces and rotations (two thirds of it
+//! the polar decompositions) and 0.9 ms of node rotations; a refactorisation costs ~150 ms
+//! (assembly and single-precision numeric factorisation).
+//!
 //! Factorisation: faer's sparse Cholesky (supernodal; faer picks it by its flop estimate for
 //! all these meshes, and its solves beat the simplicial ones even though relaxed supernodes
-//! store 40 % more), on a numbering ordered by AMD on the node graph (`system.rs`).
+//! store 40 % more — without relaxation the 50k factor is 6 % smaller but its solves are
+//! slower), on a numbering ordered by AMD or geometric nested dissection on the node graph,
+//! whichever gives the smaller factor (`system.rs`, `ordering.rs`): AMD on the organ meshes,
+//! nested dissection from ~10k tets (50k: nnz(L) 23.2M → 16.1M, factorisation ×1.8 and solves
+//! ×1.4–1.6 faster; 100k: 62.6M → 41.2M, ×2.4 and ×1.8).
 //!
 //! # Tool contact
 //!
