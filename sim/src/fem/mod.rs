@@ -344,6 +344,11 @@ pub struct Fem {
     /// and the iterations beyond that count summed over the later steps (refactor policy).
     baseline_iterations: Option<usize>,
     extra_iterations: usize,
+    /// Consecutive CG runs, up to the last, whose first iteration alone reached the
+    /// tolerance relative to its start: from two on (not just after a refactorisation, whose
+    /// fresh factor always does), one iteration suffices whatever the start, so the warm start
+    /// cannot save one and the next run skips it (and its product).
+    one_iteration_runs: u32,
     /// Running totals since construction, for benchmarks ([`Fem::solver_counters`]).
     counters: SolverCounters,
     /// Scratch buffers (boxed: keeps `Model` small).
@@ -575,6 +580,7 @@ impl Fem {
             last_iterations: 0,
             baseline_iterations: None,
             extra_iterations: 0,
+            one_iteration_runs: 0,
             counters: SolverCounters::default(),
             s,
         };
@@ -679,6 +685,7 @@ impl Fem {
         self.v.iter_mut().for_each(|v| *v = [0.0; 3]);
         self.s.v_before.iter_mut().for_each(|v| *v = [0.0; 3]);
         self.s.v_before2.iter_mut().for_each(|v| *v = [0.0; 3]);
+        self.one_iteration_runs = 0;
         self.s.rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
         self.s.node_rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
     }
@@ -703,6 +710,7 @@ impl Fem {
         }
         self.s.v_before.copy_from_slice(&self.v);
         self.s.v_before2.copy_from_slice(&self.v);
+        self.one_iteration_runs = 0;
         self.s.rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
         self.s.node_rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
     }
@@ -1104,7 +1112,9 @@ impl Fem {
     /// extra product; on a smoothly moving body the initial residual is 1–5 % of `‖b‖`,
     /// which saves about one preconditioned iteration of the usual four (linear
     /// extrapolation, `Δt (2v − v⁻)`, leaves about twice the residual and needs ~9 % more
-    /// iterations on the 50k-tet bar). The stopping test stays relative to `‖b‖`.
+    /// iterations on the 50k-tet bar). The stopping test stays relative to `‖b‖`. When the
+    /// last two runs' first iterations alone reduced their residuals by the tolerance (a
+    /// settled body: one iteration whatever the start), the start is zero instead.
     fn cg(
         &mut self,
         pressed: Option<Pressed>,
@@ -1118,7 +1128,9 @@ impl Fem {
         if b_norm2 == 0.0 {
             return Ok(0);
         }
-        self.warm_start(pressed);
+        if self.one_iteration_runs < 2 {
+            self.warm_start(pressed);
+        }
         let r2_start = dot_n(&self.s.cg_r, &self.s.cg_r);
         if !r2_start.is_finite() {
             return Err(0);
@@ -1144,6 +1156,13 @@ impl Fem {
             }
             if !r2.is_finite() {
                 return Err(it);
+            }
+            if it == 1 {
+                self.one_iteration_runs = if r2 <= CG_TOLERANCE * CG_TOLERANCE * r2_start {
+                    self.one_iteration_runs.saturating_add(1)
+                } else {
+                    0
+                };
             }
             if r2 <= tol2 {
                 return Ok(it);
