@@ -120,7 +120,7 @@
 //! slower), on a numbering ordered by AMD or geometric nested dissection on the node graph,
 //! whichever gives the smaller factor (`system.rs`, `ordering.rs`): AMD on the organ meshes,
 //! nested dissection from ~10k tets (50k: nnz(L) 23.2M → 16.1M, factorisation ×1.8 and solves
-//! ×1.4–1.6 faster; 100k: 62.6M → 41.2M, ×2.4 and ×1.8).
+//! ×1.3–1.6 faster; 100k: 62.6M → 41.2M, ×2.3–2.4 and ×1.6–1.8).
 //!
 //! # Tool contact
 //!
