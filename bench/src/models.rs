@@ -33,6 +33,22 @@
 //! and MSD with implicit Euler (springs `k = E · mean edge length`, masses lumped from `ρ`,
 //! `γ = α · mean node mass`, the same mapping the organ scenes use). The exponent `e` of
 //! `time ∝ tets^e` is a least-squares fit on log–log axes; `e ≈ 1–1.2` is "close to linear".
+//! For FEM the table also shows the factor's size (`nnz(L)`), and for corotational FEM the
+//! conjugate-gradient iterations per timed step and the factorisations among the timed steps.
+//! Each row is timed for up to 3 s (at least 8 steps, at most 500), except corotational FEM,
+//! whose cost depends on the motion: it is timed over exactly 40 steps (0.4 s of simulated
+//! time after the 2 warm-up steps) at every size, so every size and every version of the
+//! solver is measured on the same window: about 30 steps of smooth sagging, then the bar
+//! folds at its clamp (inverted elements), where the lagged preconditioner goes stale within
+//! a step. (Until 2026-11 the corotational rows had the 3 s budget too, which timed only the
+//! smooth first steps of the large boxes: 27 steps at 50k tets, 8 at 100k.)
+//!
+//! # Part 2b — fill-reducing orderings
+//! On the shipped meshes (with their scenes' material) and the scaling boxes: the size of the
+//! FEM system's Cholesky factor with AMD and with geometric nested dissection, and the time of
+//! its single-precision numeric factorisation (the corotational preconditioner) and of one
+//! pair of triangular solves with it (`bench/src/models/orderings.rs`). `Fem::new` keeps the
+//! ordering with the smaller factor.
 //!
 //! # Part 3 — thesis chapter 3 (§3.2)
 //! The beam (`assets/meshes/beam`: 0.4 × 0.1 × 0.1 m along +x, the wall nodes at `x = 0`
@@ -61,7 +77,11 @@
 //! integrator).
 //!
 //! `--json PATH` writes every number printed (and the per-run summaries of part 3).
+//! `--only scaling,orderings` runs only the named parts (`step-times`, `scaling`, `orderings`,
+//! `study`); `--tets 50000` replaces the scaling series' sizes (also for part 2b) and
+//! `--scaling-models corotational` limits its models.
 
+mod orderings;
 mod study;
 
 use std::fmt::Write as _;
@@ -93,6 +113,48 @@ pub struct ModelsArgs {
     /// Also write every number as JSON to this file.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Run only these parts (comma-separated; default: all three).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    only: Vec<Part>,
+    /// Scaling series: these target sizes in tetrahedra instead of the default series
+    /// (comma-separated, e.g. `--tets 50000`).
+    #[arg(long, value_delimiter = ',')]
+    tets: Vec<usize>,
+    /// Scaling series: only these models (comma-separated; default: all three).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    scaling_models: Vec<ScalingModel>,
+}
+
+/// A part of `lop-bench models`, for `--only`.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Part {
+    /// Part 1: time per step on the shipped meshes.
+    StepTimes,
+    /// Part 2: scaling with the mesh size.
+    Scaling,
+    /// Part 2b: fill-reducing orderings (AMD vs nested dissection) on the shipped meshes and
+    /// the scaling boxes.
+    Orderings,
+    /// Part 3: the thesis' chapter-3 study (and Fig. 3.11, which needs part 1's beam rows).
+    Study,
+}
+
+/// A model of the scaling series, for `--scaling-models`.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ScalingModel {
+    Corotational,
+    Linear,
+    Msd,
+}
+
+impl ScalingModel {
+    fn bench(self) -> Bench {
+        match self {
+            ScalingModel::Corotational => Bench::Fem(FemMode::Corotational),
+            ScalingModel::Linear => Bench::Fem(FemMode::Linear),
+            ScalingModel::Msd => Bench::Msd(Integrator::ImplicitEuler),
+        }
+    }
 }
 
 /// The workspace root (meshes and scenes are found relative to it).
@@ -285,6 +347,10 @@ pub struct Timing {
     pub max_us: f64,
     /// Steps (warm-up included) that blew up and reset the body.
     pub blow_ups: usize,
+    /// FEM: conjugate-gradient iterations per timed step (0 in linear mode).
+    pub cg_per_step: Option<f64>,
+    /// FEM: numeric factorisations during the timed steps.
+    pub factorizations: Option<u64>,
 }
 
 /// Median, p99 (nearest rank), mean and max of `ns`, in µs.
@@ -323,6 +389,11 @@ fn time_model(
             Err(_) => blow_ups += 1,
         }
     }
+    let counters = |m: &Model| match m {
+        Model::Fem(f) => Some(f.solver_counters()),
+        _ => None,
+    };
+    let before = counters(model);
     let mut ns: Vec<u64> = Vec::with_capacity(budget.max_steps);
     let start = Instant::now();
     while ns.len() < budget.max_steps
@@ -339,6 +410,12 @@ fn time_model(
             bail!("interrupted");
         }
     }
+    let delta = before.zip(counters(model)).map(|(b, a)| {
+        (
+            (a.cg_iterations - b.cg_iterations) as f64 / ns.len() as f64,
+            a.factorizations - b.factorizations,
+        )
+    });
     let (median_us, p99_us, mean_us, max_us) = summarize(&mut ns);
     Ok((
         Timing {
@@ -348,6 +425,8 @@ fn time_model(
             mean_us,
             max_us,
             blow_ups,
+            cg_per_step: delta.map(|d| d.0),
+            factorizations: delta.map(|d| d.1),
         },
         last,
     ))
@@ -597,12 +676,25 @@ fn step_times(quick: bool) -> Result<(Vec<MeshRow>, Vec<StepRow>)> {
 const SCALING_TARGETS: [usize; 6] = [1_000, 3_000, 10_000, 30_000, 50_000, 100_000];
 const SCALING_TARGETS_QUICK: usize = 3;
 
+/// Timed steps of every corotational FEM row of the scaling series (after the warm-up): 0.4 s
+/// of simulated time, the same window of the motion at every size.
+const COROTATIONAL_SCALING_STEPS: usize = 40;
+
 /// Soft-tissue material of the scaling series.
 const SOFT_YOUNG: f64 = 3000.0;
 const SOFT_POISSON: f64 = 0.45;
 const SOFT_DENSITY: f64 = 1000.0;
 const SOFT_ALPHA: f64 = 1.0;
 const SOFT_DT: f64 = 0.01;
+/// The FEM parameters of that material.
+const SOFT_FEM: FemParameters = FemParameters {
+    young: SOFT_YOUNG,
+    poisson: SOFT_POISSON,
+    density: SOFT_DENSITY,
+    damping: SOFT_ALPHA,
+    dt: SOFT_DT,
+    mode: FemMode::Corotational,
+};
 /// Cross-section of the scaling boxes, m.
 const BOX_WIDTH: f64 = 0.1;
 
@@ -623,6 +715,8 @@ pub struct ScaleRow {
     pub nodes: usize,
     /// Free degrees of freedom (3 per free node).
     pub dofs: usize,
+    /// FEM: stored non-zeros of the Cholesky factor.
+    pub factor_nnz: Option<usize>,
     pub setup_ms: f64,
     #[serde(flatten)]
     pub timing: Timing,
@@ -645,6 +739,46 @@ fn box_cells(target: usize) -> [usize; 3] {
     let n = ((target as f64 / 12.0).cbrt().round() as usize).max(1);
     let nx = ((target as f64 / (6 * n * n) as f64).round() as usize).max(1);
     [nx, n, n]
+}
+
+/// The scaling box of about `target` tetrahedra: its cells, size (m) and mesh, fixed at `x = 0`.
+fn scaling_box(target: usize) -> ([usize; 3], [f64; 3], TetMesh) {
+    let cells = box_cells(target);
+    let a = BOX_WIDTH / cells[1] as f64;
+    let size = [a * cells[0] as f64, BOX_WIDTH, BOX_WIDTH];
+    let mesh = lop_sim::fem::box_mesh(size, cells, |p| p[0] <= 1e-9 * size[0]);
+    (cells, size, mesh)
+}
+
+/// The scaling series' sizes: `--tets` if given, else the default series (`--quick`: its
+/// smallest sizes).
+fn scaling_targets(quick: bool, targets: &[usize]) -> &[usize] {
+    match (targets.is_empty(), quick) {
+        (false, _) => targets,
+        (true, true) => &SCALING_TARGETS[..SCALING_TARGETS_QUICK],
+        (true, false) => &SCALING_TARGETS[..],
+    }
+}
+
+/// Part 2b: both orderings on the shipped meshes and the scaling boxes.
+fn ordering_rows(quick: bool, targets: &[usize]) -> Result<Vec<orderings::OrderingRow>> {
+    let mut rows = Vec::new();
+    for case in &MESH_CASES {
+        let (_, body) = scene_body(case.scene, case.mesh)?;
+        let mesh = shipped_mesh(case.mesh, Some(&body))?;
+        let fem = fem_params(body.fem.as_ref().with_context(|| {
+            format!("scene {}: body {} has no [body.fem]", case.scene, body.name)
+        })?);
+        eprintln!("models: orderings / {}", case.mesh);
+        rows.push(orderings::compare(case.mesh, &mesh, fem, quick)?);
+    }
+    for &target in scaling_targets(quick, targets) {
+        let (cells, _, mesh) = scaling_box(target);
+        let name = format!("box {}x{}x{}", cells[0], cells[1], cells[2]);
+        eprintln!("models: orderings / {name}");
+        rows.push(orderings::compare(&name, &mesh, SOFT_FEM, quick)?);
+    }
+    Ok(rows)
 }
 
 /// Slope and R² of `ln y` on `ln x`.
@@ -677,7 +811,11 @@ pub fn loglog_fit(points: &[(f64, f64)]) -> Option<(f64, f64, f64)> {
     Some((slope, r2, intercept))
 }
 
-fn scaling(quick: bool) -> Result<(Vec<ScaleRow>, Vec<ScaleFit>)> {
+fn scaling(
+    quick: bool,
+    targets: &[usize],
+    models: &[Bench],
+) -> Result<(Vec<ScaleRow>, Vec<ScaleFit>)> {
     let budget = if quick {
         Budget {
             warmup: 1,
@@ -693,18 +831,21 @@ fn scaling(quick: bool) -> Result<(Vec<ScaleRow>, Vec<ScaleFit>)> {
             seconds: 3.0,
         }
     };
-    let targets = if quick {
-        &SCALING_TARGETS[..SCALING_TARGETS_QUICK]
+    let targets = scaling_targets(quick, targets);
+    let corotational_steps = if quick {
+        budget.max_steps
     } else {
-        &SCALING_TARGETS[..]
+        COROTATIONAL_SCALING_STEPS
+    };
+    let models = if models.is_empty() {
+        &SCALING_MODELS[..]
+    } else {
+        models
     };
     let gravity = [0.0, -9.81, 0.0];
     let mut rows = Vec::new();
     for &target in targets {
-        let cells = box_cells(target);
-        let a = BOX_WIDTH / cells[1] as f64;
-        let size = [a * cells[0] as f64, BOX_WIDTH, BOX_WIDTH];
-        let mesh = lop_sim::fem::box_mesh(size, cells, |p| p[0] <= 1e-9 * size[0]);
+        let (cells, size, mesh) = scaling_box(target);
         let edges = mesh.edges();
         let mean_edge = edges
             .iter()
@@ -723,16 +864,9 @@ fn scaling(quick: bool) -> Result<(Vec<ScaleRow>, Vec<ScaleFit>)> {
             dt: SOFT_DT,
             integrator: Integrator::ImplicitEuler,
         };
-        let fem = FemParameters {
-            young: SOFT_YOUNG,
-            poisson: SOFT_POISSON,
-            density: SOFT_DENSITY,
-            damping: SOFT_ALPHA,
-            dt: SOFT_DT,
-            mode: FemMode::Corotational,
-        };
+        let fem = SOFT_FEM;
         let free_nodes = mesh.nodes.len() - mesh.fixed.len();
-        for bench in SCALING_MODELS {
+        for &bench in models {
             eprintln!(
                 "models: box {}x{}x{} ({} tets) / {}",
                 cells[0],
@@ -744,6 +878,19 @@ fn scaling(quick: bool) -> Result<(Vec<ScaleRow>, Vec<ScaleFit>)> {
             let t0 = Instant::now();
             let (mut model, _, _) = build(bench, &mesh, msd, fem)?;
             let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
+            let factor_nnz = match &model {
+                Model::Fem(f) => Some(f.solver_info().1),
+                _ => None,
+            };
+            // Corotational FEM: the same simulated window at every size (see the module docs).
+            let budget = match bench {
+                Bench::Fem(FemMode::Corotational) => Budget {
+                    min_steps: corotational_steps,
+                    max_steps: corotational_steps,
+                    ..budget
+                },
+                _ => budget,
+            };
             let (timing, _) = time_model(&mut model, gravity, None, budget)?;
             rows.push(ScaleRow {
                 model: bench.key(),
@@ -752,13 +899,14 @@ fn scaling(quick: bool) -> Result<(Vec<ScaleRow>, Vec<ScaleFit>)> {
                 tets: mesh.tets.len(),
                 nodes: mesh.nodes.len(),
                 dofs: 3 * free_nodes,
+                factor_nnz,
                 setup_ms,
                 timing,
             });
         }
     }
     let mut fits = Vec::new();
-    for bench in SCALING_MODELS {
+    for &bench in models {
         let pts: Vec<(f64, f64)> = rows
             .iter()
             .filter(|r| r.model == bench.key())
@@ -796,8 +944,10 @@ pub struct ModelsReport {
     /// Part 2.
     pub scaling: Vec<ScaleRow>,
     pub scaling_fits: Vec<ScaleFit>,
-    /// Part 3.
-    pub study: study::StudyReport,
+    /// Part 2b.
+    pub orderings: Vec<orderings::OrderingRow>,
+    /// Part 3 (`None` when not run).
+    pub study: Option<study::StudyReport>,
     /// Fig. 3.11 analogue (from part 1, beam).
     pub fig3_11: Vec<study::StepCost>,
     /// Every file written into `--out`.
@@ -822,30 +972,63 @@ pub fn run(a: ModelsArgs) -> Result<()> {
         );
     }
 
-    let (meshes, step_rows) = step_times(a.quick)?;
-    print!("{}", render_step_times(&meshes, &step_rows));
-    println!();
+    let runs = |p: Part| a.only.is_empty() || a.only.contains(&p);
 
-    let (scale_rows, fits) = scaling(a.quick)?;
-    print!("{}", render_scaling(&scale_rows, &fits, a.quick));
-    println!();
-
-    let cfg = if a.quick {
-        study::StudyConfig::quick()
+    let (meshes, step_rows) = if runs(Part::StepTimes) {
+        let (meshes, rows) = step_times(a.quick)?;
+        print!("{}", render_step_times(&meshes, &rows));
+        println!();
+        (meshes, rows)
     } else {
-        study::StudyConfig::full()
+        (Vec::new(), Vec::new())
     };
-    let beam = shipped_mesh("beam", None)?;
-    let mut files = Vec::new();
-    let study_report = study::run(&beam, &cfg, &a.out, &mut files)?;
-    print!("{}", study::render(&study_report));
 
-    let fig3_11 = study::fig3_11(&step_rows, &a.out, &mut files)?;
-    print!("{}", study::render_fig3_11(&fig3_11));
-    println!();
-    println!("files written to {}:", a.out.display());
-    for f in &files {
-        println!("  {f}");
+    let (scale_rows, fits) = if runs(Part::Scaling) {
+        let models: Vec<Bench> = a.scaling_models.iter().map(|m| m.bench()).collect();
+        let (rows, fits) = scaling(a.quick, &a.tets, &models)?;
+        print!("{}", render_scaling(&rows, &fits, a.quick));
+        println!();
+        (rows, fits)
+    } else {
+        (Vec::new(), Vec::new())
+    };
+
+    let ordering_rows = if runs(Part::Orderings) {
+        let rows = ordering_rows(a.quick, &a.tets)?;
+        print!("{}", orderings::render(&rows));
+        println!();
+        rows
+    } else {
+        Vec::new()
+    };
+
+    let mut files = Vec::new();
+    let (study_report, fig3_11) = if runs(Part::Study) {
+        let cfg = if a.quick {
+            study::StudyConfig::quick()
+        } else {
+            study::StudyConfig::full()
+        };
+        let beam = shipped_mesh("beam", None)?;
+        let study_report = study::run(&beam, &cfg, &a.out, &mut files)?;
+        print!("{}", study::render(&study_report));
+        let fig3_11 = if step_rows.is_empty() {
+            Vec::new()
+        } else {
+            let f = study::fig3_11(&step_rows, &a.out, &mut files)?;
+            print!("{}", study::render_fig3_11(&f));
+            f
+        };
+        println!();
+        (Some(study_report), fig3_11)
+    } else {
+        (None, Vec::new())
+    };
+    if !files.is_empty() {
+        println!("files written to {}:", a.out.display());
+        for f in &files {
+            println!("  {f}");
+        }
     }
 
     let report = ModelsReport {
@@ -857,6 +1040,7 @@ pub fn run(a: ModelsArgs) -> Result<()> {
         step_times: step_rows,
         scaling: scale_rows,
         scaling_fits: fits,
+        orderings: ordering_rows,
         study: study_report,
         fig3_11,
         files,
@@ -1039,6 +1223,16 @@ fn render_scaling(rows: &[ScaleRow], fits: &[ScaleFit], quick: bool) -> String {
                 format!("{:.3}", r.timing.p99_us / 1e3),
                 format!("{:.3}", r.timing.mean_us / 1e3),
                 format!("{:.0}", r.setup_ms),
+                r.factor_nnz
+                    .map_or("-".into(), |n| format!("{:.2}", n as f64 / 1e6)),
+                match r.timing.cg_per_step {
+                    Some(cg) if r.model == "fem-corotational" => format!("{cg:.1}"),
+                    _ => "-".into(),
+                },
+                match r.timing.factorizations {
+                    Some(f) if r.model == "fem-corotational" => f.to_string(),
+                    _ => "-".into(),
+                },
             ]
         })
         .collect();
@@ -1054,6 +1248,9 @@ fn render_scaling(rows: &[ScaleRow], fits: &[ScaleFit], quick: bool) -> String {
             ("p99 ms", Align::Right),
             ("mean ms", Align::Right),
             ("setup ms", Align::Right),
+            ("nnz(L) M", Align::Right),
+            ("CG/step", Align::Right),
+            ("refactors", Align::Right),
         ],
         &cells,
     );

@@ -67,15 +67,23 @@
 //! - the factor is kept in single precision (half the memory traffic of solves and
 //!   refactorisations; CG in double precision, in its flexible Polak–Ribière form, makes up for
 //!   the rounding) and refreshed by *ski rental*: once the CG iterations beyond what the fresh
-//!   factor needed, summed since the last refactorisation, reach the price of one (about ten
+//!   factor needed, summed since the last refactorisation, reach the price of one — estimated
+//!   from the factor's structure as `√(flops / nnz(L))` iterations, at least ten (`system.rs`:
+//!   10 on the organ meshes, 27 at 50k tetrahedra, where a refactorisation costs about 26
 //!   iterations);
+//! - CG starts from the increment extrapolated from the last three steps,
+//!   `Δt (3v − 3v⁻ + v⁻⁻)`, scaled to minimise the error in the energy norm (one extra
+//!   product; never worse than starting from zero in that norm): on a smoothly moving body the
+//!   initial residual is 1–5 % of the right-hand side, which saves about one iteration in
+//!   four;
 //! - CG stops at a relative residual of 1e-5 (on the liver swinging under gravity the
 //!   trajectory stays within 1.2e-8 m of the refactorised one over 200 steps and 7 cm of
-//!   motion); if it has not converged in 20 iterations the factor is refreshed within the
-//!   step.
+//!   motion); if it has not converged in 20 iterations, or from the third iteration on its
+//!   mean rate so far predicts that it will not, the factor is refreshed within the step.
 //!
 //! Measured on one core (release, per step median / mean; `E` 140 Pa, `ν` 0.023, `ρ` 10,
-//! `α` 10, `Δt` 0.01 s):
+//! `α` 10, `Δt` 0.01 s), *before* nested dissection, the warm start, the early give-up and the
+//! structural refactor price (fixed at 10 iterations then):
 //!
 //! | body | corotational, lagged-factor CG | corotational, refactorised | linear |
 //! |---|---|---|---|
@@ -89,9 +97,30 @@
 //! The means include the refactorisations (single precision: 1 ms on the liver, 0.15 s at
 //! 52k), frequent in the violent transients and rare once a body has settled.
 //!
+//! After them (2026-11-21, `lop-bench models` part 2: soft bars, `E` 3 kPa, `ν` 0.45, `ρ`
+//! 1000, `α` 1, fixed at one end, sagging from rest; the same 40 steps at every size — about
+//! 30 smooth ones, then the bar folds at its clamp with thousands of inverted elements; the
+//! same harness on the code before, on a busy machine: both columns are inflated alike):
+//!
+//! | box | before: median / mean / p99 | after: median / mean / p99 | CG iterations (40 steps) |
+//! |---|---|---|---|
+//! | 30k tets | 26 / 46 / 137 ms | 22 / 28 / 107 ms | 149 → 139 |
+//! | 50k tets | 67 / 209 / 642 ms | 45 / 92 / 260 ms | 299 → 168 |
+//! | 100k tets | 321 / 1024 / 2811 ms | 211 / 406 / 1024 ms | 352 → 179 |
+//!
+//! At 50k a step of the smooth phase costs ~29 ms with 3 CG iterations and ~37 ms with 4:
+//! 4 × 5.4 ms of preconditioning (two single-precision triangular solves, memory-bound), 5 ×
+//! 1.1 ms of matrix-free products, 8.7 ms of element forces and rotations (two thirds of it
+//! the polar decompositions) and 0.9 ms of node rotations; a refactorisation costs ~150 ms
+//! (assembly and single-precision numeric factorisation).
+//!
 //! Factorisation: faer's sparse Cholesky (supernodal; faer picks it by its flop estimate for
 //! all these meshes, and its solves beat the simplicial ones even though relaxed supernodes
-//! store 40 % more), on a numbering ordered by AMD on the node graph (`system.rs`).
+//! store 40 % more — without relaxation the 50k factor is 6 % smaller but its solves are
+//! slower), on a numbering ordered by AMD or geometric nested dissection on the node graph,
+//! whichever gives the smaller factor (`system.rs`, `ordering.rs`): AMD on the organ meshes,
+//! nested dissection from ~10k tets (50k: nnz(L) 23.2M → 16.1M, factorisation ×1.8 and solves
+//! ×1.3–1.6 faster; 100k: 62.6M → 41.2M, ×2.3–2.4 and ×1.6–1.8).
 //!
 //! # Tool contact
 //!
@@ -137,6 +166,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub(crate) mod element;
+mod ordering;
 mod rotation;
 mod shapes;
 mod system;
@@ -152,6 +182,8 @@ use element::{
     stress, sub, Element,
 };
 use rotation::{closest_rotation, quat_to_mat, quat_to_mat_minus_identity, QUAT_IDENTITY};
+#[doc(hidden)]
+pub use system::NodeOrdering;
 use system::{Precision, System, NONE};
 
 #[doc(hidden)]
@@ -271,10 +303,6 @@ pub enum CorotationalSolver {
 /// (200 steps, 7 cm of motion); equilibria are exact whatever the tolerance, since the
 /// right-hand side always holds the true elastic forces.
 const CG_TOLERANCE: f64 = 1e-5;
-/// The lagged factor is refreshed once the CG iterations beyond those of its first step,
-/// summed since it was made, reach this budget (ski rental: a refactorisation costs about as
-/// much as ten preconditioned iterations on the meshes measured).
-const REFACTOR_BUDGET: usize = 10;
 /// CG iterations before giving up on the lagged factor and refactorising within the step.
 const CG_MAX_ITERATIONS: usize = 20;
 
@@ -288,6 +316,9 @@ pub struct Fem {
     elements: Vec<Element>,
     /// Per element: the first DOF of each node, or `NONE` if held.
     element_dofs: Vec<[u32; 4]>,
+    /// Per element: `(Vλ, Vμ)`, kept apart from `elements` so that the matrix-free product,
+    /// run several times a step, streams 16 bytes per element instead of the whole element.
+    element_moduli: Vec<[f64; 2]>,
     mass: Vec<f64>,
     /// Nodes without unknowns: fixed by the mesh, or used by no tetrahedron.
     held: Vec<bool>,
@@ -313,8 +344,28 @@ pub struct Fem {
     /// and the iterations beyond that count summed over the later steps (refactor policy).
     baseline_iterations: Option<usize>,
     extra_iterations: usize,
+    /// Consecutive CG runs, up to the last, whose first iteration alone reached the
+    /// tolerance relative to its start: from two on (not just after a refactorisation, whose
+    /// fresh factor always does), one iteration suffices whatever the start, so the warm start
+    /// cannot save one and the next run skips it (and its product).
+    one_iteration_runs: u32,
+    /// Running totals since construction, for benchmarks ([`Fem::solver_counters`]).
+    counters: SolverCounters,
     /// Scratch buffers (boxed: keeps `Model` small).
     s: Box<Scratch>,
+}
+
+/// Running totals of a body's solver work since it was built: for benchmarks and logs.
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SolverCounters {
+    /// Steps taken.
+    pub steps: u64,
+    /// Conjugate-gradient iterations, summed over the corotational steps.
+    pub cg_iterations: u64,
+    /// Numeric factorisations (set-up, refactorisations of the lagged preconditioner, direct
+    /// solves).
+    pub factorizations: u64,
 }
 
 /// Scratch of a [`Fem`]: every buffer `step` uses, allocated once.
@@ -346,6 +397,11 @@ struct Scratch {
     /// Scratch, per DOF and direction: `P⁻¹ c_a` for the preconditioner's contact term,
     /// written by `solve_pcg` / `cg_with_refactor`, read by `precondition`.
     contact_pc: [Vec<f64>; 3],
+    /// Per node: the velocities before the last step and the one before it (`v⁻`, `v⁻⁻`),
+    /// written by `step_colliding`, reset with the state; read by `cg` for its first guess,
+    /// the increment extrapolated from the last three, `Δt (3v − 3v⁻ + v⁻⁻)`.
+    v_before: Vec<[f64; 3]>,
+    v_before2: Vec<[f64; 3]>,
     /// Per DOF: CG's iterate (the increment `d`), residual, preconditioned residual,
     /// search direction and matrix product; written and read by `cg` only (and `sol` by
     /// `apply_increment`).
@@ -392,6 +448,17 @@ impl Fem {
         Fem::with_factorization(mesh, params, None)
     }
 
+    /// [`Fem::new`] with the fill-reducing ordering forced instead of the smaller-fill one of
+    /// AMD and nested dissection: for benchmarks and tests.
+    #[doc(hidden)]
+    pub fn with_ordering(
+        mesh: &TetMesh,
+        params: FemParameters,
+        ordering: NodeOrdering,
+    ) -> Result<Fem, FemError> {
+        Fem::build(mesh, params, None, ordering)
+    }
+
     /// [`Fem::new`] with the factorisation forced supernodal (`Some(true)`) or simplicial
     /// (`Some(false)`) instead of faer's choice: for benchmarks.
     #[doc(hidden)]
@@ -399,6 +466,15 @@ impl Fem {
         mesh: &TetMesh,
         params: FemParameters,
         supernodal: Option<bool>,
+    ) -> Result<Fem, FemError> {
+        Fem::build(mesh, params, supernodal, NodeOrdering::Auto)
+    }
+
+    fn build(
+        mesh: &TetMesh,
+        params: FemParameters,
+        supernodal: Option<bool>,
+        ordering: NodeOrdering,
     ) -> Result<Fem, FemError> {
         validate(&params)?;
         let (lambda, mu) = lame(params.young, params.poisson);
@@ -423,12 +499,16 @@ impl Fem {
         for &f in &mesh.fixed {
             held[f as usize] = true;
         }
-        let system = System::new(n, &elements, &held, supernodal)
+        let system = System::new(&mesh.nodes, &elements, &held, supernodal, ordering)
             .map_err(|e| FemError::Solver(format!("{e:?}")))?;
         let n_dof = system.n_dof;
         let element_dofs = elements
             .iter()
             .map(|e| e.nodes.map(|k| system.dof[k as usize]))
+            .collect();
+        let element_moduli = elements
+            .iter()
+            .map(|e| [e.volume * lambda, e.volume * mu])
             .collect();
         let mut node_face_ptr = vec![0usize; n + 1];
         for tri in &mesh.surface {
@@ -458,6 +538,8 @@ impl Fem {
             rhs: vec![0.0; n_dof],
             contact_dir: [vec![0.0; n_dof], vec![0.0; n_dof], vec![0.0; n_dof]],
             contact_pc: [vec![0.0; n_dof], vec![0.0; n_dof], vec![0.0; n_dof]],
+            v_before: vec![[0.0; 3]; n],
+            v_before2: vec![[0.0; 3]; n],
             sol: vec![0.0; n_dof],
             cg_r: vec![0.0; n_dof],
             cg_z: vec![0.0; n_dof],
@@ -485,6 +567,7 @@ impl Fem {
             mu,
             elements,
             element_dofs,
+            element_moduli,
             mass,
             held,
             rest: mesh.nodes.clone(),
@@ -497,6 +580,8 @@ impl Fem {
             last_iterations: 0,
             baseline_iterations: None,
             extra_iterations: 0,
+            one_iteration_runs: 0,
+            counters: SolverCounters::default(),
             s,
         };
         fem.factor_dynamic(false)
@@ -543,6 +628,36 @@ impl Fem {
         let (a, l) = self.system.nnz();
         (a, l, self.system.is_supernodal())
     }
+    /// The fill-reducing ordering of the system (AMD or nested dissection): for benchmarks.
+    #[doc(hidden)]
+    pub fn ordering(&self) -> NodeOrdering {
+        self.system.ordering()
+    }
+    /// Factorises `K̃` at rest again, in the precision the body's solver uses (single for the
+    /// corotational preconditioner, double otherwise): for benchmarks of the factorisation.
+    /// Allocation-free after the first call.
+    #[doc(hidden)]
+    pub fn refactorize_at_rest(&mut self) -> bool {
+        self.factor_dynamic(false).is_ok()
+    }
+    /// Solves `K̃ x = rhs` in place (one DOF vector, [`Fem::dofs`] long) with the body's
+    /// current factor: for benchmarks of the triangular solves.
+    ///
+    /// # Panics
+    /// If `rhs` does not have one entry per DOF.
+    #[doc(hidden)]
+    pub fn solve_with_factor(&mut self, rhs: &mut [f64]) {
+        assert_eq!(rhs.len(), self.system.n_dof, "one entry per DOF");
+        self.system.solve_in_place(rhs);
+    }
+    /// Steps, CG iterations and factorisations since the body was built: for benchmarks.
+    #[doc(hidden)]
+    pub fn solver_counters(&self) -> SolverCounters {
+        SolverCounters {
+            factorizations: self.system.factorizations(),
+            ..self.counters
+        }
+    }
     /// Chooses how corotational steps are solved: for benchmarks.
     #[doc(hidden)]
     pub fn set_corotational_solver(&mut self, solver: CorotationalSolver) {
@@ -568,6 +683,9 @@ impl Fem {
         self.x.copy_from_slice(&self.rest);
         self.u.iter_mut().for_each(|u| *u = [0.0; 3]);
         self.v.iter_mut().for_each(|v| *v = [0.0; 3]);
+        self.s.v_before.iter_mut().for_each(|v| *v = [0.0; 3]);
+        self.s.v_before2.iter_mut().for_each(|v| *v = [0.0; 3]);
+        self.one_iteration_runs = 0;
         self.s.rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
         self.s.node_rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
     }
@@ -590,6 +708,9 @@ impl Fem {
         for (i, vi) in self.v.iter_mut().enumerate() {
             *vi = if self.held[i] { [0.0; 3] } else { v[i] };
         }
+        self.s.v_before.copy_from_slice(&self.v);
+        self.s.v_before2.copy_from_slice(&self.v);
+        self.one_iteration_runs = 0;
         self.s.rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
         self.s.node_rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
     }
@@ -697,6 +818,7 @@ impl Fem {
                 CorotationalSolver::LaggedFactorPcg => self.solve_pcg(pressed),
             },
         };
+        self.counters.steps += 1;
         let Ok(report) = solved else {
             return self.blow_up(BlowUp::NonFinite);
         };
@@ -704,6 +826,8 @@ impl Fem {
             if d == NONE {
                 continue;
             }
+            self.s.v_before2[i] = self.s.v_before[i];
+            self.s.v_before[i] = self.v[i];
             for c in 0..3 {
                 let inc = self.s.sol[d as usize + c];
                 self.u[i][c] += inc;
@@ -931,6 +1055,7 @@ impl Fem {
             }
         }
         self.last_iterations = iterations;
+        self.counters.cg_iterations += iterations as u64;
         // Ski rental: refresh the lagged factor once the iterations it has cost beyond what a
         // fresh factor needs (its first step's count) add up to about the price of a
         // refactorisation.
@@ -938,7 +1063,7 @@ impl Fem {
             None => self.baseline_iterations = Some(run),
             Some(base) => self.extra_iterations += run.saturating_sub(base),
         }
-        if self.extra_iterations >= REFACTOR_BUDGET {
+        if self.extra_iterations >= self.system.refactor_price() {
             self.factor = Factor::Stale;
         }
         Ok(report)
@@ -960,28 +1085,58 @@ impl Fem {
     /// current matrix and run it again (then it converges in one or two iterations). Returns
     /// the iterations done in all, and those of the run that converged.
     fn cg_with_refactor(&mut self, pressed: Option<Pressed>) -> Result<(usize, usize), Failed> {
-        if let Some(it) = self.cg(pressed, CG_MAX_ITERATIONS) {
-            return Ok((it, it));
-        }
+        let spent = match self.cg(pressed, CG_MAX_ITERATIONS, true) {
+            Ok(it) => return Ok((it, it)),
+            Err(spent) => spent,
+        };
         self.factor_dynamic(true)?;
         if let Some(p) = pressed {
             self.prepare_contact_pc(&p);
         }
-        self.cg(pressed, CG_MAX_ITERATIONS)
-            .map(|it| (it + CG_MAX_ITERATIONS, it))
-            .ok_or(Failed)
+        self.cg(pressed, CG_MAX_ITERATIONS, false)
+            .map(|it| (it + spent, it))
+            .map_err(|_| Failed)
     }
 
     /// Preconditioned CG for `A sol = rhs`, `A = K̃_w (+ k' c cᵀ)` applied matrix-free, the
-    /// preconditioner the current factor. Returns the iterations, or `None` if `max` did not
-    /// reach the tolerance (or the numbers went non-finite).
-    fn cg(&mut self, pressed: Option<Pressed>, max: usize) -> Option<usize> {
+    /// preconditioner the current factor. Returns the iterations, or as an error those done
+    /// when `max` did not reach the tolerance (or the numbers went non-finite). With
+    /// `give_up_early` it also stops as soon as, from the third iteration on, the residual's
+    /// mean rate of decrease so far predicts more than `max` iterations (or none at all): a
+    /// preconditioner that stale is refreshed at once rather than after `max` wasted
+    /// iterations.
+    ///
+    /// It starts from the increment extrapolated quadratically from the last three steps,
+    /// `g = Δt (3v − 3v⁻ + v⁻⁻)`, scaled by the `α` that minimises the error in the `A`-norm
+    /// along it (`α = gᵀb / gᵀAg`), so the start is never worse than zero in that norm. One
+    /// extra product; on a smoothly moving body the initial residual is 1–5 % of `‖b‖`,
+    /// which saves about one preconditioned iteration of the usual four (linear
+    /// extrapolation, `Δt (2v − v⁻)`, leaves about twice the residual and needs ~9 % more
+    /// iterations on the 50k-tet bar). The stopping test stays relative to `‖b‖`. When the
+    /// last two runs' first iterations alone reduced their residuals by the tolerance (a
+    /// settled body: one iteration whatever the start), the start is zero instead.
+    fn cg(
+        &mut self,
+        pressed: Option<Pressed>,
+        max: usize,
+        give_up_early: bool,
+    ) -> Result<usize, usize> {
         let b_norm2 = self.s.rhs.iter().map(|b| b * b).sum::<f64>();
         let tol2 = CG_TOLERANCE * CG_TOLERANCE * b_norm2;
         self.s.sol.fill(0.0);
         self.s.cg_r.copy_from_slice(&self.s.rhs);
         if b_norm2 == 0.0 {
-            return Some(0);
+            return Ok(0);
+        }
+        if self.one_iteration_runs < 2 {
+            self.warm_start(pressed);
+        }
+        let r2_start = dot_n(&self.s.cg_r, &self.s.cg_r);
+        if !r2_start.is_finite() {
+            return Err(0);
+        }
+        if r2_start <= tol2 {
+            return Ok(0);
         }
         self.precondition(pressed);
         self.s.cg_p.copy_from_slice(&self.s.cg_z);
@@ -990,7 +1145,7 @@ impl Fem {
             self.apply_dynamic(pressed);
             let pq = dot_n(&self.s.cg_p, &self.s.cg_q);
             if !(pq > 0.0) {
-                return None;
+                return Err(it);
             }
             let alpha = rz / pq;
             let mut r2 = 0.0;
@@ -1000,10 +1155,25 @@ impl Fem {
                 r2 += self.s.cg_r[k] * self.s.cg_r[k];
             }
             if !r2.is_finite() {
-                return None;
+                return Err(it);
+            }
+            if it == 1 {
+                self.one_iteration_runs = if r2 <= CG_TOLERANCE * CG_TOLERANCE * r2_start {
+                    self.one_iteration_runs.saturating_add(1)
+                } else {
+                    0
+                };
             }
             if r2 <= tol2 {
-                return Some(it);
+                return Ok(it);
+            }
+            if give_up_early && it >= 3 {
+                // ln of the mean reduction per iteration so far, and the iterations it
+                // would still take (residuals squared: the factors of ½ cancel).
+                let rate = (r2 / r2_start).ln() / it as f64;
+                if !(rate < 0.0) || it as f64 + (tol2 / r2).ln() / rate > max as f64 {
+                    return Err(it);
+                }
             }
             self.precondition(pressed);
             // Polak–Ribière β = z⁺ᵀ(r⁺ − r)/zᵀr with r⁺ − r = −αq: "flexible" CG, robust to the
@@ -1014,7 +1184,39 @@ impl Fem {
                 *p = z + beta * *p;
             }
         }
-        None
+        Err(max)
+    }
+
+    /// CG's start (see [`Fem::cg`]): with `sol = 0` and `cg_r = rhs` on entry, sets
+    /// `sol = α g` and `cg_r = rhs − α A g` for the extrapolated increment `g`; leaves them
+    /// if `gᵀAg` is not positive (a body at rest) or not finite.
+    fn warm_start(&mut self, pressed: Option<Pressed>) {
+        let dt = self.params.dt;
+        let mut moving = false;
+        for (i, &d) in self.system.dof.iter().enumerate() {
+            if d != NONE {
+                let (v, w, w2) = (self.v[i], self.s.v_before[i], self.s.v_before2[i]);
+                for c in 0..3 {
+                    let g = dt * (3.0 * (v[c] - w[c]) + w2[c]);
+                    self.s.cg_p[d as usize + c] = g;
+                    moving |= g != 0.0;
+                }
+            }
+        }
+        if !moving {
+            return;
+        }
+        self.apply_dynamic(pressed);
+        let gag = dot_n(&self.s.cg_p, &self.s.cg_q);
+        let gb = dot_n(&self.s.cg_p, &self.s.rhs);
+        if !(gag > 0.0 && gag.is_finite() && gb.is_finite()) {
+            return;
+        }
+        let alpha = gb / gag;
+        for k in 0..self.s.sol.len() {
+            self.s.sol[k] = alpha * self.s.cg_p[k];
+            self.s.cg_r[k] -= alpha * self.s.cg_q[k];
+        }
     }
 
     /// `cg_z = P⁻¹ cg_r`, the preconditioner: `P = Q K̃_lag Qᵀ (+ k' c cᵀ)` — the lagged
@@ -1098,8 +1300,12 @@ impl Fem {
                 }
             }
         }
-        for (e, el) in self.elements.iter().enumerate() {
-            let dofs = &self.element_dofs[e];
+        for (e, (dofs, &[vl, vm])) in self
+            .element_dofs
+            .iter()
+            .zip(&self.element_moduli)
+            .enumerate()
+        {
             let mut p = [[0.0; 3]; 4];
             for k in 0..4 {
                 if dofs[k] != NONE {
@@ -1107,7 +1313,6 @@ impl Fem {
                     p[k] = [self.s.cg_p[d], self.s.cg_p[d + 1], self.s.cg_p[d + 2]];
                 }
             }
-            let (vl, vm) = (el.volume * self.lambda, el.volume * self.mu);
             let out = apply_stiffness(&self.s.grads[e], vl, vm, &p);
             for k in 0..4 {
                 if dofs[k] != NONE {
@@ -1156,6 +1361,8 @@ impl Fem {
             return Err(FemError::Unsupported);
         }
         self.v.iter_mut().for_each(|v| *v = [0.0; 3]);
+        self.s.v_before.iter_mut().for_each(|v| *v = [0.0; 3]);
+        self.s.v_before2.iter_mut().for_each(|v| *v = [0.0; 3]);
         self.factor = Factor::Stale;
         let n_dof = self.system.n_dof;
         let mut load = vec![0.0; n_dof];

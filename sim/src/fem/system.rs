@@ -3,8 +3,9 @@
 //!
 //! - **Numbering.** Held nodes (fixed, or used by no tetrahedron) have no unknowns: the system
 //!   is the reduced one on the free DOFs, which eliminates Dirichlet nodes symmetrically and
-//!   keeps the matrix SPD. Free nodes are ordered by approximate minimum degree (faer's AMD) on
-//!   the *node* graph, and node `k` in that order owns DOFs `3k..3k+3`: the fill-reducing order
+//!   keeps the matrix SPD. Free nodes are ordered on the *node* graph by approximate minimum
+//!   degree (faer's AMD) or by geometric nested dissection, whichever gives the smaller factor
+//!   (`ordering.rs`), and node `k` in that order owns DOFs `3k..3k+3`: the fill-reducing order
 //!   is built into the numbering, so the factorisation itself runs with the identity ordering
 //!   and never permutes the matrix, and 3×3 node blocks stay contiguous (supernode friendly).
 //! - **Pattern.** One triangle of the matrix in CSC form: the lower one when faer chose the
@@ -15,9 +16,9 @@
 //!   stored entries of its 12×12 matrix (the 6 upper-triangle node blocks with 9 entries and
 //!   the 4 diagonal node blocks with 6), or `NONE` where a node is held. Assembly is then a
 //!   scatter-add: no search, no allocation.
-//! - **Factorisation.** Symbolic once (faer `factorize_symbolic_cholesky`, identity ordering on
-//!   the pre-ordered numbering; faer chooses supernodal or simplicial by its flop estimate);
-//!   numeric LLᵀ into a value buffer owned here, in double precision (direct solves) or single
+//! - **Factorisation.** Symbolic once per candidate ordering (faer
+//!   `factorize_symbolic_cholesky`, identity ordering on the pre-ordered numbering; faer
+//!   chooses supernodal or simplicial by its flop estimate); numeric LLᵀ into a value buffer owned here, in double precision (direct solves) or single
 //!   precision (the corotational preconditioner), with one `MemBuffer` sized for all of them.
 
 use std::fmt;
@@ -25,7 +26,6 @@ use std::sync::Arc;
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::amd;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
     SymbolicCholeskyRaw, SymmetricOrdering,
@@ -35,6 +35,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
 use super::element::{stiffness_block, Element};
+use super::ordering::{self, Graph};
 
 /// "No DOF" / "not stored" marker.
 pub(crate) const NONE: u32 = u32::MAX;
@@ -92,17 +93,28 @@ pub(crate) struct System {
     rhs32: Vec<f32>,
     /// Scratch memory for faer's factorisation and solve.
     work: Workspace,
+    /// Numeric factorisations attempted so far (for benchmarks).
+    factorizations: u64,
+    /// The fill-reducing ordering in use.
+    ordering: NodeOrdering,
+    /// Floating-point operations of one numeric factorisation, estimated from the symbolic
+    /// structure.
+    factor_flops: f64,
 }
 
 impl System {
-    /// Builds numbering, pattern, scatter map and symbolic factorisation. `held[i]` marks
-    /// nodes without unknowns. `supernodal`: `None` lets faer choose by its flop estimate.
+    /// Builds numbering, pattern, scatter map and symbolic factorisation. `nodes` are the rest
+    /// positions (for nested dissection), `held[i]` marks nodes without unknowns.
+    /// `supernodal`: `None` lets faer choose by its flop estimate. `ordering`: `Auto` analyses
+    /// both orderings and keeps the one with the smaller factor.
     pub fn new(
-        n_nodes: usize,
+        nodes: &[[f64; 3]],
         elements: &[Element],
         held: &[bool],
         supernodal: Option<bool>,
+        ordering: NodeOrdering,
     ) -> Result<System, faer::sparse::FaerError> {
+        let n_nodes = nodes.len();
         // Free-node adjacency (both directions, sorted, no self loops).
         let mut free_index = vec![NONE; n_nodes];
         let mut n_free = 0u32;
@@ -128,69 +140,77 @@ impl System {
             list.sort_unstable();
             list.dedup();
         }
-
-        // AMD on the node graph.
-        let mut perm = vec![0u32; n_free];
-        let mut perm_inv = vec![0u32; n_free];
-        if n_free > 0 {
-            let mut ptr = Vec::with_capacity(n_free + 1);
-            let mut idx = Vec::new();
-            ptr.push(0u32);
-            for list in &adj {
-                idx.extend_from_slice(list);
-                ptr.push(idx.len() as u32);
-            }
-            let graph = SymbolicSparseColMatRef::new_checked(n_free, n_free, &ptr, None, &idx);
-            let mut mem = MemBuffer::try_new(amd::order_scratch::<u32>(n_free, idx.len()))?;
-            amd::order(
-                &mut perm,
-                &mut perm_inv,
-                graph,
-                amd::Control::default(),
-                MemStack::new(&mut mem),
-            )?;
-        }
-        // perm[new] = old: node `perm[k]` (free index) comes k-th.
-        let mut dof = vec![NONE; n_nodes];
         let mut node_of_free = vec![0u32; n_free];
         for (i, &f) in free_index.iter().enumerate() {
             if f != NONE {
                 node_of_free[f as usize] = i as u32;
             }
         }
+        let mut ptr = Vec::with_capacity(n_free + 1);
+        let mut idx = Vec::new();
+        ptr.push(0u32);
+        for list in &adj {
+            idx.extend_from_slice(list);
+            ptr.push(idx.len() as u32);
+        }
+        let graph = Graph {
+            ptr: &ptr,
+            idx: &idx,
+        };
+
+        // Candidate orderings (perm[new] = old, on free indices), each with its symbolic
+        // factorisation; the one with the smaller factor wins.
+        let mut candidates = Vec::new();
+        if ordering != NodeOrdering::NestedDissection {
+            candidates.push((NodeOrdering::Amd, ordering::minimum_degree(&graph)?));
+        }
+        if ordering != NodeOrdering::Amd {
+            let coords: Vec<[f64; 3]> = node_of_free.iter().map(|&i| nodes[i as usize]).collect();
+            candidates.push((
+                NodeOrdering::NestedDissection,
+                ordering::nested_dissection(&graph, &coords)?,
+            ));
+        }
+        let mut best: Option<Candidate> = None;
+        for (kind, perm) in candidates {
+            let mut perm_inv = vec![0u32; n_free];
+            for (k, &old) in perm.iter().enumerate() {
+                perm_inv[old as usize] = k as u32;
+            }
+            // Node-block neighbours in the new order, for the upper pattern first.
+            let mut nb: Vec<Vec<u32>> = vec![Vec::new(); n_free];
+            for (f, list) in adj.iter().enumerate() {
+                let k = perm_inv[f] as usize;
+                nb[k] = list.iter().map(|&g| perm_inv[g as usize]).collect();
+                nb[k].push(k as u32);
+                nb[k].sort_unstable();
+            }
+            let symbolic = symbolic_factor(&nb, supernodal)?;
+            if best
+                .as_ref()
+                .is_none_or(|b| symbolic.len_val() < b.symbolic.len_val())
+            {
+                best = Some(Candidate {
+                    kind,
+                    perm,
+                    nb,
+                    symbolic,
+                });
+            }
+        }
+        let Candidate {
+            kind: chosen,
+            perm,
+            nb,
+            symbolic,
+        } = best.expect("at least one ordering");
+        let mut dof = vec![NONE; n_nodes];
         for (k, &old) in perm.iter().enumerate() {
             dof[node_of_free[old as usize] as usize] = 3 * k as u32;
         }
         let n_dof = 3 * n_free;
-
-        // Node-block neighbours in the new order, for the upper pattern first (rows <= cols).
-        let mut nb: Vec<Vec<u32>> = vec![Vec::new(); n_free]; // per new node: new neighbours
-        for (f, list) in adj.iter().enumerate() {
-            let k = perm_inv[f];
-            nb[k as usize] = list.iter().map(|&g| perm_inv[g as usize]).collect();
-            nb[k as usize].push(k);
-            nb[k as usize].sort_unstable();
-        }
-        let upper = build_pattern(&nb, false);
-        let symbolic = {
-            let (ptr, idx) = (&upper.0, &upper.1);
-            let a = SymbolicSparseColMatRef::new_checked(n_dof, n_dof, ptr, None, idx);
-            let params = CholeskySymbolicParams {
-                supernodal_flop_ratio_threshold: match supernodal {
-                    None => SupernodalThreshold::AUTO,
-                    Some(true) => SupernodalThreshold::FORCE_SUPERNODAL,
-                    Some(false) => SupernodalThreshold::FORCE_SIMPLICIAL,
-                },
-                ..Default::default()
-            };
-            factorize_symbolic_cholesky(a, Side::Upper, SymmetricOrdering::Identity, params)?
-        };
         let lower = matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_));
-        let (col_ptr, row_idx) = if lower {
-            build_pattern(&nb, true)
-        } else {
-            upper
-        };
+        let (col_ptr, row_idx) = build_pattern(&nb, lower);
 
         // Diagonal positions and element scatter map.
         let find = |row: u32, col: u32| -> u32 {
@@ -237,6 +257,7 @@ impl System {
             symbolic.solve_in_place_scratch::<f32>(1, Par::Seq),
         ]);
         let values = vec![0.0; row_idx.len()];
+        let factor_flops = factor_flops(&symbolic);
         Ok(System {
             dof,
             n_dof,
@@ -252,12 +273,39 @@ impl System {
             values32: Vec::new(),
             rhs32: Vec::new(),
             work: Workspace::new(req)?,
+            factorizations: 0,
+            ordering: chosen,
+            factor_flops,
         })
     }
 
     /// Stored non-zeros of the matrix (one triangle) and of its Cholesky factor.
     pub fn nnz(&self) -> (usize, usize) {
         (self.values.len(), self.symbolic.len_val())
+    }
+
+    /// The fill-reducing ordering chosen (never `Auto`).
+    pub fn ordering(&self) -> NodeOrdering {
+        self.ordering
+    }
+
+    /// The cost of a numeric factorisation in preconditioned CG iterations, estimated from
+    /// the structure as `√(flops / nnz(L))`, at least [`MIN_REFACTOR_PRICE`].
+    ///
+    /// An iteration is dominated by the two triangular solves, which stream the factor
+    /// (memory-bound: ∝ nnz(L)); a factorisation by its dense updates (∝ flops), which run
+    /// faster the larger the supernodes, so the price grows more slowly than the flop ratio.
+    /// Measured on the 2-core development machine (single precision, refactorisation incl.
+    /// assembly over iteration incl. the matrix-free product): liver ~10, 10k-tet box ~14,
+    /// 30k ~22, 50k ~26, 100k ~25-30; the estimate gives 9.4, 16.5, 23, 27 and 33.
+    pub fn refactor_price(&self) -> usize {
+        let flops_per_entry = self.factor_flops / self.symbolic.len_val().max(1) as f64;
+        (flops_per_entry.sqrt().round() as usize).max(MIN_REFACTOR_PRICE)
+    }
+
+    /// Numeric factorisations attempted since construction.
+    pub fn factorizations(&self) -> u64 {
+        self.factorizations
     }
 
     /// True if faer runs the supernodal factorisation.
@@ -353,6 +401,7 @@ impl System {
     /// factorisation and solves; it serves as a preconditioner only.
     pub fn factorize(&mut self, precision: Precision) -> Result<(), NotPositiveDefinite> {
         self.current = None;
+        self.factorizations += 1;
         let side = if self.is_supernodal() {
             Side::Lower
         } else {
@@ -445,6 +494,77 @@ impl System {
     }
 }
 
+/// Floor of [`System::refactor_price`]: on small meshes a factorisation costs about ten
+/// iterations (it was the fixed price before the estimate).
+pub(crate) const MIN_REFACTOR_PRICE: usize = 10;
+
+/// Floating-point operations of a numeric Cholesky factorisation with this structure: per
+/// supernode of `w` columns with `m` rows below them, `w³/3 + w²m + wm²` (the diagonal block,
+/// the panel solve and the update it sends to its ancestors); per simplicial column with `m`
+/// entries below the diagonal, `m²`.
+fn factor_flops(symbolic: &SymbolicCholesky<u32>) -> f64 {
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Supernodal(sn) => (0..sn.n_supernodes())
+            .map(|k| {
+                let w = (sn.supernode_end()[k] - sn.supernode_begin()[k]) as f64;
+                let m = (sn.col_ptr_for_row_idx()[k + 1] - sn.col_ptr_for_row_idx()[k]) as f64;
+                w * w * w / 3.0 + w * w * m + w * m * m
+            })
+            .sum(),
+        SymbolicCholeskyRaw::Simplicial(sc) => sc
+            .col_ptr()
+            .windows(2)
+            .map(|c| {
+                let m = (c[1] - c[0]).saturating_sub(1) as f64;
+                m * m
+            })
+            .sum(),
+    }
+}
+
+/// Fill-reducing ordering of the free nodes (`ordering.rs`).
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum NodeOrdering {
+    /// Both candidates; keep the one with the smaller factor.
+    #[default]
+    Auto,
+    /// Approximate minimum degree.
+    Amd,
+    /// Geometric nested dissection.
+    NestedDissection,
+}
+
+/// An ordering being considered by [`System::new`]: the node permutation (`perm[new] = old`,
+/// on free indices), the node-block neighbours in the new numbering (per node, sorted, itself
+/// included) and the symbolic factorisation.
+struct Candidate {
+    kind: NodeOrdering,
+    perm: Vec<u32>,
+    nb: Vec<Vec<u32>>,
+    symbolic: SymbolicCholesky<u32>,
+}
+
+/// Symbolic Cholesky factorisation (identity ordering: the numbering is already ordered) of
+/// the DOF matrix whose node blocks are `nb`; `supernodal` as in [`System::new`].
+fn symbolic_factor(
+    nb: &[Vec<u32>],
+    supernodal: Option<bool>,
+) -> Result<SymbolicCholesky<u32>, faer::sparse::FaerError> {
+    let n_dof = 3 * nb.len();
+    let (ptr, idx) = build_pattern(nb, false);
+    let a = SymbolicSparseColMatRef::new_checked(n_dof, n_dof, &ptr, None, &idx);
+    let params = CholeskySymbolicParams {
+        supernodal_flop_ratio_threshold: match supernodal {
+            None => SupernodalThreshold::AUTO,
+            Some(true) => SupernodalThreshold::FORCE_SUPERNODAL,
+            Some(false) => SupernodalThreshold::FORCE_SIMPLICIAL,
+        },
+        ..Default::default()
+    };
+    factorize_symbolic_cholesky(a, Side::Upper, SymmetricOrdering::Identity, params)
+}
+
 /// Precision of the numeric factor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Precision {
@@ -519,6 +639,9 @@ impl Clone for System {
             values32: self.values32.clone(),
             rhs32: self.rhs32.clone(),
             work: self.work.clone(),
+            factorizations: self.factorizations,
+            ordering: self.ordering,
+            factor_flops: self.factor_flops,
         }
     }
 }
