@@ -374,23 +374,7 @@ fn hand_over_under_gravity_does_not_drift() {
 fn projected_cage_has_the_fem_compliance_under_a_side_load() {
     let mesh = cylinder();
     let smallest = 0.06;
-    // 2 mN along +x on the free surface nodes of the upper -x quarter.
-    let fixed: Vec<bool> = (0..mesh.nodes.len())
-        .map(|k| mesh.fixed.contains(&(k as u32)))
-        .collect();
-    let mut side: Vec<usize> = mesh
-        .surface
-        .iter()
-        .flatten()
-        .map(|&k| k as usize)
-        .filter(|&k| !fixed[k] && mesh.nodes[k][0] < 0.0 && mesh.nodes[k][1] > 0.06)
-        .collect();
-    side.sort_unstable();
-    side.dedup();
-    let mut loads = vec![[0.0; 3]; mesh.nodes.len()];
-    for &k in &side {
-        loads[k] = [0.002 / side.len() as f64, 0.0, 0.0];
-    }
+    let loads = side_loads(&mesh);
     let mut reference = fem(&mesh);
     reference.solve_static([0.0; 3], &loads).unwrap();
     let moved = max_distance(reference.positions(), &mesh.nodes);
@@ -461,22 +445,7 @@ fn fitted_cage_stays_small_on_a_long_flat_body() {
 #[test]
 fn prestressed_cage_follows_the_sagging_cylinder_sideways() {
     let mesh = cylinder();
-    let fixed: Vec<bool> = (0..mesh.nodes.len())
-        .map(|k| mesh.fixed.contains(&(k as u32)))
-        .collect();
-    let mut side: Vec<usize> = mesh
-        .surface
-        .iter()
-        .flatten()
-        .map(|&k| k as usize)
-        .filter(|&k| !fixed[k] && mesh.nodes[k][0] < 0.0 && mesh.nodes[k][1] > 0.06)
-        .collect();
-    side.sort_unstable();
-    side.dedup();
-    let mut loads = vec![[0.0; 3]; mesh.nodes.len()];
-    for &k in &side {
-        loads[k] = [0.002 / side.len() as f64, 0.0, 0.0];
-    }
+    let loads = side_loads(&mesh);
     let mut sag = fem(&mesh);
     sag.solve_static(GRAVITY, &[]).unwrap();
     let mut reference = fem(&mesh);
@@ -529,4 +498,25 @@ fn prestressed_cage_follows_the_sagging_cylinder_sideways() {
         errors[0],
         errors[1]
     );
+}
+
+/// 2 mN along +x shared by the free surface nodes of the cylinder's upper −x quarter.
+fn side_loads(mesh: &TetMesh) -> Vec<[f64; 3]> {
+    let fixed: Vec<bool> = (0..mesh.nodes.len())
+        .map(|k| mesh.fixed.contains(&(k as u32)))
+        .collect();
+    let mut side: Vec<usize> = mesh
+        .surface
+        .iter()
+        .flatten()
+        .map(|&k| k as usize)
+        .filter(|&k| !fixed[k] && mesh.nodes[k][0] < 0.0 && mesh.nodes[k][1] > 0.06)
+        .collect();
+    side.sort_unstable();
+    side.dedup();
+    let mut loads = vec![[0.0; 3]; mesh.nodes.len()];
+    for &k in &side {
+        loads[k] = [0.002 / side.len() as f64, 0.0, 0.0];
+    }
+    loads
 }

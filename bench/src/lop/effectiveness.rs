@@ -192,6 +192,46 @@ fn load_factor(t: f64) -> f64 {
     }
 }
 
+impl VariantRow {
+    /// A row with its metrics still to be measured.
+    fn new(
+        reference: Reference,
+        variant: String,
+        label: String,
+        shape: Option<String>,
+        dynamics: Option<String>,
+        cage_vertices: Option<usize>,
+    ) -> VariantRow {
+        VariantRow {
+            reference: reference.key().into(),
+            variant,
+            label,
+            shape,
+            dynamics,
+            cage_vertices,
+            max_error_pct: 0.0,
+            max_error_at_s: 0.0,
+            max_error_relative: 0.0,
+            mean_error_pct: 0.0,
+            hold_end_max_error_pct: 0.0,
+            final_max_error_pct: 0.0,
+            blow_ups: 0,
+        }
+    }
+}
+
+impl Runner {
+    fn new(row: VariantRow, model: Option<Model>, fit: bool) -> Runner {
+        Runner {
+            row,
+            model,
+            fit,
+            mean: vec![0.0],
+            max: vec![0.0],
+        }
+    }
+}
+
 /// One approximation being stepped.
 struct Runner {
     row: VariantRow,
@@ -312,27 +352,18 @@ fn run_reference(
             )?;
             let vertices = gc.coordinates().vertex_count();
             let (variant, label) = variant_names(shape, dynamics);
-            runners.push(Runner {
-                row: VariantRow {
-                    reference: reference.key().into(),
+            runners.push(Runner::new(
+                VariantRow::new(
+                    reference,
                     variant,
                     label,
-                    shape: Some(shape_key(shape)),
-                    dynamics: Some(dynamics.key().into()),
-                    cage_vertices: Some(vertices),
-                    max_error_pct: 0.0,
-                    max_error_at_s: 0.0,
-                    max_error_relative: 0.0,
-                    mean_error_pct: 0.0,
-                    hold_end_max_error_pct: 0.0,
-                    final_max_error_pct: 0.0,
-                    blow_ups: 0,
-                },
-                model: Some(Model::Gc(Box::new(gc))),
-                fit: false,
-                mean: vec![0.0],
-                max: vec![0.0],
-            });
+                    Some(shape_key(shape)),
+                    Some(dynamics.key().into()),
+                    Some(vertices),
+                ),
+                Some(Model::Gc(Box::new(gc))),
+                false,
+            ));
         }
     }
     for shape in SHAPES {
@@ -340,49 +371,31 @@ fn run_reference(
         let gc = GcModel::from_precise_under(mesh, params, &precise, scene.gravity)
             .map_err(|e| anyhow!("{}: {} cage: {e}", case.body, shape_label(shape)))?;
         let vertices = gc.coordinates().vertex_count();
-        runners.push(Runner {
-            row: VariantRow {
-                reference: reference.key().into(),
-                variant: format!("gc-{}-fit", shape_key(shape)),
-                label: format!("GC {}, best fit (bound)", shape_label(shape)),
-                shape: Some(shape_key(shape)),
-                dynamics: Some("fit".into()),
-                cage_vertices: Some(vertices),
-                max_error_pct: 0.0,
-                max_error_at_s: 0.0,
-                max_error_relative: 0.0,
-                mean_error_pct: 0.0,
-                hold_end_max_error_pct: 0.0,
-                final_max_error_pct: 0.0,
-                blow_ups: 0,
-            },
-            model: Some(Model::Gc(Box::new(gc))),
-            fit: true,
-            mean: vec![0.0],
-            max: vec![0.0],
-        });
+        runners.push(Runner::new(
+            VariantRow::new(
+                reference,
+                format!("gc-{}-fit", shape_key(shape)),
+                format!("GC {}, best fit (bound)", shape_label(shape)),
+                Some(shape_key(shape)),
+                Some("fit".into()),
+                Some(vertices),
+            ),
+            Some(Model::Gc(Box::new(gc))),
+            true,
+        ));
     }
-    runners.push(Runner {
-        row: VariantRow {
-            reference: reference.key().into(),
-            variant: "rest".into(),
-            label: "no deformation (rest shape)".into(),
-            shape: None,
-            dynamics: None,
-            cage_vertices: None,
-            max_error_pct: 0.0,
-            max_error_at_s: 0.0,
-            max_error_relative: 0.0,
-            mean_error_pct: 0.0,
-            hold_end_max_error_pct: 0.0,
-            final_max_error_pct: 0.0,
-            blow_ups: 0,
-        },
-        model: None,
-        fit: false,
-        mean: vec![0.0],
-        max: vec![0.0],
-    });
+    runners.push(Runner::new(
+        VariantRow::new(
+            reference,
+            "rest".into(),
+            "no deformation (rest shape)".into(),
+            None,
+            None,
+            None,
+        ),
+        None,
+        false,
+    ));
 
     eprintln!(
         "lop: part 3: {} vs {} ({} steps of {} s, {} approximations)",

@@ -523,6 +523,16 @@ impl GcModel {
         params: GcParameters,
         precise: &Model,
     ) -> Result<GcModel, GcModelError> {
+        GcModel::from_model(mesh, params, precise, None)
+    }
+
+    /// [`GcModel::new`] with the operators of `precise`, and `prestress` if given.
+    fn from_model(
+        mesh: &TetMesh,
+        params: GcParameters,
+        precise: &Model,
+        prestress: Option<Prestress<'_>>,
+    ) -> Result<GcModel, GcModelError> {
         let damping = precise.damping().ok_or_else(|| {
             GcModelError::Parameter("a cage needs a precise model to stand for".into())
         })?;
@@ -536,7 +546,7 @@ impl GcModel {
                 held: &held,
                 damping,
                 stiffness: &stiffness,
-                prestress: None,
+                prestress,
             },
         )
     }
@@ -596,25 +606,15 @@ impl GcModel {
                 .map(|(p, q)| scale(sub(*p, *q), -0.5 / h))
                 .collect()
         };
-        let damping = precise.damping().ok_or_else(|| {
-            GcModelError::Parameter("a cage needs a precise model to stand for".into())
-        })?;
-        let held: Vec<bool> = (0..n).map(|i| precise.is_held(i)).collect();
-        let stiffness = |u: &[[f64; 3]]| precise.rest_stiffness_product(u).unwrap_or_default();
-        GcModel::new(
+        GcModel::from_model(
             mesh,
             params,
-            &PreciseOperators {
-                masses: precise.masses(),
-                held: &held,
-                damping,
-                stiffness: &stiffness,
-                prestress: Some(Prestress {
-                    gravity,
-                    displacement: &u_g,
-                    tangent: &tangent,
-                }),
-            },
+            precise,
+            Some(Prestress {
+                gravity,
+                displacement: &u_g,
+                tangent: &tangent,
+            }),
         )
     }
 
