@@ -84,9 +84,9 @@ fn record_then_replay_offline_twice_bit_identical() {
     assert!(records.windows(2).all(|w| w[1].time_ns >= w[0].time_ns));
     let deepest = records
         .iter()
-        .map(|r| r.sample.position_mm[2])
-        .fold(f64::INFINITY, f64::min);
-    assert_eq!(deepest, 24.0, "the recording holds the push to z = 24 mm");
+        .map(|r| r.sample.position_mm[0])
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert_eq!(deepest, -55.0, "the recording holds the push to x = -55 mm");
 
     // Offline replay, twice: byte-identical final positions; the poke moved cylinder_a.
     let simulate = |out: &str| {

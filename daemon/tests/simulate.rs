@@ -21,7 +21,7 @@ fn simulate(out: &Path, extra: &[&str]) -> String {
 fn offline_run_writes_outputs_and_is_deterministic() {
     let base = std::env::temp_dir().join(format!("lopd-simulate-{}", std::process::id()));
     let (a, b) = (base.join("a"), base.join("b"));
-    let args = ["--steps", "60", "--script", "cylinders-poke"];
+    let args = ["--steps", "90", "--script", "cylinders-poke"];
     let table = simulate(&a, &args);
     simulate(&b, &args);
     // Levels of precision: the poked cylinder_a (important) switched from its cage to FEM;
@@ -42,7 +42,7 @@ fn offline_run_writes_outputs_and_is_deterministic() {
         .unwrap()
         .lines()
         .count();
-    assert_eq!(rows, 1 + 2 * 60);
+    assert_eq!(rows, 1 + 2 * 90);
     for f in [
         "final_cylinder_a.vtk",
         "final_cylinder_b.vtk",
@@ -51,13 +51,27 @@ fn offline_run_writes_outputs_and_is_deterministic() {
         assert!(a.join(f).exists(), "{f}");
     }
     let summary = std::fs::read_to_string(a.join("summary.json")).unwrap();
-    assert!(summary.contains("\"steps\": 60"), "{summary}");
+    assert!(summary.contains("\"steps\": 90"), "{summary}");
     assert!(summary.contains("\"switches\": 1"), "{summary}");
     // Gravity sags the free cylinders' tops: some node moved.
     assert!(
         !summary.contains("\"max_displacement_m\": 0.0,"),
         "{summary}"
     );
+    // Before the tip comes within the switch margin (2 mm, about 1.33 s into the script) both
+    // bodies still run as their cages: the script's rest point is clear of cylinder_a.
+    let early = simulate(
+        &base.join("early"),
+        &["--steps", "60", "--script", "cylinders-poke"],
+    );
+    assert!(
+        early
+            .lines()
+            .any(|l| l.starts_with("cylinder_a") && l.contains(" GC ")),
+        "{early}"
+    );
+    let summary = std::fs::read_to_string(base.join("early/summary.json")).unwrap();
+    assert!(summary.contains("\"switches\": 0"), "{summary}");
     std::fs::remove_dir_all(&base).unwrap();
 }
 

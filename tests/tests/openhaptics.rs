@@ -24,15 +24,16 @@ use lop_drivers::DeviceError;
 use lop_system_tests::{unique_prefix, Daemon};
 use standin::{logs_in, read_log, standin_library, StandinEvent};
 
-/// Device z (mm) of the stylus at servo tick `k`: rest in front of cylinder_a until 4 s, push
-/// 9 mm in over 0.7 s, hold, withdraw from 8 s. x = -31 mm, y = 0 mm (cylinders-poke's target).
-fn z_at(k: u64) -> f64 {
+/// Device x (mm) of the stylus at servo tick `k`: rest beside cylinder_a (6 mm off its outer
+/// side, outside the switch margin) until 4 s, push 9 mm in over 0.7 s, hold, withdraw from 8 s.
+/// y = z = 0 mm (cylinders-poke's target).
+fn x_at(k: u64) -> f64 {
     let t = k as f64 / 1000.0;
     let smooth = |u: f64| {
         let u = u.clamp(0.0, 1.0);
         u * u * (3.0 - 2.0 * u)
     };
-    34.5 - 10.5 * smooth((t - 4.0) / 0.7) + 10.5 * smooth((t - 8.0) / 0.7)
+    -70.0 + 15.0 * smooth((t - 4.0) / 0.7) - 15.0 * smooth((t - 8.0) / 0.7)
 }
 
 fn norm(f: [f64; 3]) -> f64 {
@@ -74,7 +75,7 @@ fn openhaptics_run_with_standin_library_errors_and_record() {
     let trajectory = dir.join("trajectory.csv");
     let mut text = String::new();
     for k in 0..12_000 {
-        text.push_str(&format!("-31.0,0.0,{}\n", z_at(k)));
+        text.push_str(&format!("{},0.0,0.0\n", x_at(k)));
     }
     std::fs::write(&trajectory, text).unwrap();
     let record = dir.join("session.lrec");
@@ -174,9 +175,9 @@ fn openhaptics_run_with_standin_library_errors_and_record() {
     );
     assert!(held > 0.005, "steady contact force while held: {held} N");
     eprintln!("contact force: peak {pushed:.3} N while pushing, {held:.4} N held");
-    // Mostly +z (out of the cylinder's front face, toward the user).
+    // Mostly -x (out of the cylinder's outer side, back toward the user's hand).
     let push = frames.iter().find(|e| e.tick == 6000).unwrap();
-    assert!(push.force[2] > 0.9 * norm(push.force), "{push:?}");
+    assert!(-push.force[0] > 0.9 * norm(push.force), "{push:?}");
     let last = frames.last().unwrap();
     assert!(
         last.tick <= 7003,
@@ -202,9 +203,9 @@ fn openhaptics_run_with_standin_library_errors_and_record() {
     let deepest = r
         .iter()
         .filter(|x| x.error.is_none())
-        .map(|x| x.sample.position_mm[2])
-        .fold(f64::INFINITY, f64::min);
-    assert_eq!(deepest, 24.0);
+        .map(|x| x.sample.position_mm[0])
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert_eq!(deepest, -55.0);
     assert_eq!(rec.header().get("device"), Some("openhaptics"));
     assert!(Recording::load(&second).unwrap().records().len() > 500);
     let _ = std::fs::remove_dir_all(&dir);
