@@ -78,13 +78,16 @@
 //! The cylinder (`cylinder_a` of `cylinders.toml` alone, gravity on) and the liver
 //! (`organs.toml`, gravity off), from rest: a lateral load along +x on the free surface nodes
 //! of the body's −x side and upper half (below/above the bounding box's centre), ramped
-//! linearly to a total of 2 mN (cylinder) / 10 mN (liver) over 0.5 s, held 1 s, released,
-//! run to 5 s (`--quick`: 0.5 s). The loads are sized for a few millimetres of FEM motion: the
-//! Table 6.1 cylinder (E = 600 Pa) bends by about 0.1 m, more than its diameter, under 50 mN. References: corotational FEM and implicit-Euler MSD (pinned,
-//! the scene's parameters). Approximations: a GC model for each cage shape × dynamics
-//! {projected from the reference it approximates (built as `lopd` builds it, under the scene's
-//! gravity), plain Galerkin, mass-spring with the scene's `[body.gc]` stiffness/density/damping
-//! (the thesis' way)}, the cage fitted to the reference's shape every iteration ("best fit", the
+//! linearly over 0.5 s, held 1 s, released, run to 5 s (`--quick`: 0.5 s). The loads are sized
+//! for a few millimetres of each reference's motion: against the FEM 2 mN (cylinder) / 10 mN
+//! (liver) — the Table 6.1 cylinder (E = 600 Pa) bends by about 0.1 m, more than its diameter,
+//! under 50 mN — and against the MSD 1 N (its Table 6.1 cylinder is ~80× stiffer) / 10 mN.
+//! References: corotational FEM and implicit-Euler MSD (pinned, the scene's parameters).
+//! Approximations: a GC model for each cage shape × dynamics {projected from the reference it
+//! approximates (built as `lopd` builds it, under the scene's gravity), plain Galerkin,
+//! mass-spring with the scene's `[body.gc]` stiffness/density/damping (the thesis' table
+//! values)}, the thesis' box mass-spring cage with its parameters searched for on another load
+//! (the thesis tuned them by hand; see `effectiveness::Tuned`), the cage fitted to the reference's shape every iteration ("best fit", the
 //! bound for any dynamics on that cage), and the rest shape ("no deformation"). All
 //! step in lockstep with identical loads at the reference's `dt` (the cage too, whatever its
 //! scene `dt`). Per iteration, over all nodes: mean and max of `|x_gc − x_ref|` divided by the
@@ -112,9 +115,9 @@ use crate::models::workspace_root;
 #[derive(Args, Debug, Clone)]
 pub struct LopArgs {
     /// Small and fast (for the smoke test): 0.5 s of simulated time per efficiency and
-    /// effectiveness run (the poke scripts started 1 s in, so the tool reaches the body; the
-    /// push 1.9 s in, so the pushed cylinder reaches the other), 30 timed steps per speed-up
-    /// row.
+    /// effectiveness run (the poke scripts started 1 s in, the cylinders' 1.2 s in, so the
+    /// tool reaches the body; the push 1.9 s in, so the pushed cylinder reaches the other), 30
+    /// timed steps per speed-up row.
     #[arg(long)]
     quick: bool,
     /// Where the CSV and SVG files go (created if missing).

@@ -74,9 +74,10 @@ const SPEED_VARIANTS: [&str; 8] = [
 
 /// Part 3's cases and approximations.
 const CASES: [&str; 2] = ["cylinder", "liver"];
-const APPROXIMATIONS: [&str; 7] = [
+const APPROXIMATIONS: [&str; 8] = [
     "gc-box-projected",
     "gc-box-mass-spring",
+    "gc-box-mass-spring-tuned",
     "gc-fitted-projected",
     "gc-fitted-mass-spring",
     "gc-subdivided-box-2-projected",
@@ -286,6 +287,19 @@ fn lop_quick_reports_every_run_and_writes_its_files() {
                 let mean = positive(&row["mean_error_pct"], &what);
                 assert!(mean <= max, "{what}: {row}");
                 assert_eq!(row["blow_ups"], 0, "{what}: {row}");
+                // The tuned cage reports what its search found, and the search never ends
+                // worse than where it started (the table values).
+                let tuned = &row["tuned"];
+                if a.ends_with("-tuned") {
+                    for key in ["stiffness", "density", "damping", "calibration_start_pct"] {
+                        positive(&tuned[key], &format!("{what}/{key}"));
+                    }
+                    let start = tuned["calibration_start_pct"].as_f64().unwrap();
+                    let found = tuned["calibration_pct"].as_f64().unwrap();
+                    assert!(found <= start, "{what}: {tuned}");
+                } else {
+                    assert!(tuned.is_null(), "{what}: {tuned}");
+                }
             }
         }
     }

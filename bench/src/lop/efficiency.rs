@@ -104,7 +104,7 @@ const TRIALS: [Trial; 4] = [
         name: "interaction",
         thesis: "Fig. 6.6",
         script: Some("cylinders-poke.toml"),
-        quick_offset: 1.0,
+        quick_offset: 1.2,
         collision: false,
         pushed: None,
     },
