@@ -164,14 +164,12 @@ fn browser_shows_the_organs_drawn_and_moving() {
     );
 
     // Later screenshots: the organs' region changes (the poke dents the liver, the tool moves).
-    // The mock poke loops every few seconds; up to three more shots so one is at another phase.
-    let mut best_changed = 0;
-    for i in 1..4 {
-        std::thread::sleep(Duration::from_millis(700));
-        let (_, _, later) = shot(i);
-        let changed = first
-            .iter()
-            .zip(&later)
+    // The mock poke loops every few seconds; up to six more shots, each compared with every
+    // earlier one, so that two of them are at different phases even when a loaded machine
+    // makes the screenshots slow and their spacing close to the poke's period.
+    let changed = |a: &[[u8; 3]], b: &[[u8; 3]]| {
+        a.iter()
+            .zip(b)
             .enumerate()
             .filter(|(n, (a, b))| {
                 let (x, y) = (*n as u32 % w, *n as u32 / w);
@@ -179,9 +177,18 @@ fn browser_shows_the_organs_drawn_and_moving() {
                     && (organ_of(**a).is_some() || organ_of(**b).is_some())
                     && a.iter().zip(b.iter()).any(|(p, q)| p.abs_diff(*q) > 12)
             })
-            .count();
-        best_changed = best_changed.max(changed);
-        if changed > 200 {
+            .count()
+    };
+    let mut shots = vec![first];
+    let mut best_changed = 0;
+    for i in 1..7 {
+        std::thread::sleep(Duration::from_millis(700));
+        let (_, _, later) = shot(i);
+        for earlier in &shots {
+            best_changed = best_changed.max(changed(earlier, &later));
+        }
+        shots.push(later);
+        if best_changed > 200 {
             break;
         }
     }
