@@ -166,6 +166,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub(crate) mod element;
+mod half;
 mod ordering;
 mod rotation;
 mod shapes;
