@@ -23,6 +23,9 @@
 //! buffer of the panel's rows, four panel columns at a time); the backward solve is
 //! dot products on the same columns.
 //!
+//! Used for factors of at least `system::HALF_MIN_VALUES` values: smaller ones are solved in
+//! single precision (cache-resident, and accurate enough for one-iteration CG steps).
+//!
 //! The kernels use AVX2, FMA and F16C when the CPU has them (checked at run time), and portable
 //! scalar code otherwise.
 
