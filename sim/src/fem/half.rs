@@ -338,7 +338,7 @@ mod avx2 {
 
     pub(super) struct Avx2;
 
-    /// Lanes `0..rem` set (`rem` < 8), for a vector's tail.
+    /// Lanes `0..rem` set (all of them for `rem` ≥ 8), for a vector's tail.
     #[inline]
     #[target_feature(enable = "avx2,fma,f16c")]
     unsafe fn tail_mask(rem: usize) -> __m256i {
@@ -365,67 +365,52 @@ mod avx2 {
         _mm_cvtss_f32(s)
     }
 
+    /// `y += Σₖ aₖ xₖ` over `K` columns, each holding at least `y.len()` rounded up to eight
+    /// values.
     #[inline]
     #[target_feature(enable = "avx2,fma,f16c")]
-    unsafe fn axpy(y: &mut [f32], a: f32, x: &[u16]) {
+    unsafe fn axpy_n<const K: usize>(y: &mut [f32], a: [f32; K], x: [&[u16]; K]) {
         let n = y.len();
-        assert!(x.len() >= n.next_multiple_of(8));
-        let va = _mm256_set1_ps(a);
+        assert!(x.iter().all(|x| x.len() >= n.next_multiple_of(8)));
+        let va = a.map(|a| _mm256_set1_ps(a));
         let mut i = 0;
-        // SAFETY: every access is below `n`.
-        unsafe {
-            while i + 8 <= n {
-                let py = y.as_mut_ptr().add(i);
-                let v = _mm256_fmadd_ps(va, load8(x.as_ptr().add(i)), _mm256_loadu_ps(py));
-                _mm256_storeu_ps(py, v);
-                i += 8;
-            }
-        }
-        if i < n {
-            // SAFETY: `x` holds `n` rounded up to eight values (the trait's contract); `y` is
-            // masked.
+        while i < n {
+            let rem = n - i;
+            // SAFETY: `y` is read and written below `n` (the last vector masked); each column
+            // has eight readable values at `i` < `n` by the length asserted above.
             unsafe {
-                let mask = tail_mask(n - i);
                 let py = y.as_mut_ptr().add(i);
-                let v = _mm256_fmadd_ps(va, load8(x.as_ptr().add(i)), _mm256_maskload_ps(py, mask));
-                _mm256_maskstore_ps(py, mask, v);
+                let mask = tail_mask(rem);
+                let mut v = if rem >= 8 {
+                    _mm256_loadu_ps(py)
+                } else {
+                    _mm256_maskload_ps(py, mask)
+                };
+                for k in 0..K {
+                    v = _mm256_fmadd_ps(va[k], load8(x[k].as_ptr().add(i)), v);
+                }
+                if rem >= 8 {
+                    _mm256_storeu_ps(py, v);
+                } else {
+                    _mm256_maskstore_ps(py, mask, v);
+                }
             }
+            i += 8;
         }
     }
 
     #[inline]
     #[target_feature(enable = "avx2,fma,f16c")]
+    unsafe fn axpy(y: &mut [f32], a: f32, x: &[u16]) {
+        // SAFETY: the caller runs on a CPU with these features.
+        unsafe { axpy_n(y, [a], [x]) }
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx2,fma,f16c")]
     unsafe fn axpy4(y: &mut [f32], a: [f32; 4], x: [&[u16]; 4]) {
-        let n = y.len();
-        assert!(x.iter().all(|x| x.len() >= n.next_multiple_of(8)));
-        let va = a.map(|a| _mm256_set1_ps(a));
-        let mut i = 0;
-        // SAFETY: every access is below `n`, and each column has at least `n` values.
-        unsafe {
-            while i + 8 <= n {
-                let py = y.as_mut_ptr().add(i);
-                let mut v = _mm256_loadu_ps(py);
-                v = _mm256_fmadd_ps(va[0], load8(x[0].as_ptr().add(i)), v);
-                v = _mm256_fmadd_ps(va[1], load8(x[1].as_ptr().add(i)), v);
-                v = _mm256_fmadd_ps(va[2], load8(x[2].as_ptr().add(i)), v);
-                v = _mm256_fmadd_ps(va[3], load8(x[3].as_ptr().add(i)), v);
-                _mm256_storeu_ps(py, v);
-                i += 8;
-            }
-        }
-        if i < n {
-            // SAFETY: as in `axpy`.
-            unsafe {
-                let mask = tail_mask(n - i);
-                let py = y.as_mut_ptr().add(i);
-                let mut v = _mm256_maskload_ps(py, mask);
-                v = _mm256_fmadd_ps(va[0], load8(x[0].as_ptr().add(i)), v);
-                v = _mm256_fmadd_ps(va[1], load8(x[1].as_ptr().add(i)), v);
-                v = _mm256_fmadd_ps(va[2], load8(x[2].as_ptr().add(i)), v);
-                v = _mm256_fmadd_ps(va[3], load8(x[3].as_ptr().add(i)), v);
-                _mm256_maskstore_ps(py, mask, v);
-            }
-        }
+        // SAFETY: as in `axpy`.
+        unsafe { axpy_n(y, a, x) }
     }
 
     #[inline]
