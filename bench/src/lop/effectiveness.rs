@@ -503,12 +503,13 @@ fn run_reference(
     let mut hold_end_disp = 0.0;
     let hold_end_step = (HOLD_END / dt).round() as usize;
     let pct = 100.0 / smallest;
+    let load = Load {
+        nodes,
+        per_node,
+        direction: LOAD_DIRECTION,
+    };
     for k in 1..=steps {
-        let t = k as f64 * dt;
-        let f = per_node * load_factor(t);
-        for &i in nodes {
-            loads[i] = LOAD_DIRECTION.map(|d| d * f);
-        }
+        load.at(k, dt, &mut loads);
         if precise.step(scene.gravity, &loads, None).is_err() {
             ref_blow_ups += 1;
         }
