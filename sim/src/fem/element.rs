@@ -121,8 +121,9 @@ pub(crate) fn stiffness_block(ci: [f64; 3], cj: [f64; 3], vl: f64, vm: f64) -> M
 
 /// The element's stiffness applied to the nodal vectors `p` (matrix-free): with
 /// `G = Σⱼ pⱼ ⊗ cⱼ`, `(K_e p)ᵢ = (Vλ tr(G) I + Vμ (G + Gᵀ)) cᵢ`, which expands to
-/// `Σⱼ K_ij pⱼ` with the blocks of [`stiffness_block`].
-#[inline]
+/// `Σⱼ K_ij pⱼ` with the blocks of [`stiffness_block`]. The reference for the batched product
+/// of `super::batch`, which runs this arithmetic on several elements at once.
+#[cfg(test)]
 pub(crate) fn apply_stiffness(
     c: &[[f64; 3]; 4],
     vl: f64,

@@ -111,11 +111,15 @@
 //! | 50k tets | 67 / 209 / 642 ms | 45 / 92 / 260 ms | 299 → 168 |
 //! | 100k tets | 321 / 1024 / 2811 ms | 211 / 406 / 1024 ms | 352 → 179 |
 //!
-//! At 50k a step of the smooth phase costs ~29 ms with 3 CG iterations and ~37 ms with 4:
+//! At 50k a step of the smooth phase then cost ~29 ms with 3 CG iterations and ~37 ms with 4:
 //! 4 × 5.4 ms of preconditioning (two single-precision triangular solves, memory-bound), 5 ×
 //! 1.1 ms of matrix-free products, 8.7 ms of element forces and rotations (two thirds of it
 //! the polar decompositions) and 0.9 ms of node rotations; a refactorisation costs ~150 ms
-//! (assembly and single-precision numeric factorisation).
+//! (assembly and single-precision numeric factorisation). Since then the preconditioner solves
+//! in half precision (3.0 ms per application) and the element loops run four elements at a
+//! time in AVX registers (`batch.rs`, bit-for-bit the scalar arithmetic): element forces and
+//! rotations 8 → 2.0 ms, a product 1.5 → 0.75 ms (timed phase by phase on the same machine),
+//! so a smooth 50k step costs ~16 ms with 3 iterations and ~21 ms with 4.
 //!
 //! Factorisation: faer's sparse Cholesky (supernodal; faer picks it by its flop estimate for
 //! all these meshes, and its solves beat the simplicial ones even though relaxed supernodes
@@ -168,6 +172,7 @@
 // would obscure the formulas they transcribe.
 #![allow(clippy::needless_range_loop)]
 
+mod batch;
 pub(crate) mod element;
 mod half;
 mod ordering;
@@ -181,9 +186,10 @@ use crate::contact::{closest_on_surface, SurfaceHit};
 use crate::mesh::TetMesh;
 use crate::model::{BlowUp, ContactReport, ContactSpring, ToolAnchor, ToolContact, RUNAWAY_SPEED};
 
+use batch::Batches;
 use element::{
-    add, apply_stiffness, cross, dot, lame, mat_mul_t, mat_t_mul, mat_t_vec, mat_vec, norm, scale,
-    stress, sub, Element,
+    add, cross, dot, lame, mat_mul_t, mat_t_mul, mat_t_vec, mat_vec, norm, scale, stress, sub,
+    Element,
 };
 use rotation::{closest_rotation, quat_to_mat, quat_to_mat_minus_identity, QUAT_IDENTITY};
 #[doc(hidden)]
@@ -318,11 +324,6 @@ pub struct Fem {
     lambda: f64,
     mu: f64,
     elements: Vec<Element>,
-    /// Per element: the first DOF of each node, or `NONE` if held.
-    element_dofs: Vec<[u32; 4]>,
-    /// Per element: `(Vλ, Vμ)`, kept apart from `elements` so that the matrix-free product,
-    /// run several times a step, streams 16 bytes per element instead of the whole element.
-    element_moduli: Vec<[f64; 2]>,
     mass: Vec<f64>,
     /// Nodes without unknowns: fixed by the mesh, or used by no tetrahedron.
     held: Vec<bool>,
@@ -375,9 +376,11 @@ pub struct SolverCounters {
 /// Scratch of a [`Fem`]: every buffer `step` uses, allocated once.
 #[derive(Debug, Clone)]
 struct Scratch {
-    /// Per element: warm start of the rotation search (unit quaternion). Read and
-    /// written by `internal_forces` (corotational); reset to identity by `reset`/`set_state`.
-    rot: Vec<[f64; 4]>,
+    /// The elements in SIMD batches, with per element the warm start of the rotation search
+    /// (unit quaternion; reset to identity by `reset`/`set_state`) and the rotated gradients
+    /// `R bᵢ`: written by `internal_forces` (corotational), read by the assembly and the
+    /// matrix-free product.
+    batch: Batches,
     /// Per node: its rotation (unit quaternion), the rotation it had when the
     /// factor was made, and a quaternion sum; written by `update_node_rotations` (and
     /// `factor_dynamic` for the lagged one), read by it. Reset with the element rotations.
@@ -387,9 +390,6 @@ struct Scratch {
     /// Scratch, per free node (DOF block): `R_now R_lagᵀ`, written by `update_node_rotations`,
     /// read by `precondition`.
     node_turn: Vec<element::Mat3>,
-    /// Per element: rotated gradients `R bᵢ`, written by `internal_forces`, read by
-    /// the assembly and the matrix-free product (corotational).
-    grads: Vec<[[f64; 3]; 4]>,
     /// Scratch, per node: `−f_int(x)`, written by `internal_forces`, read by the rhs build.
     force: Vec<[f64; 3]>,
     /// Per DOF: the right-hand side `b`, written by `step`/`solve_static`; the direct
@@ -506,14 +506,6 @@ impl Fem {
         let system = System::new(&mesh.nodes, &elements, &held, supernodal, ordering)
             .map_err(|e| FemError::Solver(format!("{e:?}")))?;
         let n_dof = system.n_dof;
-        let element_dofs = elements
-            .iter()
-            .map(|e| e.nodes.map(|k| system.dof[k as usize]))
-            .collect();
-        let element_moduli = elements
-            .iter()
-            .map(|e| [e.volume * lambda, e.volume * mu])
-            .collect();
         let mut node_face_ptr = vec![0usize; n + 1];
         for tri in &mesh.surface {
             for &k in tri {
@@ -532,8 +524,7 @@ impl Fem {
             }
         }
         let s = Box::new(Scratch {
-            grads: elements.iter().map(|e| e.grad).collect(),
-            rot: vec![QUAT_IDENTITY; elements.len()],
+            batch: Batches::new(&elements, &system.dof, lambda, mu),
             node_rot: vec![QUAT_IDENTITY; n],
             node_rot_lag: vec![QUAT_IDENTITY; n],
             node_sum: vec![[0.0; 4]; n],
@@ -570,8 +561,6 @@ impl Fem {
             lambda,
             mu,
             elements,
-            element_dofs,
-            element_moduli,
             mass,
             held,
             rest: mesh.nodes.clone(),
@@ -690,7 +679,7 @@ impl Fem {
         self.s.v_before.iter_mut().for_each(|v| *v = [0.0; 3]);
         self.s.v_before2.iter_mut().for_each(|v| *v = [0.0; 3]);
         self.one_iteration_runs = 0;
-        self.s.rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
+        self.s.batch.reset_rotations();
         self.s.node_rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
     }
 
@@ -715,7 +704,7 @@ impl Fem {
         self.s.v_before.copy_from_slice(&self.v);
         self.s.v_before2.copy_from_slice(&self.v);
         self.one_iteration_runs = 0;
-        self.s.rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
+        self.s.batch.reset_rotations();
         self.s.node_rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
     }
 
@@ -725,7 +714,7 @@ impl Fem {
     pub fn elastic_forces(&self) -> Vec<[f64; 3]> {
         let mut out = vec![[0.0; 3]; self.x.len()];
         for (e, el) in self.elements.iter().enumerate() {
-            let mut q = self.s.rot[e];
+            let mut q = self.s.batch.rotation(e);
             let (f, _) =
                 element_forces(el, &self.u, self.params.mode, self.lambda, self.mu, &mut q);
             for (k, &n) in el.nodes.iter().enumerate() {
@@ -1263,7 +1252,7 @@ impl Fem {
     fn update_node_rotations(&mut self) {
         self.s.node_sum.iter_mut().for_each(|q| *q = [0.0; 4]);
         for (e, el) in self.elements.iter().enumerate() {
-            let qe = self.s.rot[e];
+            let qe = self.s.batch.rotation(e);
             for &n in &el.nodes {
                 let n = n as usize;
                 let prev = self.s.node_rot[n];
@@ -1304,29 +1293,9 @@ impl Fem {
                 }
             }
         }
-        for (e, (dofs, &[vl, vm])) in self
-            .element_dofs
-            .iter()
-            .zip(&self.element_moduli)
-            .enumerate()
-        {
-            let mut p = [[0.0; 3]; 4];
-            for k in 0..4 {
-                if dofs[k] != NONE {
-                    let d = dofs[k] as usize;
-                    p[k] = [self.s.cg_p[d], self.s.cg_p[d + 1], self.s.cg_p[d + 2]];
-                }
-            }
-            let out = apply_stiffness(&self.s.grads[e], vl, vm, &p);
-            for k in 0..4 {
-                if dofs[k] != NONE {
-                    let d = dofs[k] as usize;
-                    for c in 0..3 {
-                        self.s.cg_q[d + c] += out[k][c];
-                    }
-                }
-            }
-        }
+        self.s
+            .batch
+            .add_stiffness_product(&self.s.cg_p, &mut self.s.cg_q);
         if let Some(p) = pressed {
             for a in 0..p.m {
                 let s = p.stiffness * p.dot(a, &self.s.cg_p);
@@ -1479,15 +1448,18 @@ impl Fem {
     /// Fills `force` with `−f_int(x)` and (corotational) `grads` with the rotated gradients.
     fn internal_forces(&mut self) {
         self.s.force.iter_mut().for_each(|f| *f = [0.0; 3]);
-        let mode = self.params.mode;
-        for (e, el) in self.elements.iter().enumerate() {
-            let (f, g) =
-                element_forces(el, &self.u, mode, self.lambda, self.mu, &mut self.s.rot[e]);
+        if self.params.mode == FemMode::Corotational {
+            let (u, force) = (&self.u, &mut self.s.force);
+            self.s
+                .batch
+                .corotational_forces(u, self.lambda, self.mu, force);
+            return;
+        }
+        for el in &self.elements {
+            let mut q = QUAT_IDENTITY;
+            let (f, _) = element_forces(el, &self.u, FemMode::Linear, self.lambda, self.mu, &mut q);
             for (k, &n) in el.nodes.iter().enumerate() {
                 self.s.force[n as usize] = add(self.s.force[n as usize], f[k]);
-            }
-            if mode == FemMode::Corotational {
-                self.s.grads[e] = g;
             }
         }
     }
@@ -1498,8 +1470,12 @@ impl Fem {
         self.system.clear_with_mass(&self.mass, mass_coef);
         for (e, el) in self.elements.iter().enumerate() {
             let (vl, vm) = (el.volume * self.lambda, el.volume * self.mu);
-            let g = if warped { &self.s.grads[e] } else { &el.grad };
-            self.system.add_element(e, g, vl, vm);
+            let g = if warped {
+                self.s.batch.warped_gradients(e)
+            } else {
+                el.grad
+            };
+            self.system.add_element(e, &g, vl, vm);
         }
     }
 

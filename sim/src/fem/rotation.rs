@@ -27,13 +27,13 @@
 use super::element::{mat_t_mul, Mat3};
 
 /// Newton steps before falling back to the SVD.
-const MAX_NEWTON: usize = 8;
+pub(crate) const MAX_NEWTON: usize = 8;
 /// A Newton step shorter than this (radians) ends the iteration: the remaining error is of the
 /// order of its square (~1e-8 rad, well below what the CG tolerance of a step resolves), and
 /// the next call, warm-started, polishes it further (a body at rest converges to round-off).
 /// Between two time steps this takes two Newton steps per element, where 1e-6 took three (the
 /// third only to confirm); on the 50k-tetrahedra bar the trajectory is the same to 1e-6 m.
-const STEP_TOL: f64 = 1e-4;
+pub(crate) const STEP_TOL: f64 = 1e-4;
 
 /// Finds the rotation closest to `f` (see the module docs) and stores it in `q` (unit
 /// quaternion `[w, x, y, z]`), which on entry is the starting guess; read it back with
@@ -91,7 +91,12 @@ pub(crate) fn closest_rotation(f: &Mat3, q: &mut [f64; 4]) {
             return;
         }
     }
-    *q = mat_to_quat(&svd_rotation(f));
+    *q = svd_quaternion(f);
+}
+
+/// The robust path alone: the rotation closest to `f` from its SVD, as a unit quaternion.
+pub(crate) fn svd_quaternion(f: &Mat3) -> [f64; 4] {
+    mat_to_quat(&svd_rotation(f))
 }
 
 /// `U diag(1, 1, det(UVᵀ)) Vᵀ` with the sign on the smallest singular value.

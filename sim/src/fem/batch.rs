@@ -1,0 +1,839 @@
+//! The corotational element loops — elastic forces with the rotation search, and the
+//! matrix-free product with the warped stiffness — run on [`LANES`] elements at a time.
+//!
+//! Per element, the forces are a few hundred flops in long dependency chains (the Newton
+//! steps of the rotation search end in a square root and a division each) and the product
+//! about a hundred: one element at a time, the core waits on latencies. Here the elements'
+//! rest data are stored as a structure of arrays, `LANES` elements side by side, and every
+//! operation is written on a whole row of lanes ([`V`]), which the compiler turns into vector
+//! instructions (AVX when the CPU has it, checked at run time; SSE2 otherwise).
+//!
+//! The arithmetic is the scalar code's, operation for operation and in the same order
+//! (additions, multiplications, divisions and square roots only, no fused multiply-add, which
+//! would round differently), and the results are scattered in element order: the forces,
+//! rotations and products are bit-for-bit those of [`super::element_forces`] and
+//! [`super::element::apply_stiffness`], which the tests check. The rotation search follows
+//! [`super::rotation::closest_rotation`] lane by lane (a lane stops when it has converged,
+//! the others go on); the rare lane that needs the SVD fallback gets it afterwards, alone.
+//!
+//! The last batch is padded with empty elements (no volume, no gradients, no unknowns),
+//! which are never scattered.
+
+use super::element::Element;
+use super::rotation::{self, MAX_NEWTON, QUAT_IDENTITY, STEP_TOL};
+use super::system::NONE;
+use std::ops::{Add, Div, Mul, Neg, Sub};
+
+/// Elements per batch.
+pub(crate) const LANES: usize = 4;
+
+/// One value per lane.
+type Lanes = [f64; LANES];
+
+/// Rest data and per-step state of a body's elements, [`LANES`] to a batch.
+#[derive(Debug, Clone)]
+pub(crate) struct Batches {
+    /// Elements (the last batch may be partly padding).
+    len: usize,
+    /// Per batch: node of each corner, per lane (padding: node 0, never read for its value).
+    nodes: Vec<[[u32; LANES]; 4]>,
+    /// Per batch: first DOF of each corner, per lane, or `NONE` (held nodes and padding).
+    dofs: Vec<[[u32; LANES]; 4]>,
+    /// Per batch: rest shape-function gradients `bₖ`, `grad[k][c][lane]`.
+    grad: Vec<[[Lanes; 3]; 4]>,
+    /// Per batch: rest volumes (padding: 0).
+    volume: Vec<Lanes>,
+    /// Per batch: `(Vλ, Vμ)` per lane.
+    moduli: Vec<[Lanes; 2]>,
+    /// Per batch: the rotation search's warm start, unit quaternions `rot[c][lane]`.
+    rot: Vec<[Lanes; 4]>,
+    /// Per batch: the rotated gradients `R bₖ` of the last force evaluation (the warped
+    /// stiffness), `warped[k][c][lane]`.
+    warped: Vec<[[Lanes; 3]; 4]>,
+}
+
+impl Batches {
+    /// The batches of `elements`, with `dof` the first DOF of each node (or `NONE`).
+    pub fn new(elements: &[Element], dof: &[u32], lambda: f64, mu: f64) -> Batches {
+        let n = elements.len().div_ceil(LANES);
+        let mut b = Batches {
+            len: elements.len(),
+            nodes: vec![[[0; LANES]; 4]; n],
+            dofs: vec![[[NONE; LANES]; 4]; n],
+            grad: vec![[[[0.0; LANES]; 3]; 4]; n],
+            volume: vec![[0.0; LANES]; n],
+            moduli: vec![[[0.0; LANES]; 2]; n],
+            rot: vec![[[0.0; LANES]; 4]; n],
+            warped: vec![[[[0.0; LANES]; 3]; 4]; n],
+        };
+        for (e, el) in elements.iter().enumerate() {
+            let (i, l) = (e / LANES, e % LANES);
+            for k in 0..4 {
+                b.nodes[i][k][l] = el.nodes[k];
+                b.dofs[i][k][l] = dof[el.nodes[k] as usize];
+                for c in 0..3 {
+                    b.grad[i][k][c][l] = el.grad[k][c];
+                    b.warped[i][k][c][l] = el.grad[k][c];
+                }
+            }
+            b.volume[i][l] = el.volume;
+            b.moduli[i][0][l] = el.volume * lambda;
+            b.moduli[i][1][l] = el.volume * mu;
+        }
+        b.reset_rotations();
+        b
+    }
+
+    /// All rotations back to the identity (a cold start for the search).
+    pub fn reset_rotations(&mut self) {
+        for q in &mut self.rot {
+            for (c, row) in q.iter_mut().enumerate() {
+                *row = [QUAT_IDENTITY[c]; LANES];
+            }
+        }
+    }
+
+    /// Element `e`'s rotation (unit quaternion) from the last force evaluation.
+    #[inline]
+    pub fn rotation(&self, e: usize) -> [f64; 4] {
+        let (i, l) = (e / LANES, e % LANES);
+        let q = &self.rot[i];
+        [q[0][l], q[1][l], q[2][l], q[3][l]]
+    }
+
+    /// Element `e`'s rotated gradients `R bₖ` from the last force evaluation.
+    #[inline]
+    pub fn warped_gradients(&self, e: usize) -> [[f64; 3]; 4] {
+        let (i, l) = (e / LANES, e % LANES);
+        let w = &self.warped[i];
+        let mut g = [[0.0; 3]; 4];
+        for k in 0..4 {
+            for c in 0..3 {
+                g[k][c] = w[k][c][l];
+            }
+        }
+        g
+    }
+
+    /// Corotational elastic forces at the displacements `u`: adds each element's `−f_int` to
+    /// `force` (per node, in element order), and updates the rotations (warm-started from the
+    /// last ones) and the rotated gradients.
+    pub fn corotational_forces(
+        &mut self,
+        u: &[[f64; 3]],
+        lambda: f64,
+        mu: f64,
+        force: &mut [[f64; 3]],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if avx_available() {
+            // SAFETY: the CPU has AVX (checked above).
+            unsafe { self.forces_avx(u, lambda, mu, force) };
+            return;
+        }
+        self.forces_impl::<Portable>(u, lambda, mu, force);
+    }
+
+    /// `q += K_w p`: the warped stiffness (of the last force evaluation) applied to the DOF
+    /// vector `p`, matrix-free.
+    pub fn add_stiffness_product(&self, p: &[f64], q: &mut [f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if avx_available() {
+            // SAFETY: the CPU has AVX (checked above).
+            unsafe { self.product_avx(p, q) };
+            return;
+        }
+        self.product_impl::<Portable>(p, q);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2")]
+    unsafe fn forces_avx(&mut self, u: &[[f64; 3]], lambda: f64, mu: f64, f: &mut [[f64; 3]]) {
+        self.forces_impl::<avx::Avx>(u, lambda, mu, f);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2")]
+    unsafe fn product_avx(&self, p: &[f64], q: &mut [f64]) {
+        self.product_impl::<avx::Avx>(p, q);
+    }
+
+    #[inline(always)]
+    fn forces_impl<S: Simd>(
+        &mut self,
+        u: &[[f64; 3]],
+        lambda: f64,
+        mu: f64,
+        force: &mut [[f64; 3]],
+    ) {
+        let (lambda, mu) = (S::splat(lambda), S::splat(mu));
+        for i in 0..self.nodes.len() {
+            let nodes = &self.nodes[i];
+            let grad = load_vectors::<S>(&self.grad[i]);
+            // ∇u = Σₖ uₖ ⊗ bₖ, as `Element::displacement_gradient`.
+            let mut g = [[S::splat(0.0); 3]; 3];
+            for k in 0..4 {
+                let n = [
+                    u[nodes[k][0] as usize],
+                    u[nodes[k][1] as usize],
+                    u[nodes[k][2] as usize],
+                    u[nodes[k][3] as usize],
+                ];
+                for r in 0..3 {
+                    let ur = S::new([n[0][r], n[1][r], n[2][r], n[3][r]]);
+                    for c in 0..3 {
+                        g[r][c] = g[r][c] + ur * grad[k][c];
+                    }
+                }
+            }
+            let mut q = [S::splat(0.0); 4];
+            for c in 0..4 {
+                q[c] = S::load(&self.rot[i][c]);
+            }
+            let mut f = g;
+            for (k, row) in f.iter_mut().enumerate() {
+                row[k] = row[k] + S::splat(1.0);
+            }
+            let svd = closest_rotation(&f, &mut q);
+            if svd != 0 {
+                svd_fallback(&f, &mut q, svd);
+            }
+            for c in 0..4 {
+                self.rot[i][c] = q[c].to_array();
+            }
+            // RᵀF − I = Rᵀ∇u + (R − I)ᵀ, as `corotated_strain`.
+            let r = quat_to_mat(&q);
+            let mut h = mat_t_mul(&r, &g);
+            let rm = quat_to_mat_minus_identity(&q);
+            for a in 0..3 {
+                for b in 0..3 {
+                    h[a][b] = h[a][b] + rm[b][a];
+                }
+            }
+            // σ = λ tr(ε) I + 2μ ε, as `element::stress`.
+            let tr = lambda * (h[0][0] + h[1][1] + h[2][2]);
+            let mut s = [[S::splat(0.0); 3]; 3];
+            for a in 0..3 {
+                for b in 0..3 {
+                    s[a][b] = mu * (h[a][b] + h[b][a]);
+                }
+                s[a][a] = s[a][a] + tr;
+            }
+            let neg_vol = -S::load(&self.volume[i]);
+            let mut out = [[[0.0; LANES]; 3]; 4];
+            for k in 0..4 {
+                // −V R σ bₖ, and R bₖ for the warped stiffness.
+                let sb = mat_vec(&s, &grad[k]);
+                let rsb = mat_vec(&r, &sb);
+                let rb = mat_vec(&r, &grad[k]);
+                for c in 0..3 {
+                    out[k][c] = (rsb[c] * neg_vol).to_array();
+                    self.warped[i][k][c] = rb[c].to_array();
+                }
+            }
+            let lanes = LANES.min(self.len - i * LANES);
+            for l in 0..lanes {
+                for k in 0..4 {
+                    let n = nodes[k][l] as usize;
+                    for c in 0..3 {
+                        force[n][c] += out[k][c][l];
+                    }
+                }
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn product_impl<S: Simd>(&self, p: &[f64], q: &mut [f64]) {
+        for i in 0..self.dofs.len() {
+            let dofs = &self.dofs[i];
+            let w = load_vectors::<S>(&self.warped[i]);
+            // G = Σⱼ pⱼ ⊗ cⱼ, as `element::apply_stiffness`; held corners contribute zero.
+            let mut g = [[S::splat(0.0); 3]; 3];
+            for j in 0..4 {
+                let d = dofs[j];
+                let held = [d[0] == NONE, d[1] == NONE, d[2] == NONE, d[3] == NONE];
+                let at = |l: usize, a: usize| if held[l] { 0.0 } else { p[d[l] as usize + a] };
+                for a in 0..3 {
+                    let pa = S::new([at(0, a), at(1, a), at(2, a), at(3, a)]);
+                    for b in 0..3 {
+                        g[a][b] = g[a][b] + pa * w[j][b];
+                    }
+                }
+            }
+            let (vl, vm) = (S::load(&self.moduli[i][0]), S::load(&self.moduli[i][1]));
+            let tr = vl * (g[0][0] + g[1][1] + g[2][2]);
+            let mut s = [[S::splat(0.0); 3]; 3];
+            for a in 0..3 {
+                for b in 0..3 {
+                    s[a][b] = vm * (g[a][b] + g[b][a]);
+                }
+                s[a][a] = s[a][a] + tr;
+            }
+            let mut out = [[[0.0; LANES]; 3]; 4];
+            for k in 0..4 {
+                let o = mat_vec(&s, &w[k]);
+                for c in 0..3 {
+                    out[k][c] = o[c].to_array();
+                }
+            }
+            for l in 0..LANES {
+                for k in 0..4 {
+                    let d = dofs[k][l];
+                    if d != NONE {
+                        let d = d as usize;
+                        for c in 0..3 {
+                            q[d + c] += out[k][c][l];
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Whether the AVX kernels can run here (cached by the standard library after the first call).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+fn avx_available() -> bool {
+    is_x86_feature_detected!("avx") && is_x86_feature_detected!("avx2")
+}
+
+/// `[[Lanes; 3]; 4]` (four vectors of three components, per lane) into registers.
+#[inline(always)]
+fn load_vectors<S: Simd>(x: &[[Lanes; 3]; 4]) -> [[S; 3]; 4] {
+    let mut v = [[S::splat(0.0); 3]; 4];
+    for k in 0..4 {
+        for c in 0..3 {
+            v[k][c] = S::load(&x[k][c]);
+        }
+    }
+    v
+}
+
+/// The SVD fallback of the rotation search, on the lanes flagged in `lanes` (bit `l`).
+#[cold]
+#[inline(never)]
+fn svd_fallback<S: Simd>(f: &[[S; 3]; 3], q: &mut [S; 4], lanes: u8) {
+    let mut fa = [[[0.0; LANES]; 3]; 3];
+    for r in 0..3 {
+        for c in 0..3 {
+            fa[r][c] = f[r][c].to_array();
+        }
+    }
+    let mut qa = [[0.0; LANES]; 4];
+    for c in 0..4 {
+        qa[c] = q[c].to_array();
+    }
+    for l in 0..LANES {
+        if lanes & (1 << l) != 0 {
+            let mut fl = [[0.0; 3]; 3];
+            for r in 0..3 {
+                for c in 0..3 {
+                    fl[r][c] = fa[r][c][l];
+                }
+            }
+            let ql = rotation::svd_quaternion(&fl);
+            for c in 0..4 {
+                qa[c][l] = ql[c];
+            }
+        }
+    }
+    for c in 0..4 {
+        q[c] = S::load(&qa[c]);
+    }
+}
+
+/// [`rotation::closest_rotation`] on every lane: updates `q` in place and returns the lanes
+/// (bit `l` for lane `l`) that need the SVD fallback (Newton not applicable, or not converged
+/// in `MAX_NEWTON` steps). A lane with non-finite `F` keeps its `q` and is not flagged (as in
+/// the scalar search).
+#[inline(always)]
+fn closest_rotation<S: Simd>(f: &[[S; 3]; 3], q: &mut [S; 4]) -> u8 {
+    // Frobenius norm, summed row by row as the scalar `frobenius`.
+    let mut sum = f[0][0] * f[0][0];
+    for k in 1..9 {
+        let x = f[k / 3][k % 3];
+        sum = sum + x * x;
+    }
+    let scale = sum.sqrt();
+    // Finite lanes: `scale < ∞` is false for ∞ and NaN.
+    let mut active = scale.lt(S::splat(f64::INFINITY));
+    let mut svd = 0u8;
+    let eps = S::splat(1e-3) * scale;
+    let eps2 = eps * eps;
+    let eps3 = eps2 * eps;
+    let tiny = S::splat(1e-28) * scale * scale;
+    let tol2 = S::splat(STEP_TOL * STEP_TOL);
+    for _ in 0..MAX_NEWTON {
+        if active == 0 {
+            break;
+        }
+        let r = quat_to_mat(q);
+        let m = mat_t_mul(&r, f);
+        let g = [m[2][1] - m[1][2], m[0][2] - m[2][0], m[1][0] - m[0][1]];
+        let t = m[0][0] + m[1][1] + m[2][2];
+        // H = tr(S) I − S, S = sym(M).
+        let h00 = t - m[0][0];
+        let h11 = t - m[1][1];
+        let h22 = t - m[2][2];
+        let half = S::splat(-0.5);
+        let h01 = half * (m[0][1] + m[1][0]);
+        let h02 = half * (m[0][2] + m[2][0]);
+        let h12 = half * (m[1][2] + m[2][1]);
+        let c00 = h11 * h22 - h12 * h12;
+        let c01 = h02 * h12 - h01 * h22;
+        let c02 = h01 * h12 - h02 * h11;
+        let det = h00 * c00 + h01 * c01 + h02 * c02;
+        let pd = h00.gt(eps) & (h00 * h11 - h01 * h01).gt(eps2) & det.gt(eps3);
+        let g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+        let c11 = h00 * h22 - h02 * h02;
+        let c12 = h01 * h02 - h00 * h12;
+        let c22 = h00 * h11 - h01 * h01;
+        let inv = S::splat(1.0) / det;
+        let mut w = [
+            (c00 * g[0] + c01 * g[1] + c02 * g[2]) * inv,
+            (c01 * g[0] + c11 * g[1] + c12 * g[2]) * inv,
+            (c02 * g[0] + c12 * g[1] + c22 * g[2]) * inv,
+        ];
+        let len2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+        let long = len2.gt(S::splat(1.0));
+        if long != 0 {
+            let s = S::splat(1.0) / len2.sqrt();
+            for x in &mut w {
+                *x = S::select(long, *x * s, *x);
+            }
+        }
+        let hf = S::splat(0.5);
+        let next = quat_mul(q, &[S::splat(1.0), hf * w[0], hf * w[1], hf * w[2]]);
+        svd |= active & !pd;
+        let update = active & pd & g2.gt(tiny);
+        active = update & !len2.lt(tol2);
+        for c in 0..4 {
+            q[c] = S::select(update, next[c], q[c]);
+        }
+    }
+    svd | active
+}
+
+#[inline(always)]
+fn quat_mul<S: Simd>(a: &[S; 4], b: &[S; 4]) -> [S; 4] {
+    let q = [
+        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
+    ];
+    let s = S::splat(1.0) / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+    [q[0] * s, q[1] * s, q[2] * s, q[3] * s]
+}
+
+#[inline(always)]
+fn quat_to_mat<S: Simd>(q: &[S; 4]) -> [[S; 3]; 3] {
+    let [w, x, y, z] = *q;
+    let (xx, yy, zz) = (x * x, y * y, z * z);
+    let (xy, xz, yz) = (x * y, x * z, y * z);
+    let (wx, wy, wz) = (w * x, w * y, w * z);
+    let (one, two) = (S::splat(1.0), S::splat(2.0));
+    [
+        [one - two * (yy + zz), two * (xy - wz), two * (xz + wy)],
+        [two * (xy + wz), one - two * (xx + zz), two * (yz - wx)],
+        [two * (xz - wy), two * (yz + wx), one - two * (xx + yy)],
+    ]
+}
+
+#[inline(always)]
+fn quat_to_mat_minus_identity<S: Simd>(q: &[S; 4]) -> [[S; 3]; 3] {
+    let [w, x, y, z] = *q;
+    let (xx, yy, zz) = (x * x, y * y, z * z);
+    let (xy, xz, yz) = (x * y, x * z, y * z);
+    let (wx, wy, wz) = (w * x, w * y, w * z);
+    let (m2, two) = (S::splat(-2.0), S::splat(2.0));
+    [
+        [m2 * (yy + zz), two * (xy - wz), two * (xz + wy)],
+        [two * (xy + wz), m2 * (xx + zz), two * (yz - wx)],
+        [two * (xz - wy), two * (yz + wx), m2 * (xx + yy)],
+    ]
+}
+
+/// `aᵀ b`.
+#[inline(always)]
+fn mat_t_mul<S: Simd>(a: &[[S; 3]; 3], b: &[[S; 3]; 3]) -> [[S; 3]; 3] {
+    let mut m = [[S::splat(0.0); 3]; 3];
+    for r in 0..3 {
+        for c in 0..3 {
+            m[r][c] = a[0][r] * b[0][c] + a[1][r] * b[1][c] + a[2][r] * b[2][c];
+        }
+    }
+    m
+}
+
+#[inline(always)]
+fn mat_vec<S: Simd>(m: &[[S; 3]; 3], v: &[S; 3]) -> [S; 3] {
+    [
+        m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2],
+        m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
+        m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2],
+    ]
+}
+
+/// One value per lane, with lane-wise arithmetic; comparisons return a bit mask (bit `l` for
+/// lane `l`, set where the IEEE comparison holds: never for NaN).
+trait Simd:
+    Copy
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+{
+    fn splat(x: f64) -> Self;
+    fn new(x: Lanes) -> Self;
+    fn load(x: &Lanes) -> Self;
+    fn to_array(self) -> Lanes;
+    fn sqrt(self) -> Self;
+    fn gt(self, o: Self) -> u8;
+    fn lt(self, o: Self) -> u8;
+    /// `a` on the lanes set in `m`, `b` elsewhere.
+    fn select(m: u8, a: Self, b: Self) -> Self;
+}
+
+/// Plain arrays: what the compiler makes of them (the fallback without AVX).
+#[derive(Debug, Clone, Copy)]
+struct Portable(Lanes);
+
+impl Simd for Portable {
+    #[inline(always)]
+    fn splat(x: f64) -> Self {
+        Portable([x; LANES])
+    }
+    #[inline(always)]
+    fn new(x: Lanes) -> Self {
+        Portable(x)
+    }
+    #[inline(always)]
+    fn load(x: &Lanes) -> Self {
+        Portable(*x)
+    }
+    #[inline(always)]
+    fn to_array(self) -> Lanes {
+        self.0
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        let mut r = self.0;
+        for x in &mut r {
+            *x = x.sqrt();
+        }
+        Portable(r)
+    }
+    #[inline(always)]
+    fn gt(self, o: Self) -> u8 {
+        let mut m = 0;
+        for l in 0..LANES {
+            m |= ((self.0[l] > o.0[l]) as u8) << l;
+        }
+        m
+    }
+    #[inline(always)]
+    fn lt(self, o: Self) -> u8 {
+        o.gt(self)
+    }
+    #[inline(always)]
+    fn select(m: u8, a: Self, b: Self) -> Self {
+        let mut r = b.0;
+        for l in 0..LANES {
+            if m & (1 << l) != 0 {
+                r[l] = a.0[l];
+            }
+        }
+        Portable(r)
+    }
+}
+
+macro_rules! lanewise {
+    ($trait:ident, $f:ident, $op:tt) => {
+        impl $trait for Portable {
+            type Output = Portable;
+            #[inline(always)]
+            fn $f(self, o: Portable) -> Portable {
+                let mut r = [0.0; LANES];
+                for l in 0..LANES {
+                    r[l] = self.0[l] $op o.0[l];
+                }
+                Portable(r)
+            }
+        }
+    };
+}
+lanewise!(Add, add, +);
+lanewise!(Sub, sub, -);
+lanewise!(Mul, mul, *);
+lanewise!(Div, div, /);
+
+impl Neg for Portable {
+    type Output = Portable;
+    #[inline(always)]
+    fn neg(self) -> Portable {
+        let mut r = self.0;
+        for x in &mut r {
+            *x = -*x;
+        }
+        Portable(r)
+    }
+}
+
+/// AVX registers. Only built inside the `#[target_feature(enable = "avx")]` kernels, which
+/// run only where the CPU has AVX; every method is inlined into them.
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use super::{Lanes, Simd, LANES};
+    use std::arch::x86_64::*;
+    use std::ops::{Add, Div, Mul, Neg, Sub};
+
+    const _: () = assert!(LANES == 4, "one __m256d holds four lanes");
+
+    #[derive(Clone, Copy)]
+    pub(super) struct Avx(__m256d);
+
+    // SAFETY (every `unsafe` block below): an `Avx` exists only inside the AVX kernels, which
+    // are called only after checking that the CPU has AVX; the loads and stores are of whole
+    // `[f64; 4]` arrays.
+    impl Simd for Avx {
+        #[inline(always)]
+        fn splat(x: f64) -> Self {
+            Avx(unsafe { _mm256_set1_pd(x) })
+        }
+        #[inline(always)]
+        fn new(x: Lanes) -> Self {
+            Avx(unsafe { _mm256_set_pd(x[3], x[2], x[1], x[0]) })
+        }
+        #[inline(always)]
+        fn load(x: &Lanes) -> Self {
+            Avx(unsafe { _mm256_loadu_pd(x.as_ptr()) })
+        }
+        #[inline(always)]
+        fn to_array(self) -> Lanes {
+            let mut r = [0.0; 4];
+            unsafe { _mm256_storeu_pd(r.as_mut_ptr(), self.0) };
+            r
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            Avx(unsafe { _mm256_sqrt_pd(self.0) })
+        }
+        #[inline(always)]
+        fn gt(self, o: Self) -> u8 {
+            unsafe { _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(self.0, o.0)) as u8 }
+        }
+        #[inline(always)]
+        fn lt(self, o: Self) -> u8 {
+            unsafe { _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_LT_OQ>(self.0, o.0)) as u8 }
+        }
+        #[inline(always)]
+        fn select(m: u8, a: Self, b: Self) -> Self {
+            let bit = |l: u8| if m & (1 << l) != 0 { -1i64 } else { 0 };
+            unsafe {
+                let mask = _mm256_castsi256_pd(_mm256_set_epi64x(bit(3), bit(2), bit(1), bit(0)));
+                Avx(_mm256_blendv_pd(b.0, a.0, mask))
+            }
+        }
+    }
+
+    macro_rules! avx_op {
+        ($trait:ident, $f:ident, $intr:ident) => {
+            impl $trait for Avx {
+                type Output = Avx;
+                #[inline(always)]
+                fn $f(self, o: Avx) -> Avx {
+                    Avx(unsafe { $intr(self.0, o.0) })
+                }
+            }
+        };
+    }
+    avx_op!(Add, add, _mm256_add_pd);
+    avx_op!(Sub, sub, _mm256_sub_pd);
+    avx_op!(Mul, mul, _mm256_mul_pd);
+    avx_op!(Div, div, _mm256_div_pd);
+
+    impl Neg for Avx {
+        type Output = Avx;
+        #[inline(always)]
+        fn neg(self) -> Avx {
+            Avx(unsafe { _mm256_xor_pd(self.0, _mm256_set1_pd(-0.0)) })
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::element::{apply_stiffness, lame};
+    use super::super::{element_forces, FemMode};
+    use super::*;
+
+    /// A small irregular mesh: random points in a unit cube, tetrahedra from a lattice of
+    /// jittered cubes (5 of each kind per cube; degenerate ones skipped).
+    fn elements() -> (Vec<Element>, Vec<[f64; 3]>) {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let n = 4;
+        let mut nodes = Vec::new();
+        for i in 0..n {
+            for j in 0..n {
+                for k in 0..n {
+                    nodes.push([
+                        i as f64 + 0.2 * rnd(),
+                        j as f64 + 0.2 * rnd(),
+                        k as f64 + 0.2 * rnd(),
+                    ]);
+                }
+            }
+        }
+        let id = |i: usize, j: usize, k: usize| (i * n * n + j * n + k) as u32;
+        let mut els = Vec::new();
+        for i in 0..n - 1 {
+            for j in 0..n - 1 {
+                for k in 0..n - 1 {
+                    let c = [
+                        id(i, j, k),
+                        id(i + 1, j, k),
+                        id(i, j + 1, k),
+                        id(i + 1, j + 1, k),
+                        id(i, j, k + 1),
+                        id(i + 1, j, k + 1),
+                        id(i, j + 1, k + 1),
+                        id(i + 1, j + 1, k + 1),
+                    ];
+                    for t in [
+                        [0, 1, 3, 5],
+                        [0, 3, 2, 6],
+                        [0, 5, 4, 6],
+                        [3, 5, 6, 7],
+                        [0, 3, 5, 6],
+                    ] {
+                        let mut tn = t.map(|v| c[v]);
+                        let corners = |tn: [u32; 4]| tn.map(|v| nodes[v as usize]);
+                        let e = Element::new(tn, corners(tn)).or_else(|| {
+                            tn.swap(0, 1);
+                            Element::new(tn, corners(tn))
+                        });
+                        els.extend(e);
+                    }
+                }
+            }
+        }
+        (els, nodes)
+    }
+
+    #[test]
+    fn batched_forces_and_products_are_the_scalar_ones() {
+        let (els, nodes) = elements();
+        let n = nodes.len();
+        assert!(
+            els.len() % LANES != 0 && els.len() > 100,
+            "{} elements",
+            els.len()
+        );
+        let (lambda, mu) = lame(3000.0, 0.45);
+        // Every seventh node held.
+        let dof: Vec<u32> = (0..n as u32)
+            .map(|i| if i % 7 == 3 { NONE } else { 3 * i })
+            .collect();
+        // The dispatching entry points (AVX on a CPU that has it) and the portable kernels.
+        let mut native = Batches::new(&els, &dof, lambda, mu);
+        let mut portable = native.clone();
+        let mut inverted = 0;
+        let mut rot = vec![QUAT_IDENTITY; els.len()];
+        let mut seed = 7u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        // Three steps of a rotating, stretching, partly inverting motion: warm starts, Newton,
+        // and the SVD fallback (inverted elements) all run.
+        for step in 0..3 {
+            let angle = 0.6 * step as f64;
+            let (s, c) = angle.sin_cos();
+            let u: Vec<[f64; 3]> = (0..n)
+                .map(|i| {
+                    let p = nodes[i];
+                    let x = [c * p[0] - s * p[1], s * p[0] + c * p[1], 1.3 * p[2]];
+                    let jitter = if i % 11 == 0 { 3.0 } else { 0.05 };
+                    [
+                        x[0] - p[0] + jitter * rnd(),
+                        x[1] - p[1] + jitter * rnd(),
+                        x[2] - p[2] + jitter * rnd(),
+                    ]
+                })
+                .collect();
+            let mut want = vec![[0.0; 3]; n];
+            let mut want_grads = Vec::new();
+            for (e, el) in els.iter().enumerate() {
+                let mut f = el.displacement_gradient(&u);
+                for (k, row) in f.iter_mut().enumerate() {
+                    row[k] += 1.0;
+                }
+                let det = f[0][0] * (f[1][1] * f[2][2] - f[1][2] * f[2][1])
+                    - f[0][1] * (f[1][0] * f[2][2] - f[1][2] * f[2][0])
+                    + f[0][2] * (f[1][0] * f[2][1] - f[1][1] * f[2][0]);
+                inverted += (det <= 0.0) as usize;
+                let (f, g) = element_forces(el, &u, FemMode::Corotational, lambda, mu, &mut rot[e]);
+                for k in 0..4 {
+                    for c in 0..3 {
+                        want[el.nodes[k] as usize][c] += f[k][c];
+                    }
+                }
+                want_grads.push(g);
+            }
+            let mut got = vec![[0.0; 3]; n];
+            native.corotational_forces(&u, lambda, mu, &mut got);
+            assert_eq!(got, want, "forces, step {step}");
+            let mut got = vec![[0.0; 3]; n];
+            portable.forces_impl::<Portable>(&u, lambda, mu, &mut got);
+            assert_eq!(got, want, "portable forces, step {step}");
+            for b in [&native, &portable] {
+                for e in 0..els.len() {
+                    assert_eq!(b.rotation(e), rot[e], "rotation of element {e}");
+                    let w = b.warped_gradients(e);
+                    assert_eq!(w, want_grads[e], "gradients of element {e}");
+                }
+            }
+            // The product, against the scalar one.
+            let p: Vec<f64> = (0..3 * n).map(|_| rnd()).collect();
+            let mut want_q = vec![0.5; 3 * n];
+            for (e, el) in els.iter().enumerate() {
+                let d = el.nodes.map(|v| dof[v as usize]);
+                let pe = d.map(|d| {
+                    if d == NONE {
+                        [0.0; 3]
+                    } else {
+                        [p[d as usize], p[d as usize + 1], p[d as usize + 2]]
+                    }
+                });
+                let out = apply_stiffness(&want_grads[e], el.volume * lambda, el.volume * mu, &pe);
+                for k in 0..4 {
+                    if d[k] != NONE {
+                        for c in 0..3 {
+                            want_q[d[k] as usize + c] += out[k][c];
+                        }
+                    }
+                }
+            }
+            let mut got_q = vec![0.5; 3 * n];
+            native.add_stiffness_product(&p, &mut got_q);
+            assert_eq!(got_q, want_q, "product, step {step}");
+            let mut got_q = vec![0.5; 3 * n];
+            portable.product_impl::<Portable>(&p, &mut got_q);
+            assert_eq!(got_q, want_q, "portable product, step {step}");
+        }
+        // The SVD fallback ran (inverted elements), and so did Newton (most of them).
+        assert!(inverted > 10 && inverted < els.len(), "{inverted} inverted");
+    }
+}
