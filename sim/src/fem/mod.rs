@@ -174,8 +174,8 @@
 
 mod batch;
 pub(crate) mod element;
-mod half;
 mod ordering;
+mod packed;
 mod rotation;
 mod shapes;
 mod system;

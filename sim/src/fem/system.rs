@@ -35,8 +35,8 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
 use super::element::{stiffness_block, Element};
-use super::half::HalfFactor;
 use super::ordering::{self, Graph};
+use super::packed::{HalfFactor, PackedFactor};
 
 /// "No DOF" / "not stored" marker.
 pub(crate) const NONE: u32 = u32::MAX;
@@ -99,6 +99,14 @@ pub(crate) struct System {
     half_current: bool,
     /// Factor size (values) from which the half-precision copy is used: [`HALF_MIN_VALUES`].
     half_min_values: usize,
+    /// The double-precision supernodal factor repacked for our own solves (`packed.rs`;
+    /// allocated on first use), and whether it holds the current factor: the double-precision
+    /// solves use it instead of faer's (faster at every size measured: the linear liver's
+    /// solve pair 100 → 74 µs, the 100k-tetrahedra box's 47 → 36 ms). `use_packed` is off
+    /// only in tests, for faer's solve as the reference.
+    packed: Option<PackedFactor<f64>>,
+    packed_current: bool,
+    use_packed: bool,
     /// Scratch memory for faer's factorisation and solve.
     work: Workspace,
     /// Numeric factorisations attempted so far (for benchmarks).
@@ -283,6 +291,9 @@ impl System {
             half: None,
             half_current: false,
             half_min_values: HALF_MIN_VALUES,
+            packed: None,
+            packed_current: false,
+            use_packed: true,
             work: Workspace::new(req)?,
             factorizations: 0,
             ordering: chosen,
@@ -413,6 +424,7 @@ impl System {
     pub fn factorize(&mut self, precision: Precision) -> Result<(), NotPositiveDefinite> {
         self.current = None;
         self.half_current = false;
+        self.packed_current = false;
         self.factorizations += 1;
         let side = if self.is_supernodal() {
             Side::Lower
@@ -470,6 +482,13 @@ impl System {
                 self.half_current = half.fill(sn, &self.l32, |i| values[diag[i] as usize]);
             }
         }
+        if ok && precision == Precision::Double && self.use_packed {
+            if let SymbolicCholeskyRaw::Supernodal(sn) = self.symbolic.raw() {
+                let packed = self.packed.get_or_insert_with(|| PackedFactor::new(sn));
+                let (values, diag) = (&self.values, &self.diag);
+                self.packed_current = packed.fill(sn, &self.l64, |i| values[diag[i] as usize]);
+            }
+        }
         if ok {
             self.current = Some(precision);
             Ok(())
@@ -487,6 +506,11 @@ impl System {
         }
         let stack = MemStack::new(&mut self.work.buf);
         match self.current {
+            Some(Precision::Double) if self.packed_current => {
+                if let Some(packed) = &mut self.packed {
+                    packed.solve_in_place(rhs);
+                }
+            }
             Some(Precision::Double) => LltRef::<u32, f64>::new(&self.symbolic, &self.l64)
                 .solve_in_place_with_conj(
                     Conj::No,
@@ -672,6 +696,9 @@ impl Clone for System {
             half: self.half.clone(),
             half_current: self.half_current,
             half_min_values: self.half_min_values,
+            packed: self.packed.clone(),
+            packed_current: self.packed_current,
+            use_packed: self.use_packed,
             work: self.work.clone(),
             factorizations: self.factorizations,
             ordering: self.ordering,
@@ -698,10 +725,11 @@ mod tests {
     use crate::fem::element::lame;
     use crate::fem::shapes::box_mesh;
 
-    /// The half-precision solve (SIMD and portable kernels) agrees with the double-precision
-    /// one to about binary16's rounding, on a soft bar's `K̃` (forced supernodal).
+    /// The packed double-precision solve agrees with faer's to rounding, and the
+    /// half-precision one to about binary16's rounding (SIMD and portable kernels), on a soft
+    /// bar's `K̃` (forced supernodal).
     #[test]
-    fn half_precision_solve_matches_double() {
+    fn packed_solves_match_faer() {
         let mesh = box_mesh([0.2, 0.1, 0.1], [8, 4, 4], |p| p[0] < 1e-9);
         let elements: Vec<Element> = mesh
             .tets
@@ -734,12 +762,38 @@ mod tests {
         }
         let n = sys.n_dof;
         let b: Vec<f64> = (0..n).map(|i| ((i * 37) % 17) as f64 - 8.0).collect();
+        sys.use_packed = false;
         sys.factorize(Precision::Double).unwrap();
+        assert!(!sys.packed_current);
         let mut exact = b.clone();
         sys.solve_in_place(&mut exact);
+        let norm = exact.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let error = |x: &[f64]| {
+            let e2 = x
+                .iter()
+                .zip(&exact)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>();
+            e2.sqrt() / norm
+        };
+        // The packed double-precision solve: faer's to rounding.
+        sys.use_packed = true;
+        sys.factorize(Precision::Double).unwrap();
+        assert!(sys.packed_current);
+        for simd in [true, false] {
+            if let Some(p) = &mut sys.packed {
+                p.force_portable(!simd);
+            }
+            let mut x = b.clone();
+            sys.solve_in_place(&mut x);
+            assert!(
+                error(&x) < 1e-13,
+                "packed, simd {simd}: relative error {}",
+                error(&x)
+            );
+        }
         sys.factorize(Precision::Single).unwrap();
         assert!(sys.half_current);
-        let norm = exact.iter().map(|v| v * v).sum::<f64>().sqrt();
         for simd in [true, false] {
             if let Some(h) = &mut sys.half {
                 h.force_portable(!simd);

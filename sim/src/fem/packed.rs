@@ -1,11 +1,12 @@
-//! The corotational preconditioner's Cholesky factor stored in half precision (IEEE binary16),
-//! with its own supernodal triangular solves.
+//! Supernodal Cholesky factors repacked for our own triangular solves: in half precision
+//! (IEEE binary16) for the corotational preconditioner of the large meshes, and in double
+//! precision for the direct solves of the small ones.
 //!
-//! A preconditioner solve is memory-bound: it streams the factor twice (forward and backward)
-//! and does two flops per value read. faer's single-precision factor of the 50k-tetrahedra box
-//! is 64 MB, of which 11 MB are the unused upper triangles of the supernodes' dense diagonal
-//! blocks. This copy keeps only the lower triangles, in 16-bit floats: 27 MB, under half the
-//! traffic.
+//! Half precision. A preconditioner solve is memory-bound: it streams the factor twice
+//! (forward and backward) and does two flops per value read. faer's single-precision factor of
+//! the 50k-tetrahedra box is 64 MB, of which 11 MB are the unused upper triangles of the
+//! supernodes' dense diagonal blocks. The half copy keeps only the lower triangles, in 16-bit
+//! floats: 27 MB, under half the traffic.
 //!
 //! Range and accuracy: binary16 has 11 significant bits and normal numbers down to 2⁻¹⁴. The
 //! factor is stored symmetrically scaled, `L̂ = D L` with `D = diag(A)^(−½)`: `L̂ L̂ᵀ = D A D`
@@ -16,6 +17,16 @@
 //! in double precision in its flexible form, which absorbs a preconditioner's rounding). The
 //! diagonal of `L̂` is kept apart, inverted, in `f32`; the solves compute in `f32`.
 //!
+//! Double precision. On the organ meshes the factor (1.3 MB on the liver) sits in a core's L2
+//! cache, and faer's general supernodal solve spends most of its time on per-supernode
+//! overhead (block views, dispatch to its dense kernels sized for large blocks): the linear
+//! liver's solve pair took 100 µs for 157k values. The same packed layout, sweeps and kernel
+//! shapes in `f64` (scaled the same way, which costs nothing in accuracy: faer's result to
+//! 1e-13, tested) take 74 µs; what is left is mostly the chain of short column operations in
+//! the diagonal blocks, each waiting for the last. On large factors, where the solve streams
+//! from memory, dropping the unused upper triangles helps too (100k-tetrahedra box: 47 →
+//! 36 ms per solve pair).
+//!
 //! Layout, per supernode of `w` columns starting at column `s` with `m` rows below its
 //! diagonal block: the strictly lower triangle of the diagonal block, column by column
 //! (column `j` holds rows `j+1..w`), then the `m × w` panel below it, column-major. The
@@ -23,15 +34,155 @@
 //! buffer of the panel's rows, four panel columns at a time); the backward solve is
 //! dot products on the same columns.
 //!
-//! Used for factors of at least `system::HALF_MIN_VALUES` values: smaller ones are solved in
-//! single precision (cache-resident, and accurate enough for one-iteration CG steps).
-//!
-//! The kernels use AVX2, FMA and F16C when the CPU has them (checked at run time), and portable
-//! scalar code otherwise.
+//! The kernels use AVX2 and FMA (and F16C for binary16) when the CPU has them (checked at run
+//! time), and portable scalar code otherwise.
+
+use std::fmt::Debug;
+use std::iter::Sum;
+use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub, SubAssign};
 
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
 
-/// One supernode of the half-precision factor.
+/// The arithmetic of the solves: `f32` or `f64`.
+pub(crate) trait Real:
+    Copy
+    + Debug
+    + PartialOrd
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+    + AddAssign
+    + SubAssign
+    + Sum
+{
+    const ZERO: Self;
+    const ONE: Self;
+    fn from_f64(x: f64) -> Self;
+    fn to_f64(self) -> f64;
+    fn finite(self) -> bool;
+}
+
+impl Real for f32 {
+    const ZERO: f32 = 0.0;
+    const ONE: f32 = 1.0;
+    #[inline(always)]
+    fn from_f64(x: f64) -> f32 {
+        x as f32
+    }
+    #[inline(always)]
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+    #[inline(always)]
+    fn finite(self) -> bool {
+        self.is_finite()
+    }
+}
+
+impl Real for f64 {
+    const ZERO: f64 = 0.0;
+    const ONE: f64 = 1.0;
+    #[inline(always)]
+    fn from_f64(x: f64) -> f64 {
+        x
+    }
+    #[inline(always)]
+    fn to_f64(self) -> f64 {
+        self
+    }
+    #[inline(always)]
+    fn finite(self) -> bool {
+        self.is_finite()
+    }
+}
+
+/// A stored factor value: binary16 bits (`u16`, solved in `f32`) or `f64`.
+pub(crate) trait Value: Copy + Default + Debug + 'static {
+    /// The type the solves compute in, and faer's factor values are in.
+    type Acc: Real;
+    /// The value as `Acc`.
+    fn widen(self) -> Self::Acc;
+    /// `dst[i] = src[i] · scale[i]`, rounded to `Self`.
+    fn pack(dst: &mut [Self], src: &[Self::Acc], scale: &[Self::Acc], simd: bool);
+    /// Whether the SIMD kernels for this type can run here.
+    fn simd_available() -> bool;
+    /// The sweeps with the SIMD kernels.
+    ///
+    /// # Safety
+    /// Only where [`Value::simd_available`] holds.
+    unsafe fn sweeps_simd(f: &mut PackedFactor<Self>);
+}
+
+impl Value for u16 {
+    type Acc = f32;
+    #[inline(always)]
+    fn widen(self) -> f32 {
+        f16_to_f32(self)
+    }
+    fn pack(dst: &mut [u16], src: &[f32], scale: &[f32], simd: bool) {
+        convert_scaled(dst, src, scale, simd);
+    }
+    fn simd_available() -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            is_x86_feature_detected!("avx2")
+                && is_x86_feature_detected!("fma")
+                && is_x86_feature_detected!("f16c")
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            false
+        }
+    }
+    unsafe fn sweeps_simd(f: &mut PackedFactor<u16>) {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the caller checked the features.
+        unsafe {
+            avx2::sweeps_half(f)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        f.sweeps::<Scalar>();
+    }
+}
+
+impl Value for f64 {
+    type Acc = f64;
+    #[inline(always)]
+    fn widen(self) -> f64 {
+        self
+    }
+    fn pack(dst: &mut [f64], src: &[f64], scale: &[f64], _simd: bool) {
+        for ((d, s), c) in dst.iter_mut().zip(src).zip(scale) {
+            *d = s * c;
+        }
+    }
+    fn simd_available() -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            false
+        }
+    }
+    unsafe fn sweeps_simd(f: &mut PackedFactor<f64>) {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the caller checked the features.
+        unsafe {
+            avx2::sweeps_double(f)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        f.sweeps::<Scalar>();
+    }
+}
+
+/// The half-precision preconditioner factor.
+pub(crate) type HalfFactor = PackedFactor<u16>;
+
+/// One supernode of a packed factor.
 #[derive(Debug, Clone, Copy)]
 struct Supernode {
     /// First column.
@@ -45,28 +196,28 @@ struct Supernode {
     vals: usize,
 }
 
-/// A supernodal Cholesky factor in half precision (see the module docs).
+/// A supernodal Cholesky factor, scaled and packed (see the module docs).
 #[derive(Debug, Clone)]
-pub(crate) struct HalfFactor {
+pub(crate) struct PackedFactor<V: Value> {
     nodes: Vec<Supernode>,
     /// Below-diagonal row indices of every supernode, concatenated.
     rows: Vec<u32>,
-    /// binary16 bit patterns of the scaled factor's off-diagonal entries.
-    vals: Vec<u16>,
+    /// The scaled factor's off-diagonal entries.
+    vals: Vec<V>,
     /// Per column: `1 / L̂_jj`.
-    inv_diag: Vec<f32>,
+    inv_diag: Vec<V::Acc>,
     /// Per row: `dᵢ = A_ii^(−½)`.
-    scale: Vec<f32>,
+    scale: Vec<V::Acc>,
     /// Scratch: the vector being solved for (`n`), and a supernode's gathered rows or scale
     /// factors (the largest `w + m`).
-    x: Vec<f32>,
-    tmp: Vec<f32>,
+    x: Vec<V::Acc>,
+    tmp: Vec<V::Acc>,
     simd: bool,
 }
 
-impl HalfFactor {
+impl<V: Value> PackedFactor<V> {
     /// Allocates the factor for this supernodal structure (values unset).
-    pub fn new(sn: &SymbolicSupernodalCholesky<u32>) -> HalfFactor {
+    pub fn new(sn: &SymbolicSupernodalCholesky<u32>) -> PackedFactor<V> {
         let n = sn.nrows();
         let mut nodes = Vec::with_capacity(sn.n_supernodes());
         let mut vals = 0usize;
@@ -86,23 +237,23 @@ impl HalfFactor {
             vals += w * (w - 1) / 2 + w * m;
             widest = widest.max(w + m);
         }
-        HalfFactor {
+        PackedFactor {
             nodes,
             rows: sn.row_idx().to_vec(),
-            // Eight more: the SIMD kernels read a column's last values eight at a time.
-            vals: vec![0; vals + 8],
-            inv_diag: vec![0.0; n],
-            scale: vec![0.0; n],
-            x: vec![0.0; n],
-            tmp: vec![0.0; widest],
-            simd: simd_available(),
+            // Eight more: the SIMD kernels read a column's last values up to eight at a time.
+            vals: vec![V::default(); vals + 8],
+            inv_diag: vec![V::Acc::ZERO; n],
+            scale: vec![V::Acc::ZERO; n],
+            x: vec![V::Acc::ZERO; n],
+            tmp: vec![V::Acc::ZERO; widest],
+            simd: V::simd_available(),
         }
     }
 
     /// Uses the portable kernels even where the SIMD ones could run (tests).
     #[cfg(test)]
     pub fn force_portable(&mut self, portable: bool) {
-        self.simd = !portable && simd_available();
+        self.simd = !portable && V::simd_available();
     }
 
     /// Fills the factor from faer's supernodal values `l` of `A = L Lᵀ` (its layout: per
@@ -112,7 +263,7 @@ impl HalfFactor {
     pub fn fill(
         &mut self,
         sn: &SymbolicSupernodalCholesky<u32>,
-        l: &[f32],
+        l: &[V::Acc],
         diag: impl Fn(usize) -> f64,
     ) -> bool {
         for (i, d) in self.scale.iter_mut().enumerate() {
@@ -120,7 +271,7 @@ impl HalfFactor {
             if !(a > 0.0 && a.is_finite()) {
                 return false;
             }
-            *d = (1.0 / a.sqrt()) as f32;
+            *d = V::Acc::from_f64(1.0 / a.sqrt());
         }
         let mut ok = true;
         for (k, node) in self.nodes.iter().enumerate() {
@@ -139,17 +290,17 @@ impl HalfFactor {
             for j in 0..w {
                 let col = &src[j * (w + m)..(j + 1) * (w + m)];
                 let d = col[j] * tmp[j];
-                ok &= d > 0.0 && d.is_finite();
-                self.inv_diag[s + j] = 1.0 / d;
+                ok &= d > V::Acc::ZERO && d.finite();
+                self.inv_diag[s + j] = V::Acc::ONE / d;
                 let below = w - 1 - j;
-                convert_scaled(
+                V::pack(
                     &mut tri[at..at + below],
                     &col[j + 1..w],
                     &tmp[j + 1..w],
                     self.simd,
                 );
                 at += below;
-                convert_scaled(
+                V::pack(
                     &mut panel[j * m..(j + 1) * m],
                     &col[w..],
                     &tmp[w..],
@@ -163,31 +314,22 @@ impl HalfFactor {
     /// Solves `A x = rhs` in place (`A ≈ L Lᵀ`).
     pub fn solve_in_place(&mut self, rhs: &mut [f64]) {
         for ((x, r), d) in self.x.iter_mut().zip(rhs.iter()).zip(&self.scale) {
-            *x = *r as f32 * d;
+            *x = V::Acc::from_f64(*r) * *d;
         }
-        #[cfg(target_arch = "x86_64")]
         if self.simd {
-            // SAFETY: `simd` is set only when the CPU has AVX2, FMA and F16C.
-            unsafe { self.sweeps_avx2() };
+            // SAFETY: `simd` is set only when the CPU has the kernels' features.
+            unsafe { V::sweeps_simd(self) };
         } else {
             self.sweeps::<Scalar>();
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        self.sweeps::<Scalar>();
         for ((r, x), d) in rhs.iter_mut().zip(&self.x).zip(&self.scale) {
-            *r = f64::from(x * d);
+            *r = (*x * *d).to_f64();
         }
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma,f16c")]
-    unsafe fn sweeps_avx2(&mut self) {
-        self.sweeps::<avx2::Avx2>();
     }
 
     /// Forward (`L̂ y = x`) and backward (`L̂ᵀ x = y`) substitution on `x`.
     #[inline(always)]
-    fn sweeps<K: Kernels>(&mut self) {
+    fn sweeps<K: Kernels<V>>(&mut self) {
         let x = &mut self.x[..];
         let vals = &self.vals[..];
         // The `len` values from `at`, and the padding up to a multiple of eight (the kernels'
@@ -207,7 +349,7 @@ impl HalfFactor {
                 at += below;
             }
             let acc = &mut self.tmp[..m];
-            acc.fill(0.0);
+            acc.fill(V::Acc::ZERO);
             let mut j = 0;
             while j + 4 <= w {
                 let c = |k: usize| col(panel + (j + k) * m, m);
@@ -220,7 +362,7 @@ impl HalfFactor {
                 j += 1;
             }
             for (a, &r) in acc.iter().zip(rows) {
-                x[r as usize] -= a;
+                x[r as usize] -= *a;
             }
         }
         for node in self.nodes.iter().rev() {
@@ -256,20 +398,6 @@ impl HalfFactor {
     }
 }
 
-/// Whether the SIMD kernels can run here.
-fn simd_available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        is_x86_feature_detected!("avx2")
-            && is_x86_feature_detected!("fma")
-            && is_x86_feature_detected!("f16c")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
 /// `dst[i] = f16(src[i] · scale[i])`.
 fn convert_scaled(dst: &mut [u16], src: &[f32], scale: &[f32], simd: bool) {
     #[cfg(target_arch = "x86_64")]
@@ -284,59 +412,72 @@ fn convert_scaled(dst: &mut [u16], src: &[f32], scale: &[f32], simd: bool) {
     }
 }
 
-/// The vector kernels of the sweeps, on binary16 columns and `f32` vectors. The columns `x`
-/// hold at least `n` values rounded up to a multiple of eight, where `n` is the length of the
-/// `f32` vector `y`; only the first `n` count (the others must be finite).
-trait Kernels {
+/// The vector kernels of the sweeps, on columns of stored values `V` and vectors of `V::Acc`.
+/// The columns `x` hold at least `n` values rounded up to a multiple of eight, where `n` is
+/// the length of the vector `y`; only the first `n` count (the others must be finite).
+trait Kernels<V: Value> {
     /// `y += a x`.
-    fn axpy(y: &mut [f32], a: f32, x: &[u16]);
+    fn axpy(y: &mut [V::Acc], a: V::Acc, x: &[V]);
     /// `y += Σₖ aₖ xₖ`.
-    fn axpy4(y: &mut [f32], a: [f32; 4], x: [&[u16]; 4]);
+    fn axpy4(y: &mut [V::Acc], a: [V::Acc; 4], x: [&[V]; 4]);
     /// `xᵀ y`.
-    fn dot(x: &[u16], y: &[f32]) -> f32;
+    fn dot(x: &[V], y: &[V::Acc]) -> V::Acc;
     /// `xₖᵀ y` for each `k`.
-    fn dot4(x: [&[u16]; 4], y: &[f32]) -> [f32; 4];
+    fn dot4(x: [&[V]; 4], y: &[V::Acc]) -> [V::Acc; 4];
 }
 
 /// Portable kernels.
 struct Scalar;
 
-impl Kernels for Scalar {
+impl<V: Value> Kernels<V> for Scalar {
     #[inline(always)]
-    fn axpy(y: &mut [f32], a: f32, x: &[u16]) {
+    fn axpy(y: &mut [V::Acc], a: V::Acc, x: &[V]) {
         for (y, &x) in y.iter_mut().zip(x) {
-            *y += a * f16_to_f32(x);
+            *y += a * x.widen();
         }
     }
     #[inline(always)]
-    fn axpy4(y: &mut [f32], a: [f32; 4], x: [&[u16]; 4]) {
+    fn axpy4(y: &mut [V::Acc], a: [V::Acc; 4], x: [&[V]; 4]) {
         assert!(x.iter().all(|x| x.len() >= y.len()));
         for (i, y) in y.iter_mut().enumerate() {
-            *y += a[0] * f16_to_f32(x[0][i])
-                + a[1] * f16_to_f32(x[1][i])
-                + a[2] * f16_to_f32(x[2][i])
-                + a[3] * f16_to_f32(x[3][i]);
+            *y += a[0] * x[0][i].widen()
+                + a[1] * x[1][i].widen()
+                + a[2] * x[2][i].widen()
+                + a[3] * x[3][i].widen();
         }
     }
     #[inline(always)]
-    fn dot(x: &[u16], y: &[f32]) -> f32 {
-        y.iter().zip(x).map(|(y, &x)| f16_to_f32(x) * y).sum()
+    fn dot(x: &[V], y: &[V::Acc]) -> V::Acc {
+        y.iter().zip(x).map(|(&y, &x)| x.widen() * y).sum()
     }
     #[inline(always)]
-    fn dot4(x: [&[u16]; 4], y: &[f32]) -> [f32; 4] {
-        x.map(|x| Self::dot(x, y))
+    fn dot4(x: [&[V]; 4], y: &[V::Acc]) -> [V::Acc; 4] {
+        x.map(|x| <Self as Kernels<V>>::dot(x, y))
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    //! AVX2 + FMA + F16C kernels: eight lanes, binary16 converted by `vcvtph2ps`.
+    //! AVX2 + FMA (+ F16C) kernels: eight `f32` lanes, binary16 converted by `vcvtph2ps`;
+    //! four `f64` lanes.
 
     use std::arch::x86_64::*;
 
-    use super::{f32_to_f16, Kernels};
+    use super::{f32_to_f16, Kernels, PackedFactor};
 
     pub(super) struct Avx2;
+
+    /// The half-precision sweeps with these kernels.
+    #[target_feature(enable = "avx2,fma,f16c")]
+    pub(super) unsafe fn sweeps_half(f: &mut PackedFactor<u16>) {
+        f.sweeps::<Avx2>();
+    }
+
+    /// The double-precision sweeps with these kernels.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn sweeps_double(f: &mut PackedFactor<f64>) {
+        f.sweeps::<Avx2>();
+    }
 
     /// Lanes `0..rem` set (all of them for `rem` ≥ 8), for a vector's tail.
     #[inline]
@@ -506,7 +647,7 @@ mod avx2 {
         }
     }
 
-    impl Kernels for Avx2 {
+    impl Kernels<u16> for Avx2 {
         #[inline(always)]
         fn axpy(y: &mut [f32], a: f32, x: &[u16]) {
             // SAFETY: only instantiated inside `sweeps_avx2`, which requires the features.
@@ -526,6 +667,143 @@ mod avx2 {
         fn dot4(x: [&[u16]; 4], y: &[f32]) -> [f32; 4] {
             // SAFETY: as above.
             unsafe { dot4(x, y) }
+        }
+    }
+
+    /// Lanes `0..rem` set (all of them for `rem` ≥ 4), for an `f64` vector's tail.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn tail_mask_pd(rem: usize) -> __m256i {
+        _mm256_cmpgt_epi64(
+            _mm256_set1_epi64x(rem.min(4) as i64),
+            _mm256_setr_epi64x(0, 1, 2, 3),
+        )
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn hsum_pd(v: __m256d) -> f64 {
+        let s = _mm_add_pd(_mm256_castpd256_pd128(v), _mm256_extractf128_pd(v, 1));
+        _mm_cvtsd_f64(_mm_add_sd(s, _mm_unpackhi_pd(s, s)))
+    }
+
+    /// `y += Σₖ aₖ xₖ` over `K` `f64` columns, each holding at least `y.len()` rounded up to
+    /// four values.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn axpy_n_pd<const K: usize>(y: &mut [f64], a: [f64; K], x: [&[f64]; K]) {
+        let n = y.len();
+        assert!(x.iter().all(|x| x.len() >= n.next_multiple_of(4)));
+        let va = a.map(|a| _mm256_set1_pd(a));
+        let mut i = 0;
+        while i < n {
+            let rem = n - i;
+            // SAFETY: `y` is read and written below `n` (the last vector masked); each column
+            // has four readable values at `i` < `n` by the length asserted above.
+            unsafe {
+                let py = y.as_mut_ptr().add(i);
+                let mask = tail_mask_pd(rem);
+                let mut v = if rem >= 4 {
+                    _mm256_loadu_pd(py)
+                } else {
+                    _mm256_maskload_pd(py, mask)
+                };
+                for k in 0..K {
+                    v = _mm256_fmadd_pd(va[k], _mm256_loadu_pd(x[k].as_ptr().add(i)), v);
+                }
+                if rem >= 4 {
+                    _mm256_storeu_pd(py, v);
+                } else {
+                    _mm256_maskstore_pd(py, mask, v);
+                }
+            }
+            i += 4;
+        }
+    }
+
+    /// `xₖᵀ y` for `K` `f64` columns.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn dot_n_pd<const K: usize>(x: [&[f64]; K], y: &[f64]) -> [f64; K] {
+        let n = y.len();
+        assert!(x.iter().all(|x| x.len() >= n.next_multiple_of(4)));
+        let mut s = [_mm256_setzero_pd(); K];
+        let mut i = 0;
+        // SAFETY: every access is below `n` (the last vector of `y` masked), and each column
+        // has at least `n` rounded up to four values.
+        unsafe {
+            while i < n {
+                let vy = if n - i >= 4 {
+                    _mm256_loadu_pd(y.as_ptr().add(i))
+                } else {
+                    _mm256_maskload_pd(y.as_ptr().add(i), tail_mask_pd(n - i))
+                };
+                for k in 0..K {
+                    s[k] = _mm256_fmadd_pd(_mm256_loadu_pd(x[k].as_ptr().add(i)), vy, s[k]);
+                }
+                i += 4;
+            }
+        }
+        s.map(|s| hsum_pd(s))
+    }
+
+    /// `xᵀ y` for one `f64` column, with four accumulators: the backward sweep's diagonal
+    /// blocks are a chain of these dots, each waiting for the last, so their latency counts.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn dot_pd(x: &[f64], y: &[f64]) -> f64 {
+        let n = y.len();
+        assert!(x.len() >= n.next_multiple_of(4));
+        let mut s = [_mm256_setzero_pd(); 4];
+        let mut i = 0;
+        // SAFETY: every access is below `n` (the last vector of `y` masked), and `x` has at
+        // least `n` rounded up to four values.
+        unsafe {
+            let (px, py) = (x.as_ptr(), y.as_ptr());
+            while i + 16 <= n {
+                for k in 0..4 {
+                    let v = _mm256_loadu_pd(py.add(i + 4 * k));
+                    s[k] = _mm256_fmadd_pd(_mm256_loadu_pd(px.add(i + 4 * k)), v, s[k]);
+                }
+                i += 16;
+            }
+            let mut k = 0;
+            while i < n {
+                let vy = if n - i >= 4 {
+                    _mm256_loadu_pd(py.add(i))
+                } else {
+                    _mm256_maskload_pd(py.add(i), tail_mask_pd(n - i))
+                };
+                s[k] = _mm256_fmadd_pd(_mm256_loadu_pd(px.add(i)), vy, s[k]);
+                k += 1;
+                i += 4;
+            }
+            let s01 = _mm256_add_pd(s[0], s[1]);
+            let s23 = _mm256_add_pd(s[2], s[3]);
+            hsum_pd(_mm256_add_pd(s01, s23))
+        }
+    }
+
+    impl Kernels<f64> for Avx2 {
+        #[inline(always)]
+        fn axpy(y: &mut [f64], a: f64, x: &[f64]) {
+            // SAFETY: only instantiated inside `sweeps_double`, which requires the features.
+            unsafe { axpy_n_pd(y, [a], [x]) }
+        }
+        #[inline(always)]
+        fn axpy4(y: &mut [f64], a: [f64; 4], x: [&[f64]; 4]) {
+            // SAFETY: as above.
+            unsafe { axpy_n_pd(y, a, x) }
+        }
+        #[inline(always)]
+        fn dot(x: &[f64], y: &[f64]) -> f64 {
+            // SAFETY: as above.
+            unsafe { dot_pd(x, y) }
+        }
+        #[inline(always)]
+        fn dot4(x: [&[f64]; 4], y: &[f64]) -> [f64; 4] {
+            // SAFETY: as above.
+            unsafe { dot_n_pd(x, y) }
         }
     }
 }
@@ -600,7 +878,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn simd_conversion_matches_scalar() {
-        if !simd_available() {
+        if !<u16 as Value>::simd_available() {
             return;
         }
         let mut src = Vec::new();
@@ -620,62 +898,94 @@ mod tests {
         assert_eq!(a, b);
     }
 
-    #[test]
-    fn kernels_agree() {
+    /// The kernels of one value type against a double-precision reference: SIMD (where the
+    /// CPU has it) and portable, `dot`/`dot4`/`axpy`/`axpy4`, on 37 values (tails included).
+    fn kernels_agree_for<V: Value>(to: impl Fn(f64) -> V, tol: f64)
+    where
+        Scalar: Kernels<V>,
+        avx2_or_scalar::K: Kernels<V>,
+    {
         let n: usize = 37;
-        let col = |k: usize| -> Vec<u16> {
+        let col = |k: usize| -> Vec<V> {
             (0..n.next_multiple_of(8))
                 .map(|i| match i < n {
-                    true => f32_to_f16(((i * 7 + k * 3) % 11) as f32 / 8.0 - 0.6),
-                    false => f32_to_f16(1.0),
+                    true => to(((i * 7 + k * 3) % 11) as f64 / 8.0 - 0.6),
+                    false => to(1.0),
                 })
                 .collect()
         };
-        let cols: Vec<Vec<u16>> = (0..4).map(col).collect();
-        let y: Vec<f32> = (0..n).map(|i| (i as f32 * 0.37).sin()).collect();
-        let a = [0.5, -1.25, 2.0, 0.75];
+        let cols: Vec<Vec<V>> = (0..4).map(col).collect();
+        let y: Vec<V::Acc> = (0..n)
+            .map(|i| V::Acc::from_f64((i as f64 * 0.37).sin()))
+            .collect();
+        let a = [0.5, -1.25, 2.0, 0.75].map(V::Acc::from_f64);
         let x4 = [&cols[0][..], &cols[1][..], &cols[2][..], &cols[3][..]];
         let want_dot = x4.map(|c| {
             c.iter()
                 .zip(&y)
-                .map(|(&c, y)| f64::from(f16_to_f32(c)) * f64::from(*y))
+                .map(|(&c, y)| c.widen().to_f64() * y.to_f64())
                 .sum::<f64>()
         });
-        let mut want_axpy = y.clone();
-        for k in 0..4 {
-            for i in 0..n {
-                want_axpy[i] += a[k] * f16_to_f32(cols[k][i]);
-            }
+        let want_axpy = |terms: usize| -> Vec<f64> {
+            (0..n)
+                .map(|i| {
+                    y[i].to_f64()
+                        + (0..terms)
+                            .map(|k| a[k].to_f64() * cols[k][i].widen().to_f64())
+                            .sum::<f64>()
+                })
+                .collect()
+        };
+        let want = Want {
+            dot: want_dot,
+            axpy: want_axpy(1),
+            axpy4: want_axpy(4),
+            tol,
+        };
+        want.check::<V, Scalar>(x4, &y, a);
+        if V::simd_available() {
+            want.check::<V, avx2_or_scalar::K>(x4, &y, a);
         }
-        let check = |dot: f32, dot4: [f32; 4], axpy: Vec<f32>, axpy4: Vec<f32>| {
-            assert!((f64::from(dot) - want_dot[0]).abs() < 1e-5);
+    }
+
+    /// Reference results of the kernels (double precision) and the tolerance.
+    struct Want {
+        dot: [f64; 4],
+        axpy: Vec<f64>,
+        axpy4: Vec<f64>,
+        tol: f64,
+    }
+
+    impl Want {
+        fn check<V: Value, K: Kernels<V>>(&self, x4: [&[V]; 4], y: &[V::Acc], a: [V::Acc; 4]) {
+            let close = |got: V::Acc, want: f64| (got.to_f64() - want).abs() < self.tol;
+            assert!(close(K::dot(x4[0], y), self.dot[0]));
+            let d4 = K::dot4(x4, y);
             for k in 0..4 {
-                assert!((f64::from(dot4[k]) - want_dot[k]).abs() < 1e-5);
+                assert!(close(d4[k], self.dot[k]));
             }
-            for i in 0..n {
-                assert!((axpy4[i] - want_axpy[i]).abs() < 1e-5);
-                assert!((axpy[i] - (y[i] + a[0] * f16_to_f32(cols[0][i]))).abs() < 1e-6);
+            let mut y1 = y.to_vec();
+            K::axpy(&mut y1, a[0], x4[0]);
+            let mut y4 = y.to_vec();
+            K::axpy4(&mut y4, a, x4);
+            for i in 0..y.len() {
+                assert!(close(y1[i], self.axpy[i]));
+                assert!(close(y4[i], self.axpy4[i]));
             }
-        };
-        let run = |dot: fn(&[u16], &[f32]) -> f32,
-                   dot4: fn([&[u16]; 4], &[f32]) -> [f32; 4],
-                   axpy: fn(&mut [f32], f32, &[u16]),
-                   axpy4: fn(&mut [f32], [f32; 4], [&[u16]; 4])| {
-            let mut y1 = y.clone();
-            axpy(&mut y1, a[0], x4[0]);
-            let mut y4 = y.clone();
-            axpy4(&mut y4, a, x4);
-            check(dot(x4[0], &y), dot4(x4, &y), y1, y4);
-        };
-        run(Scalar::dot, Scalar::dot4, Scalar::axpy, Scalar::axpy4);
-        #[cfg(target_arch = "x86_64")]
-        if simd_available() {
-            run(
-                avx2::Avx2::dot,
-                avx2::Avx2::dot4,
-                avx2::Avx2::axpy,
-                avx2::Avx2::axpy4,
-            );
         }
+    }
+
+    /// The SIMD kernels where they exist (the portable ones again elsewhere).
+    mod avx2_or_scalar {
+        #[cfg(target_arch = "x86_64")]
+        pub(super) type K = super::super::avx2::Avx2;
+        #[cfg(not(target_arch = "x86_64"))]
+        pub(super) type K = super::super::Scalar;
+    }
+
+    #[test]
+    fn kernels_agree() {
+        kernels_agree_for::<u16>(|x| f32_to_f16(x as f32), 1e-5);
+        kernels_agree_for::<f64>(|x| x, 1e-13);
     }
 }
