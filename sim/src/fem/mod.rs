@@ -67,7 +67,7 @@
 //! - the factor is kept in single precision (half the memory traffic of solves and
 //!   refactorisations; CG in double precision, in its flexible Polak–Ribière form, makes up for
 //!   the rounding); from a million values on (the 10k-tetrahedra box and up) its solves use a
-//!   copy in half precision, scaled to a unit diagonal (`half.rs`: under half the memory
+//!   copy in half precision, scaled to a unit diagonal (`packed.rs`: under half the memory
 //!   traffic again; 5.4 → 2.9 ms per solve at 50k tets, iteration counts of the smooth steps
 //!   unchanged), and it is refreshed by *ski rental*: once the CG iterations beyond what the fresh
 //!   factor needed, summed since the last refactorisation, reach the price of one — estimated

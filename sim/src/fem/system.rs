@@ -94,7 +94,7 @@ pub(crate) struct System {
     rhs32: Vec<f32>,
     /// The single-precision factor rounded to half precision (supernodal factors only;
     /// allocated with `l32`), and whether it holds the current factor: the single-precision
-    /// solves use it instead of `l32` (`half.rs`).
+    /// solves use it instead of `l32` (`packed.rs`).
     half: Option<HalfFactor>,
     half_current: bool,
     /// Factor size (values) from which the half-precision copy is used: [`HALF_MIN_VALUES`].
@@ -543,7 +543,7 @@ impl System {
 }
 
 /// Single-precision factors of at least this many values (4 MB) are solved with their
-/// half-precision copy (`half.rs`). Smaller ones sit in a core's L2 cache, where the solve is
+/// half-precision copy (`packed.rs`). Smaller ones sit in a core's L2 cache, where the solve is
 /// not memory-bound and the half copy saves little, while its rounding costs the settled
 /// organ meshes their one-iteration steps (liver with the tool: 1.0 → 2.0 CG iterations per
 /// step, 0.34 → 0.42 ms). From the 10k-tetrahedra box (1.8M values) on it is faster.
