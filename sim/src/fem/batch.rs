@@ -211,14 +211,7 @@ impl Batches {
                 }
             }
             // σ = λ tr(ε) I + 2μ ε, as `element::stress`.
-            let tr = lambda * (h[0][0] + h[1][1] + h[2][2]);
-            let mut s = [[S::splat(0.0); 3]; 3];
-            for a in 0..3 {
-                for b in 0..3 {
-                    s[a][b] = mu * (h[a][b] + h[b][a]);
-                }
-                s[a][a] = s[a][a] + tr;
-            }
+            let s = isotropic(&h, lambda, mu);
             let neg_vol = -S::load(&self.volume[i]);
             let mut out = [[[0.0; LANES]; 3]; 4];
             for k in 0..4 {
@@ -262,14 +255,7 @@ impl Batches {
                 }
             }
             let (vl, vm) = (S::load(&self.moduli[i][0]), S::load(&self.moduli[i][1]));
-            let tr = vl * (g[0][0] + g[1][1] + g[2][2]);
-            let mut s = [[S::splat(0.0); 3]; 3];
-            for a in 0..3 {
-                for b in 0..3 {
-                    s[a][b] = vm * (g[a][b] + g[b][a]);
-                }
-                s[a][a] = s[a][a] + tr;
-            }
+            let s = isotropic(&g, vl, vm);
             let mut out = [[[0.0; LANES]; 3]; 4];
             for k in 0..4 {
                 let o = mat_vec(&s, &w[k]);
@@ -454,6 +440,21 @@ fn quat_to_mat_minus_identity<S: Simd>(q: &[S; 4]) -> [[S; 3]; 3] {
         [two * (xy + wz), m2 * (xx + zz), two * (yz - wx)],
         [two * (xz - wy), two * (yz + wx), m2 * (xx + yy)],
     ]
+}
+
+/// `l tr(h) I + m (h + hᵀ)`: the stress of the strain `sym(h)` (with the Lamé parameters), or
+/// the stiffness product's `Vλ tr(G) I + Vμ (G + Gᵀ)`.
+#[inline(always)]
+fn isotropic<S: Simd>(h: &[[S; 3]; 3], l: S, m: S) -> [[S; 3]; 3] {
+    let tr = l * (h[0][0] + h[1][1] + h[2][2]);
+    let mut s = [[S::splat(0.0); 3]; 3];
+    for a in 0..3 {
+        for b in 0..3 {
+            s[a][b] = m * (h[a][b] + h[b][a]);
+        }
+        s[a][a] = s[a][a] + tr;
+    }
+    s
 }
 
 /// `aᵀ b`.
