@@ -190,10 +190,7 @@ impl Batches {
             for c in 0..4 {
                 q[c] = S::load(&self.rot[i][c]);
             }
-            let mut f = g;
-            for (k, row) in f.iter_mut().enumerate() {
-                row[k] = row[k] + S::splat(1.0);
-            }
+            let f = plus_identity(g);
             let svd = closest_rotation(&f, &mut q);
             if svd != 0 {
                 svd_fallback(&f, &mut q, svd);
@@ -202,9 +199,9 @@ impl Batches {
                 self.rot[i][c] = q[c].to_array();
             }
             // RᵀF − I = Rᵀ∇u + (R − I)ᵀ, as `corotated_strain`.
-            let r = quat_to_mat(&q);
-            let mut h = mat_t_mul(&r, &g);
             let rm = quat_to_mat_minus_identity(&q);
+            let r = plus_identity(rm);
+            let mut h = mat_t_mul(&r, &g);
             for a in 0..3 {
                 for b in 0..3 {
                     h[a][b] = h[a][b] + rm[b][a];
@@ -414,18 +411,19 @@ fn quat_mul<S: Simd>(a: &[S; 4], b: &[S; 4]) -> [S; 4] {
     [q[0] * s, q[1] * s, q[2] * s, q[3] * s]
 }
 
+/// `R` of a unit quaternion, as `(R − I) + I`: bit-for-bit the scalar `1 − 2(y² + z²)` etc.
+/// (adding 1 to `−2(y² + z²)` rounds exactly as subtracting `2(y² + z²)` from 1).
 #[inline(always)]
 fn quat_to_mat<S: Simd>(q: &[S; 4]) -> [[S; 3]; 3] {
-    let [w, x, y, z] = *q;
-    let (xx, yy, zz) = (x * x, y * y, z * z);
-    let (xy, xz, yz) = (x * y, x * z, y * z);
-    let (wx, wy, wz) = (w * x, w * y, w * z);
-    let (one, two) = (S::splat(1.0), S::splat(2.0));
-    [
-        [one - two * (yy + zz), two * (xy - wz), two * (xz + wy)],
-        [two * (xy + wz), one - two * (xx + zz), two * (yz - wx)],
-        [two * (xz - wy), two * (yz + wx), one - two * (xx + yy)],
-    ]
+    plus_identity(quat_to_mat_minus_identity(q))
+}
+
+#[inline(always)]
+fn plus_identity<S: Simd>(mut m: [[S; 3]; 3]) -> [[S; 3]; 3] {
+    for (k, row) in m.iter_mut().enumerate() {
+        row[k] = row[k] + S::splat(1.0);
+    }
+    m
 }
 
 #[inline(always)]
