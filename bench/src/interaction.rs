@@ -19,11 +19,12 @@ use anyhow::{Context, Result};
 use clap::Args;
 use hdrhistogram::Histogram;
 use lop_config::Scene;
-use lop_drivers::mock::MockScript;
+use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::BUTTON_GRAB;
+use lop_scene::{DeviceClamp, ToolLaws};
 use lop_sim::haptic::{hand_force, GodObject, SurfaceSet};
 use lop_sim::model::ToolAnchor;
-use lop_sim::world::Coupling;
+use lop_sim::world::{Coupling, Round, RoundTool};
 use serde::Serialize;
 
 use crate::lop::shipped_scene;
@@ -96,20 +97,26 @@ fn script_of(scene: &Scene, name: &str) -> Result<MockScript> {
     MockScript::load(&path).with_context(|| format!("loading {}", path.display()))
 }
 
+/// The scene's tool laws on the mock device (an Omni's stiffness limit), as the haptic loop
+/// derives them.
+fn omni_laws(scene: &lop_config::Scene) -> ToolLaws {
+    ToolLaws::new(
+        scene,
+        DeviceClamp {
+            max_stiffness_n_per_mm: MockDevice::omni_limits().max_stiffness_n_per_mm,
+        },
+    )
+}
+
 /// The contact part of the haptic tick against a deforming scene.
 fn haptic_ticks(scene_name: &str, script_name: &str, seconds: f64) -> Result<Row> {
     let scene = shipped_scene(scene_name)?;
     let script = script_of(&scene, script_name)?;
     let workspace = scene.workspace.transform();
-    let tool_spec = scene.tool.clone();
-    let stiffness: Vec<f64> = scene
-        .bodies
-        .iter()
-        .map(|b| b.tool_stiffness.unwrap_or(tool_spec.stiffness))
-        .collect();
-    let loaded = lop_daemon::scene::load(scene)?;
+    let laws = omni_laws(&scene);
+    let loaded = lop_scene::load(scene)?;
     let mut world = loaded.world;
-    let offsets = loaded.node_offsets;
+    let offsets = loaded.topology.node_offsets();
     let tris: Vec<Vec<[u32; 3]>> = world
         .bodies
         .iter()
@@ -125,26 +132,27 @@ fn haptic_ticks(scene_name: &str, script_name: &str, seconds: f64) -> Result<Row
     let slices: Vec<&[[u32; 3]]> = tris.iter().map(|t| t.as_slice()).collect();
     let node_count: usize = world.bodies.iter().map(|b| b.mesh.nodes.len()).sum();
     let mut set = SurfaceSet::new(node_count, &slices);
-    let mut god = GodObject::new(tool_spec.radius, set.triangles().len());
+    let mut god = GodObject::new(laws.tool.radius, set.triangles().len());
     let mut frame: Vec<[f64; 3]> = vec![[0.0; 3]; node_count];
     let mut bounds = vec![([0.0; 3], [0.0; 3]); world.bodies.len()];
     let mut hist = Histogram::<u64>::new_with_bounds(1, 1_000_000_000, 3)?;
     let ticks = (seconds * 1000.0) as u64;
-    let law = lop_daemon::scene::tool_sphere(&tool_spec, [0.0; 3]).law;
     let mut sequence = 0;
+    let mut coupling = Coupling::GodObject(None);
     for tick in 0..ticks {
         let t = tick as f64 * 1e-3;
         let sample = script.sample(t);
         let device = workspace.device_to_scene(sample.position_mm);
         let new_frame = tick % TICKS_PER_FRAME == 0;
         if new_frame {
-            // The deformation process's side (not timed): step what is due, publish.
-            for i in 0..world.bodies.len() {
-                let tool = lop_daemon::scene::tool_sphere(&tool_spec, device);
-                while world.body_due(i, t) {
-                    let _ = world.step_body(i, Some(&tool));
-                }
-            }
+            // The deformation process's side (not timed): one round, publish.
+            let tool = RoundTool {
+                center: device,
+                laws: &laws.bodies,
+                coupling,
+                heat_power: 0.0,
+            };
+            world.round(&Round::to(t, u32::MAX).with_tool(Some(tool)), || 0);
             for (b, body) in world.bodies.iter().enumerate() {
                 let x = body.model.positions();
                 frame[offsets[b]..offsets[b] + x.len()].copy_from_slice(x);
@@ -165,13 +173,15 @@ fn haptic_ticks(scene_name: &str, script_name: &str, seconds: f64) -> Result<Row
             god.follow_surface(&set);
         }
         let g = god.update(&mut set, device, sample.pressed(BUTTON_GRAB));
-        let k = g.anchor.map_or(tool_spec.stiffness, |a| stiffness[a.body]);
-        let f = hand_force(&g, law, k, tool_spec.damping, [0.0; 3]);
+        let k = g
+            .anchor
+            .map_or(laws.tool.stiffness, |a| laws.stiffness(a.body));
+        let f = hand_force(&g, laws.tool.law, k, laws.damping, [0.0; 3]);
         let ns = t0.elapsed().as_nanos() as u64;
         std::hint::black_box(f);
         hist.saturating_record(ns.max(1));
         // Hand the contact to the tissue as the deformation process does.
-        world.coupling = Coupling::GodObject(g.anchor.and_then(|a| {
+        coupling = Coupling::GodObject(g.anchor.and_then(|a| {
             let b = a.body;
             let local = a.triangle - set.body_triangles(b).start;
             let body = &world.bodies[b];
@@ -202,9 +212,10 @@ fn collision_steps(scene_name: &str, steps: usize) -> Result<Row> {
     let scene = shipped_scene(scene_name)?;
     let script = script_of(&scene, "poke")?;
     let workspace = scene.workspace.transform();
-    let tool_spec = scene.tool.clone();
-    let loaded = lop_daemon::scene::load(scene)?;
+    let laws = omni_laws(&scene);
+    let loaded = lop_scene::load(scene)?;
     let mut world = loaded.world;
+    world.disable_heat();
     if !world.collisions_enabled() {
         anyhow::bail!("scene {scene_name}: [collision] is off");
     }
@@ -216,20 +227,21 @@ fn collision_steps(scene_name: &str, steps: usize) -> Result<Row> {
         .fold(f64::INFINITY, f64::min);
     for step in 0..steps {
         let t = (step + 1) as f64 * dt + 1.0;
-        let tool = lop_daemon::scene::tool_sphere(
-            &tool_spec,
-            workspace.device_to_scene(script.sample(t).position_mm),
-        );
-        // Detection and the contact springs, as the deformation process runs them before
-        // each round of steps (the springs' solve is part of the bodies' steps).
-        let t0 = Instant::now();
-        std::hint::black_box(world.detect_collisions());
-        hist.saturating_record((t0.elapsed().as_nanos() as u64).max(1));
-        for i in 0..world.bodies.len() {
-            while world.body_due(i, t) {
-                let _ = world.step_body(i, Some(&tool));
-            }
-        }
+        let tool = RoundTool {
+            center: workspace.device_to_scene(script.sample(t).position_mm),
+            laws: &laws.bodies,
+            coupling: Coupling::Nearest,
+            heat_power: 0.0,
+        };
+        // One round: detection and the contact springs (timed in the report), then the
+        // bodies' steps (the springs' solve is part of them).
+        let clock = Instant::now();
+        world.round(&Round::to(t, u32::MAX).with_tool(Some(tool)), || {
+            clock.elapsed().as_nanos() as u64
+        });
+        let report = world.last_round();
+        std::hint::black_box(report.collisions);
+        hist.saturating_record(report.collision_ns.max(1));
     }
     Ok(Row::from_histogram_ns(
         &format!("collide_{scene_name}"),
@@ -242,8 +254,8 @@ fn collision_steps(scene_name: &str, steps: usize) -> Result<Row> {
 fn heat_steps(scene_name: &str, steps: usize) -> Result<Vec<Row>> {
     let scene = shipped_scene(scene_name)?;
     let power = scene.tool.heat_power;
-    let loaded = lop_daemon::scene::load(scene.clone())?;
-    let mut heat = lop_daemon::scene::heat_world(&scene, &loaded.world)?;
+    let loaded = lop_scene::load(scene.clone())?;
+    let mut heat = lop_scene::heat_world(&scene, &loaded.world)?;
     let mut rows = Vec::new();
     let links = heat.links().len();
     for b in 0..loaded.world.bodies.len() {

@@ -3,7 +3,7 @@
 //! cage over the FEM step it stands in for. Everything runs in this process on `lop-sim`
 //! directly (no daemon, no IPC); scenes come from `config/scenes/*.toml` and are modified in
 //! memory per configuration (`model` pin, `importance`, `[lop] start`) before
-//! `lop_daemon::scene::load`, so every run sees the bodies exactly as `lopd` would.
+//! `lop_scene::load`, so every run sees the bodies exactly as `lopd` would.
 //!
 //! # Part 1 — efficiency (thesis Figs. 6.4–6.9): time per iteration per body
 //! The world is stepped as the daemon steps it: simulated time advances in ticks of the
@@ -151,7 +151,7 @@ fn placed_bodies(scene: &Scene) -> Result<Vec<(BodySpec, TetMesh)>> {
     for b in &mut pinned.bodies {
         b.model = ModelPin::Msd;
     }
-    let loaded = lop_daemon::scene::load(pinned)?;
+    let loaded = lop_scene::load(pinned)?;
     Ok(scene
         .bodies
         .iter()
@@ -233,7 +233,7 @@ fn gc_variant(
     dynamics: DynKind,
     dt: f64,
 ) -> GcParameters {
-    let base = lop_daemon::scene::gc_parameters(spec, mesh, dt);
+    let base = lop_scene::gc_parameters(spec, mesh, dt);
     let gc = spec.gc.clone().unwrap_or_default();
     GcParameters {
         shape,

@@ -91,7 +91,7 @@ use std::time::Instant;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use lop_config::{BodySpec, FemParams, MassSpec, MsdParams, Scene, ToolSpec};
-use lop_sim::contact::{triangle_normal, ForceLaw, ToolSphere};
+use lop_sim::contact::{triangle_normal, ToolSphere};
 use lop_sim::fem::{Fem, FemMode, FemParameters};
 use lop_sim::mesh::{read_mesh, TetMesh};
 use lop_sim::model::{ContactReport, Model, ToolContact};
@@ -256,19 +256,6 @@ pub fn fem_params(p: &FemParams) -> FemParameters {
         mode: match p.mode {
             lop_config::FemMode::Linear => FemMode::Linear,
             lop_config::FemMode::Corotational => FemMode::Corotational,
-        },
-    }
-}
-
-/// Scene tool → the sim's tool sphere at `center`.
-fn tool_sphere(t: &ToolSpec, center: [f64; 3]) -> ToolSphere {
-    ToolSphere {
-        center,
-        radius: t.radius,
-        stiffness: t.stiffness,
-        law: match t.force_law {
-            lop_config::ForceLaw::Linear => ForceLaw::Linear,
-            lop_config::ForceLaw::Quadratic => ForceLaw::Quadratic,
         },
     }
 }
@@ -579,7 +566,7 @@ fn press(mesh: &TetMesh, spec: &ToolSpec) -> Result<(ToolSphere, Vec<u32>, Press
             candidates.push(t as u32);
         }
     }
-    let tool = tool_sphere(spec, center);
+    let tool = lop_scene::tool_sphere(spec, center);
     let info = PressInfo {
         triangle,
         candidates: candidates.len(),

@@ -18,12 +18,12 @@ use lop_client::Attachment;
 /// loops (which call [`Lopd::check_alive`]) end with an error and every guard stops its child.
 /// The same handler as `lopd`'s.
 pub fn install_stop_handler() {
-    lop_daemon::signals::install();
+    lop_ipc::signals::install();
 }
 
 /// Whether the bench was asked to stop.
 pub fn interrupted() -> bool {
-    lop_daemon::signals::stop_requested()
+    lop_ipc::signals::stop_requested()
 }
 
 /// A child process that is stopped when the guard is dropped.
@@ -41,7 +41,7 @@ impl ChildGuard {
         // SAFETY: prctl is async-signal-safe and touches nothing of the parent.
         unsafe {
             cmd.pre_exec(|| {
-                lop_daemon::signals::die_with_parent();
+                lop_ipc::signals::die_with_parent();
                 Ok(())
             });
         }

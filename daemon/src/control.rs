@@ -32,7 +32,7 @@ use lop_sim::model::Model;
 use lop_sim::world::World;
 
 use crate::deform::body_model;
-use crate::scene;
+use lop_scene as scene;
 
 /// Requests served per deformation-loop iteration, so a flood of requests cannot starve the
 /// stepping.

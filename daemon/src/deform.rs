@@ -1,6 +1,8 @@
-//! `lopd deform`: the deformation process. Loads the scene, publishes its topology once, then
-//! steps every body at real-time pace (simulated time follows the wall clock; each body keeps its
-//! own `dt`) with the tool pressing on it, and publishes a frame after every step.
+//! `lopd deform`: the deformation process, as a task ([`DeformLoop`]: `new` → `tick`). `new`
+//! loads the scene (`lop_scene`), publishes its topology once and opens the ports; each `tick`
+//! waits for its period, takes the newest tool state, serves control requests, runs one round
+//! of the world (`lop_sim::world::World::round`: collision, the bodies due at the wall clock's
+//! simulated time, each on its own `dt`, heat) and publishes a frame.
 //!
 //! Tool coupling (force coupling, DESIGN's choice for the tissue response): the newest tool state
 //! comes from the haptic loop's blackboard. Where its god-object touches or holds a body, that
@@ -24,22 +26,18 @@ use iceoryx2::prelude::*;
 use lop_config::{DaemonConfig, Scene};
 use lop_ipc::services::{self, Role, ToolBoard};
 use lop_ipc::*;
+use lop_scene::{DeviceClamp, LoadedScene, ToolLaws, Topology};
 use lop_sim::model::{ModelKind, ToolAnchor};
 use lop_sim::world::{Coupling, World};
 
+use crate::rounds::{Rounds, TickTool};
 use crate::rt;
-use crate::scene::{self, tool_sphere, LoadedScene};
 use crate::signals;
 
 /// A tool state older than this is ignored (the haptic process is gone or restarting), ns.
 const TOOL_STALE_NS: u64 = 100_000_000;
-/// Most steps a body may take in one pass to catch up with the wall clock; beyond that its
-/// simulated time is dropped rather than spiralling (counted as lag).
-const MAX_CATCH_UP: u32 = 4;
 /// Largest nodal speed under which a body counts as at rest, m/s.
 const REST_SPEED: f64 = 1e-3;
-/// Most heat steps in one pass to catch up with the wall clock.
-const MAX_HEAT_CATCH_UP: u32 = 8;
 
 /// Options of one deformation run.
 pub struct DeformOptions {
@@ -77,110 +75,169 @@ fn new_topology_id() -> u64 {
     (t ^ (pid << 48)).max(1)
 }
 
-/// Runs the deformation process until a stop signal or the duration.
-pub fn run(opts: DeformOptions) -> Result<()> {
-    if let Some(core) = opts.config.deform.core {
-        if let Err(e) = rt::pin_to_core(core) {
-            tracing::warn!("deformation process not pinned: {e}");
+/// The deformation process as a task: [`DeformLoop::new`] loads the scene and opens every
+/// port, [`DeformLoop::tick`] runs one paced iteration (tool state → control → one round of
+/// the world → frame).
+pub struct DeformLoop {
+    scene: Scene,
+    world: World,
+    /// The rounds, with the scene's tool laws (no device clamp): each round takes the haptic
+    /// loop's stiffness against the touched body from the tool state, so the tissue gets the
+    /// hand's spring.
+    rounds: Rounds,
+    topology: TopologyHeader,
+    node_offsets: Vec<usize>,
+    node_count: usize,
+    node: Node<ipc::Service>,
+    names: ServiceNames,
+    topo_pub: iceoryx2::port::publisher::Publisher<ipc::Service, [u32], TopologyHeader>,
+    frame_pub: iceoryx2::port::publisher::Publisher<ipc::Service, [NodeSample], FrameHeader>,
+    tool_input: Option<ToolInput>,
+    control: crate::control::ControlServer,
+    last_connection_update: u64,
+    last_tool_try: u64,
+    period: u64,
+    start: u64,
+    deadline: u64,
+    sequence: u64,
+    /// Duration of each body's last step, ns.
+    step_ns: Vec<u32>,
+    lagged: u64,
+}
+
+impl DeformLoop {
+    /// Pins the process, loads the scene, publishes its topology and opens the frame
+    /// publisher, the tool input and the control service.
+    pub fn new(opts: &DeformOptions) -> Result<DeformLoop> {
+        if let Some(core) = opts.config.deform.core {
+            if let Err(e) = rt::pin_to_core(core) {
+                tracing::warn!("deformation process not pinned: {e}");
+            }
         }
-    }
-    let LoadedScene {
-        scene,
-        mut world,
-        mut topology,
-        topology_indices,
-        node_offsets,
-    } = scene::load(opts.scene)?;
-    let mut heat = scene::heat_world(&scene, &world)?;
-    let heat_dt = heat
-        .bodies()
-        .first()
-        .map_or(scene::HEAT_DT_DEFAULT, |b| b.dt());
-    let mut heat_time = 0.0;
-    let mut heat_failed = false;
-    let names = opts.names;
-    let node = services::node("lopd-deform")?;
-    let cleaned = services::cleanup_dead_nodes(&node);
-    if cleaned > 0 {
-        tracing::info!("cleaned {cleaned} dead iceoryx2 node(s) left by a crashed process");
-    }
+        let LoadedScene {
+            scene,
+            world,
+            topology,
+        } = lop_scene::load(opts.scene.clone())?;
+        let laws = ToolLaws::new(&scene, DeviceClamp::NONE);
+        let mut header = wire_topology(&scene, &topology)?;
+        let names = opts.names.clone();
+        let node = services::node("lopd-deform")?;
+        let cleaned = services::cleanup_dead_nodes(&node);
+        if cleaned > 0 {
+            tracing::info!("cleaned {cleaned} dead iceoryx2 node(s) left by a crashed process");
+        }
 
-    // Topology, once, with history so late subscribers get it.
-    topology.topology_id = new_topology_id();
-    let topo_pub = services::topology_service(&node, &names, Role::Owner)?
-        .publisher_builder()
-        .initial_max_slice_len(topology_indices.len())
-        .create()
-        .context("topology publisher")?;
-    let mut sample = topo_pub
-        .loan_slice_uninit(topology_indices.len())
-        .context("loan topology")?;
-    *sample.user_header_mut() = topology;
-    sample
-        .write_from_slice(&topology_indices)
-        .send()
-        .context("send topology")?;
+        // Topology, once, with history so late subscribers get it.
+        header.topology_id = new_topology_id();
+        let topo_pub = services::topology_service(&node, &names, Role::Owner)?
+            .publisher_builder()
+            .initial_max_slice_len(topology.indices.len())
+            .create()
+            .context("topology publisher")?;
+        let mut sample = topo_pub
+            .loan_slice_uninit(topology.indices.len())
+            .context("loan topology")?;
+        *sample.user_header_mut() = header;
+        sample
+            .write_from_slice(&topology.indices)
+            .send()
+            .context("send topology")?;
 
-    let node_count = topology.node_count as usize;
-    let frame_pub = services::frame_service(&node, &names, Role::Owner)?
-        .publisher_builder()
-        .initial_max_slice_len(node_count)
-        .max_loaned_samples(2)
-        .create()
-        .context("frame publisher")?;
+        let node_count = topology.node_count;
+        let frame_pub = services::frame_service(&node, &names, Role::Owner)?
+            .publisher_builder()
+            .initial_max_slice_len(node_count)
+            .max_loaned_samples(2)
+            .create()
+            .context("frame publisher")?;
 
-    tracing::info!(
-        "scene {:?}: {} bodies, {} nodes, {} surface triangles; topology {:#x}",
-        scene.name,
-        world.bodies.len(),
-        node_count,
-        topology.triangle_count,
-        topology.topology_id
-    );
-    for b in &world.bodies {
         tracing::info!(
-            "  {}: {} nodes, {:?}, dt {} s in {} sub-steps",
-            b.name,
-            b.mesh.nodes.len(),
-            b.model.kind(),
-            b.model.dt(),
-            b.model.substeps()
+            "scene {:?}: {} bodies, {} nodes, {} surface triangles; topology {:#x}",
+            scene.name,
+            world.bodies.len(),
+            node_count,
+            header.triangle_count,
+            header.topology_id
         );
+        for b in &world.bodies {
+            tracing::info!(
+                "  {}: {} nodes, {:?}, dt {} s in {} sub-steps",
+                b.name,
+                b.mesh.nodes.len(),
+                b.model.kind(),
+                b.model.dt(),
+                b.model.substeps()
+            );
+        }
+
+        let tool_input = open_tool_input(&node, &names);
+        let control = crate::control::ControlServer::new(&node, &names, &scene, &world);
+        let now = rt::now_ns();
+        let period = (1e9 / scene.rates.deform_max_hz).round() as u64;
+        Ok(DeformLoop {
+            rounds: Rounds::live(laws),
+            step_ns: vec![0u32; world.bodies.len()],
+            node_offsets: topology.node_offsets(),
+            scene,
+            world,
+            topology: header,
+            node_count,
+            node,
+            names,
+            topo_pub,
+            frame_pub,
+            tool_input,
+            control,
+            last_connection_update: now,
+            last_tool_try: now,
+            period,
+            start: now,
+            deadline: now,
+            sequence: 0,
+            lagged: 0,
+        })
     }
 
-    let mut tool_input = open_tool_input(&node, &names);
-    let mut control = crate::control::ControlServer::new(&node, &names, &scene, &world);
-    let mut last_connection_update = rt::now_ns();
-    let mut last_tool_try = rt::now_ns();
-    let period = (1e9 / scene.rates.deform_max_hz).round() as u64;
-    let start = rt::now_ns();
-    let end = opts.duration.map(|d| start + rt::ns(d));
-    let mut deadline = start;
-    let mut sequence = 0u64;
-    let mut step_ns = vec![0u32; world.bodies.len()];
-    let mut lagged = 0u64;
+    /// The scene it runs.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
 
-    while !signals::stop_requested() && end.is_none_or(|e| rt::now_ns() < e) {
-        deadline += period;
-        let now = rt::sleep_until(deadline, 0);
-        if now > deadline + period {
-            deadline = now; // fell behind: do not burst
+    /// When the loop started, ns (`CLOCK_MONOTONIC`).
+    pub fn start_ns(&self) -> u64 {
+        self.start
+    }
+
+    /// Frames published so far.
+    pub fn frames(&self) -> u64 {
+        self.sequence
+    }
+
+    /// One iteration: waits for the next period, takes the newest tool state, serves control
+    /// requests, runs one round of the world up to the wall clock's simulated time and
+    /// publishes a frame if anything advanced.
+    pub fn tick(&mut self) {
+        self.deadline += self.period;
+        let now = rt::sleep_until(self.deadline, 0);
+        if now > self.deadline + self.period {
+            self.deadline = now; // fell behind: do not burst
         }
 
-        // The newest tool state, if the haptic process is up.
         // Late subscribers get the topology from the history when the publisher notices them.
-        if now - last_connection_update > 50_000_000 {
-            let _ = topo_pub.update_connections();
-            last_connection_update = now;
+        if now - self.last_connection_update > 50_000_000 {
+            let _ = self.topo_pub.update_connections();
+            self.last_connection_update = now;
         }
-        if tool_input.is_none() && now - last_tool_try > 500_000_000 {
-            tool_input = open_tool_input(&node, &names);
-            last_tool_try = now;
+        // The newest tool state, if the haptic process is up.
+        if self.tool_input.is_none() && now - self.last_tool_try > 500_000_000 {
+            self.tool_input = open_tool_input(&self.node, &self.names);
+            self.last_tool_try = now;
         }
         let mut tool_stamp = 0;
         let mut tool_read = 0;
         let mut tool_state = None;
-        if let Some(t) = &tool_input {
+        if let Some(t) = &self.tool_input {
             let state = *t.entry.get();
             tool_read = rt::now_ns();
             if state.stamp_ns > 0 && tool_read.saturating_sub(state.stamp_ns) < TOOL_STALE_NS {
@@ -188,99 +245,75 @@ pub fn run(opts: DeformOptions) -> Result<()> {
                 tool_state = Some(state);
             }
         }
-        let held = tool_state.and_then(|s| god_object_hold(&s, &topology, &world));
-        world.coupling = Coupling::GodObject(held);
+        let tool = tool_state.map(|s| TickTool {
+            center: s.device_position,
+            coupling: Coupling::GodObject(god_object_hold(&s, &self.topology, &self.world)),
+            heat: s.flags & TOOL_FLAG_HEAT != 0,
+            stiffness: Some(s.tool_stiffness),
+        });
 
-        // Step every body that is due, on its own dt.
-        let sim_now = (now - start) as f64 * 1e-9;
-        // Control requests (PREFIX/control) are served here, between steps; paused: no stepping,
-        // frames keep coming with frozen positions.
-        let paused = control.poll(&mut world, sim_now);
-        let step_start = rt::now_ns();
-        // Organ-to-organ contacts at the current shapes, for the steps about to be taken.
-        if !paused && (0..world.bodies.len()).any(|i| world.body_due(i, sim_now)) {
-            world.detect_collisions();
-        }
-        let mut stepped = paused;
-        for (i, last_ns) in step_ns.iter_mut().enumerate().filter(|_| !paused) {
-            let mut steps = 0;
-            let tool = tool_state.map(|s| {
-                let mut t = tool_sphere(&scene.tool, s.device_position);
-                if let Some(k) = scene.bodies[i].tool_stiffness {
-                    t.stiffness = k;
-                }
-                t
-            });
-            while world.body_due(i, sim_now) && steps < MAX_CATCH_UP {
-                let t0 = rt::now_ns();
-                if let Err(cause) = world.step_body(i, tool.as_ref()) {
+        let sim_now = (now - self.start) as f64 * 1e-9;
+        // Control requests (PREFIX/control) are served here, between rounds; paused: no
+        // stepping, frames keep coming with frozen positions.
+        let paused = self.control.poll(&mut self.world, sim_now);
+        self.rounds.advance(
+            &mut self.world,
+            sim_now,
+            tool.as_ref(),
+            &[],
+            paused,
+            rt::now_ns,
+        );
+        let report = self.world.last_round();
+        for (i, r) in report.bodies.iter().enumerate() {
+            if r.steps > 0 {
+                self.step_ns[i] = r.last_step_ns.min(u32::MAX as u64) as u32;
+            }
+            if let Some(cause) = r.blow_up {
+                tracing::warn!(
+                    "body {:?} blew up ({cause:?}); reset to rest",
+                    self.world.bodies[i].name
+                );
+            }
+            if r.lagged {
+                self.lagged += 1;
+                if self.lagged.is_power_of_two() {
                     tracing::warn!(
-                        "body {:?} blew up ({cause:?}); reset to rest",
-                        world.bodies[i].name
+                        "deformation lags the wall clock ({} times so far)",
+                        self.lagged
                     );
                 }
-                *last_ns = (rt::now_ns() - t0).min(u32::MAX as u64) as u32;
-                log_switch(&mut world.bodies[i]);
-                steps += 1;
-                stepped = true;
-            }
-            if world.body_due(i, sim_now) {
-                world.bodies[i].time = sim_now;
-                lagged += 1;
-                if lagged.is_power_of_two() {
-                    tracing::warn!("deformation lags the wall clock ({lagged} times so far)");
-                }
             }
         }
-        // Heat: the cautery on the touched point, then the heat steps that are due.
-        if !heat_failed {
-            for b in 0..world.bodies.len() {
-                if let Ok(h) = heat.body_mut(b) {
-                    h.clear_sources();
-                }
-            }
-            if let (Some(s), Some((b, a))) = (tool_state, held) {
-                if s.flags & TOOL_FLAG_HEAT != 0 && !a.grab {
-                    let tri = world.bodies[b].mesh.surface[a.triangle as usize];
-                    if let Ok(h) = heat.body_mut(b) {
-                        let _ = h.heat_point(tri, a.bary, scene.tool.heat_power);
-                    }
-                }
-            }
-            let mut heat_steps = 0;
-            while heat_time + heat_dt <= sim_now + 1e-12 && heat_steps < MAX_HEAT_CATCH_UP {
-                if let Err(e) = heat.step() {
-                    tracing::warn!("heat model stopped: {e}");
-                    heat_failed = true;
-                    break;
-                }
-                heat_time += heat_dt;
-                heat_steps += 1;
-                stepped = true;
-            }
-            if heat_time + heat_dt <= sim_now {
-                heat_time = sim_now; // fell behind: drop simulated heat time
-            }
+        if let Some(e) = &report.heat_error {
+            tracing::warn!("heat model stopped: {e}");
         }
-        if !stepped {
-            continue;
+        if !(paused || report.stepped()) {
+            return;
         }
-        let world_step_ns = rt::now_ns() - step_start;
+        let world_step_ns = report.total_ns;
+        for b in self.world.bodies.iter_mut() {
+            log_switch(b);
+        }
+        self.publish(sim_now, tool_stamp, tool_read, world_step_ns);
+    }
 
-        // Publish the frame.
-        let Ok(mut sample) = frame_pub.loan_slice_uninit(node_count) else {
-            continue;
+    /// Publishes the frame of the current state.
+    fn publish(&mut self, sim_now: f64, tool_stamp: u64, tool_read: u64, world_step_ns: u64) {
+        let world = &self.world;
+        let Ok(mut sample) = self.frame_pub.loan_slice_uninit(self.node_count) else {
+            return;
         };
         let header = sample.user_header_mut();
         header.contract_version = CONTRACT_VERSION;
         header.body_count = world.bodies.len() as u32;
-        header.topology_id = topology.topology_id;
-        header.sequence = sequence;
+        header.topology_id = self.topology.topology_id;
+        header.sequence = self.sequence;
         header.sim_time = sim_now;
         header.tool_stamp_ns = tool_stamp;
         header.tool_read_ns = tool_read;
         header.step_ns = world_step_ns;
-        header.node_count = node_count as u32;
+        header.node_count = self.node_count as u32;
         for (i, b) in world.bodies.iter().enumerate() {
             let bf = &mut header.bodies[i];
             let (lo, hi) = bounds(b.model.positions());
@@ -289,7 +322,7 @@ pub fn run(opts: DeformOptions) -> Result<()> {
             bf.kinetic_energy = b.model.kinetic_energy() as f32;
             let speed = b.model.max_speed();
             bf.max_speed = speed as f32;
-            bf.step_ns = step_ns[i];
+            bf.step_ns = self.step_ns[i];
             bf.resets = b.resets;
             bf.model = body_model(b.model.kind()) as u8;
             bf.switches = b.lop.as_ref().map_or(0, |l| l.switches());
@@ -306,10 +339,12 @@ pub fn run(opts: DeformOptions) -> Result<()> {
             };
         }
         let payload = sample.payload_mut();
+        let heat = world.heat();
         for (i, b) in world.bodies.iter().enumerate() {
-            let off = node_offsets[i];
-            let hb = &heat.bodies()[i];
-            let (temps, burned) = (hb.temperatures(), hb.burned());
+            let off = self.node_offsets[i];
+            let hb = heat.and_then(|h| h.bodies().get(i));
+            let temps = hb.map_or(&[][..], |h| h.temperatures());
+            let burned = hb.map_or(&[][..], |h| h.burned());
             for (k, p) in b.model.positions().iter().enumerate() {
                 payload[off + k].write(NodeSample {
                     position: [p[0] as f32, p[1] as f32, p[2] as f32],
@@ -328,10 +363,55 @@ pub fn run(opts: DeformOptions) -> Result<()> {
         if let Err(e) = sample.send() {
             tracing::warn!("frame not sent: {e:?}");
         }
-        sequence += 1;
+        self.sequence += 1;
     }
-    tracing::info!("deformation stopped after {sequence} frames");
+}
+
+/// Runs the deformation process until a stop signal or the duration.
+pub fn run(opts: DeformOptions) -> Result<()> {
+    let mut task = DeformLoop::new(&opts)?;
+    let end = opts.duration.map(|d| task.start_ns() + rt::ns(d));
+    while !signals::stop_requested() && end.is_none_or(|e| rt::now_ns() < e) {
+        task.tick();
+    }
+    tracing::info!("deformation stopped after {} frames", task.frames());
     Ok(())
+}
+
+/// The wire's topology header of a loaded scene (ids left for the publisher). Refuses a scene
+/// with more bodies than a frame holds.
+pub fn wire_topology(scene: &Scene, topology: &Topology) -> Result<TopologyHeader> {
+    if topology.bodies.len() > MAX_BODIES {
+        anyhow::bail!(
+            "scene {} has {} bodies; the frame format holds at most {MAX_BODIES}",
+            scene.path.display(),
+            topology.bodies.len()
+        );
+    }
+    let mut h = TopologyHeader {
+        contract_version: CONTRACT_VERSION,
+        body_count: topology.bodies.len() as u32,
+        node_count: topology.node_count as u32,
+        triangle_count: topology.triangle_count as u32,
+        tet_count: topology.tet_count as u32,
+        ..Default::default()
+    };
+    for (bt, b) in h.bodies.iter_mut().zip(&topology.bodies) {
+        bt.set_name(&b.name);
+        bt.node_offset = b.node_offset as u32;
+        bt.node_count = b.node_count as u32;
+        bt.triangle_offset = b.triangle_offset as u32;
+        bt.triangle_count = b.triangle_count as u32;
+        bt.tet_offset = b.tet_offset as u32;
+        bt.tet_count = b.tet_count as u32;
+        bt.color = b.color;
+        bt.importance = if b.important {
+            IMPORTANCE_IMPORTANT
+        } else {
+            IMPORTANCE_NORMAL
+        };
+    }
+    Ok(h)
 }
 
 /// Where the haptic loop's god-object touches or holds a body, as the body's anchor: the

@@ -38,7 +38,7 @@ use lop_sim::haptic::{hand_force, GodObject, SurfaceSet};
 
 use crate::rt;
 use crate::safety::ForceSafety;
-use crate::scene::tool_sphere;
+use lop_scene::{DeviceClamp, ToolLaws};
 
 /// A body's positions are copied into the contact index once the device or the god-object is
 /// this close to its bounds, m: well beyond what the tool covers between frames.
@@ -81,21 +81,14 @@ impl HapticSettings {
     pub fn new(config: &DaemonConfig, scene: &Scene, limits: DeviceLimits) -> HapticSettings {
         let rate = scene.rates.haptic_hz;
         let h = &config.haptic;
-        // The device renders at most `max_stiffness_n_per_mm` at the stylus; a scene spring `k`
-        // (N/m) is felt as `k · 1e-3 · scale` N/mm there (the workspace scales motion, not
-        // force). A linear law stiffer than that is clamped to it (the quadratic law's
-        // stiffness grows with depth: not clamped, warned at start by the servo path).
-        let scale = scene.workspace.scale;
-        let k_max =
-            if limits.max_stiffness_n_per_mm.is_finite() && limits.max_stiffness_n_per_mm > 0.0 {
-                limits.max_stiffness_n_per_mm / (1e-3 * scale)
-            } else {
-                f64::INFINITY
-            };
-        let clamp_k = |k: f64| match scene.tool.force_law {
-            lop_config::ForceLaw::Linear => k.min(k_max),
-            lop_config::ForceLaw::Quadratic => k,
-        };
+        // The one tool law per body, clamped to what the device renders (the deformation
+        // process receives the same stiffness with every tool state).
+        let laws = ToolLaws::new(
+            scene,
+            DeviceClamp {
+                max_stiffness_n_per_mm: limits.max_stiffness_n_per_mm,
+            },
+        );
         HapticSettings {
             rate_hz: rate,
             stale_ns: (h.stale_frame_ms * 1e6) as u64,
@@ -107,18 +100,10 @@ impl HapticSettings {
             max_step: h.max_force_step_n,
             spin_ns: (h.spin_us * 1e3) as u64,
             workspace: scene.workspace.transform(),
-            tool: {
-                let mut t = tool_sphere(&scene.tool, [0.0; 3]);
-                t.stiffness = clamp_k(t.stiffness);
-                t
-            },
+            tool: laws.tool,
             limits,
-            body_stiffness: scene
-                .bodies
-                .iter()
-                .map(|b| clamp_k(b.tool_stiffness.unwrap_or(scene.tool.stiffness)))
-                .collect(),
-            damping: scene.tool.damping,
+            body_stiffness: laws.bodies.iter().map(|t| t.stiffness).collect(),
+            damping: laws.damping,
         }
     }
 
@@ -485,6 +470,7 @@ impl HapticLoop {
                         .device_dir_to_scene(s.velocity_mm_s)
                         .map(|c| c * scale);
                     desired = hand_force(&g, self.settings.tool.law, k, self.settings.damping, v);
+                    state.tool_stiffness = k;
                     state.contact_body = a.body as i32;
                     state.contact_triangle = a.triangle as u32;
                     state.contact_barycentric = a.bary;

@@ -2,13 +2,14 @@
 //! what happened: per-step timings (`steps.csv`), final node positions (`final_<body>.vtk` and
 //! `final_positions.csv`) and a summary (`summary.json`).
 //!
-//! Every body takes steps of its own `dt`; `--steps N` means N steps of every body. The bodies
-//! are stepped interleaved, as `lopd deform` steps them: each round, every body due at the
-//! earliest next step time steps, after organ-to-organ contacts (the scene's `[collision]`)
-//! have been found. A mock script (`--script`, or a recording with `--device replay:PATH`)
-//! moves the device on simulated time and a god-object decides the contact, as the haptic loop
-//! does live (`lop_sim::haptic::WorldProbe`); so a run is deterministic and can be compared bit
-//! for bit. `--static` solves the static equilibrium of the
+//! Every body takes steps of its own `dt`; `--steps N` means N steps of every body. The world
+//! advances by the rounds `lopd deform` runs (`World::round`: organ collision, the bodies due,
+//! heat), each round to the earliest next step time of the bodies still running, so every
+//! body due then takes one step. A mock script (`--script`, or a recording with `--device
+//! replay:PATH`) moves the device on simulated time and a god-object decides the contact, as
+//! the haptic loop does live (`lop_sim::haptic::WorldProbe`), with the tool law the device
+//! would render (`lop_scene::ToolLaws`, clamped to the mock's or the recording's stiffness
+//! limit); so a run is deterministic and can be compared bit for bit. `--static` solves the static equilibrium of the
 //! FEM bodies (K u = f) instead, for validation and calibration.
 
 use std::io::Write;
@@ -17,14 +18,15 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use lop_config::Scene;
-use lop_drivers::BUTTON_GRAB;
+use lop_drivers::{BUTTON_GRAB, BUTTON_HEAT};
+use lop_scene::{DeviceClamp, ToolLaws};
 use lop_sim::haptic::WorldProbe;
 use lop_sim::lop::SwitchReason;
 use lop_sim::mesh::{write_vtk, TetMesh};
 use lop_sim::model::Model;
 use serde::Serialize;
 
-use crate::scene::{self, tool_sphere};
+use crate::rounds::{Rounds, TickTool};
 use crate::tool_source::ToolSource;
 
 /// Options of `lopd simulate`.
@@ -90,16 +92,29 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
     sorted[i.min(sorted.len() - 1)]
 }
 
-/// Runs the simulation and writes the outputs. Returns the summary path.
-pub fn run(opts: SimulateOptions) -> Result<PathBuf> {
+/// What a run leaves: the summary's path and the world as it ended.
+pub struct Outcome {
+    /// `summary.json` in the output directory.
+    pub summary: PathBuf,
+    /// The world after the last round.
+    pub world: lop_sim::world::World,
+}
+
+/// Runs the simulation and writes the outputs.
+pub fn run(opts: SimulateOptions) -> Result<Outcome> {
     std::fs::create_dir_all(&opts.out)
         .with_context(|| format!("creating {}", opts.out.display()))?;
     let script = ToolSource::load(opts.script.as_deref(), opts.replay.as_deref())?;
     let workspace = opts.scene.workspace.transform();
-    let tool_spec = opts.scene.tool.clone();
-    let body_tool_stiffness: Vec<Option<f64>> =
-        opts.scene.bodies.iter().map(|b| b.tool_stiffness).collect();
-    let loaded = scene::load(opts.scene)?;
+    let laws = ToolLaws::new(
+        &opts.scene,
+        DeviceClamp {
+            max_stiffness_n_per_mm: script
+                .as_ref()
+                .map_or(f64::INFINITY, |s| s.limits().max_stiffness_n_per_mm),
+        },
+    );
+    let loaded = lop_scene::load(opts.scene)?;
     let scene_name = loaded.scene.name.clone();
     let scene_path = loaded.scene.path.display().to_string();
     let mut world = loaded.world;
@@ -138,13 +153,14 @@ pub fn run(opts: SimulateOptions) -> Result<PathBuf> {
             times[i].push(t0.elapsed().as_secs_f64() * 1e6);
         }
     } else {
-        // Interleaved, as the deformation process steps them: each round advances every body
-        // due at the earliest next step time, after the god-object has moved (with a script)
-        // and organ-to-organ contacts have been found, so bodies push each other.
+        // Round by round, as the deformation process runs them: each round advances every body
+        // due at the earliest next step time, after the god-object has moved (with a script).
         let mut probe = script
             .as_ref()
-            .map(|_| WorldProbe::new(&world, tool_spec.radius));
+            .map(|_| WorldProbe::new(&world, laws.tool.radius));
+        let mut rounds = Rounds::offline(laws);
         let mut active: Vec<bool> = vec![opts.steps > 0; n_bodies];
+        let mut skip: Vec<bool> = vec![false; n_bodies];
         loop {
             let next = (0..n_bodies)
                 .filter(|&i| active[i])
@@ -157,39 +173,40 @@ pub fn run(opts: SimulateOptions) -> Result<PathBuf> {
                 .filter(|&i| active[i])
                 .map(|i| world.bodies[i].time)
                 .fold(f64::INFINITY, f64::min);
-            let device = script.as_ref().map(|s| {
-                let sample = s.sample(now);
-                (
-                    workspace.device_to_scene(sample.position_mm),
-                    sample.pressed(BUTTON_GRAB),
-                )
-            });
-            if let (Some(p), Some((at, grab))) = (probe.as_mut(), device) {
-                p.tick(&mut world, at, grab);
+            let tool = match (probe.as_mut(), script.as_ref()) {
+                (Some(p), Some(s)) => {
+                    let sample = s.sample(now);
+                    let at = workspace.device_to_scene(sample.position_mm);
+                    p.tick(&world, at, sample.pressed(BUTTON_GRAB));
+                    Some(TickTool {
+                        center: at,
+                        coupling: p.coupling(),
+                        heat: sample.pressed(BUTTON_HEAT),
+                        stiffness: None,
+                    })
+                }
+                _ => None,
+            };
+            for (s, a) in skip.iter_mut().zip(&active) {
+                *s = !a;
             }
-            world.detect_collisions();
-            for i in 0..n_bodies {
-                if !active[i] || !world.body_due(i, next) {
+            rounds.advance(&mut world, next, tool.as_ref(), &skip, false, || {
+                wall.elapsed().as_nanos() as u64
+            });
+            let report = world.last_round();
+            for (i, r) in report.bodies.iter().enumerate() {
+                if r.steps == 0 {
                     continue;
                 }
-                let tool = device.map(|(at, _)| {
-                    let mut t = tool_sphere(&tool_spec, at);
-                    if let Some(k) = body_tool_stiffness[i] {
-                        t.stiffness = k;
-                    }
-                    t
-                });
-                let t0 = Instant::now();
-                let r = world.step_body(i, tool.as_ref());
-                let us = t0.elapsed().as_secs_f64() * 1e6;
                 let b = &world.bodies[i];
-                if let Err(cause) = r {
+                if let Some(cause) = r.blow_up {
                     tracing::warn!(
                         "body {:?} blew up at step {} ({cause:?}); reset",
                         b.name,
                         steps_done[i]
                     );
                 }
+                let us = r.last_step_ns as f64 * 1e-3;
                 times[i].push(us);
                 steps_done[i] += 1;
                 let f = b.last_contact.force_on_tissue;
@@ -285,7 +302,10 @@ pub fn run(opts: SimulateOptions) -> Result<PathBuf> {
     let path = opts.out.join("summary.json");
     std::fs::write(&path, serde_json::to_string_pretty(&summary)? + "\n")?;
     print_summary(&summary, &opts.out);
-    Ok(path)
+    Ok(Outcome {
+        summary: path,
+        world,
+    })
 }
 
 fn print_summary(s: &Summary, out: &Path) {

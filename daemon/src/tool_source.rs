@@ -4,9 +4,9 @@
 use std::path::Path;
 
 use anyhow::Result;
-use lop_drivers::mock::MockScript;
+use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::replay::Recording;
-use lop_drivers::DeviceSample;
+use lop_drivers::{DeviceLimits, DeviceSample};
 
 /// A tool trajectory on simulated time.
 pub enum ToolSource {
@@ -25,6 +25,15 @@ impl ToolSource {
             (None, Some(p)) => Some(ToolSource::Replay(Recording::load(p)?)),
             (None, None) => None,
         })
+    }
+
+    /// The limits of the device this trajectory stands for: the mock's (an Omni's), or the
+    /// recorded device's.
+    pub fn limits(&self) -> DeviceLimits {
+        match self {
+            ToolSource::Script(_) => MockDevice::omni_limits(),
+            ToolSource::Replay(r) => r.header().limits,
+        }
     }
 
     /// The device sample at simulated time `t`, s.

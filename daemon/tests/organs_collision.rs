@@ -11,7 +11,7 @@ fn organs() -> World {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../config/scenes/organs.toml");
     let scene = lop_config::load_scene(&path).unwrap();
     assert!(scene.collision.enabled, "collision is on by default");
-    lop_daemon::scene::load(scene).unwrap().world
+    lop_scene::load(scene).unwrap().world
 }
 
 /// Deepest vertex inside another body, m (no skin), and the penetrations within `skin`.

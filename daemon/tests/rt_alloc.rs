@@ -9,10 +9,10 @@ mod common;
 use common::{allocations, counted, DeformSide};
 use lop_config::{load_scene, resolve_scene, resolve_script, DaemonConfig};
 use lop_daemon::haptic::{rings, HapticLoop, HapticSettings};
-use lop_daemon::scene;
 use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::HapticDevice;
 use lop_ipc::*;
+use lop_scene as scene;
 
 #[test]
 fn haptic_tick_allocates_nothing_over_10k_ticks() {

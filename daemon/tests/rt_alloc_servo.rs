@@ -18,12 +18,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use common::{set_counting, DeformSide};
 use lop_config::{load_scene, resolve_scene, resolve_script, DaemonConfig};
 use lop_daemon::haptic::{rings, HapticSettings};
-use lop_daemon::scene;
 use lop_daemon::servo::ServoTask;
 use lop_drivers::mock::MockScript;
 use lop_drivers::openhaptics::OpenHapticsDevice;
 use lop_drivers::{HapticDevice, ServoControl, ServoEnd};
 use lop_ipc::*;
+use lop_scene as scene;
 
 const COUNT_FROM: u64 = 200;
 const COUNT_UNTIL: u64 = 5200;

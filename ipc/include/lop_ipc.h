@@ -20,7 +20,7 @@
 extern "C" {
 #endif
 
-#define LOP_CONTRACT_VERSION 3u
+#define LOP_CONTRACT_VERSION 4u
 #define LOP_MAX_BODIES 16
 #define LOP_BODY_NAME_LEN 32
 #define LOP_MAX_SUBSCRIBERS 16
@@ -54,7 +54,7 @@ extern "C" {
 #define LOP_RT_FLAG_PINNED  (1u << 1)
 #define LOP_RT_FLAG_MLOCKED (1u << 2)
 
-/* "lop::ToolState", service PREFIX/tool. 152 bytes, align 8. */
+/* "lop::ToolState", service PREFIX/tool. 160 bytes, align 8. */
 typedef struct lop_ToolState {
     uint32_t contract_version;
     uint32_t flags;
@@ -70,6 +70,7 @@ typedef struct lop_ToolState {
     uint32_t contact_triangle;
     uint32_t _pad;
     uint64_t topology_id;
+    double tool_stiffness;
 } lop_ToolState;
 
 /* "lop::BodyFrame", inside FrameHeader. 48 bytes, align 4. */
@@ -235,11 +236,12 @@ typedef struct lop_ControlResponse {
 #define LOP_ASSERT(c, m)
 #endif
 
-LOP_ASSERT(sizeof(lop_ToolState) == 152, "ToolState size");
+LOP_ASSERT(sizeof(lop_ToolState) == 160, "ToolState size");
 LOP_ASSERT(offsetof(lop_ToolState, device_position) == 24, "ToolState.device_position");
 LOP_ASSERT(offsetof(lop_ToolState, proxy_position) == 48, "ToolState.proxy_position");
 LOP_ASSERT(offsetof(lop_ToolState, buttons) == 128, "ToolState.buttons");
 LOP_ASSERT(offsetof(lop_ToolState, topology_id) == 144, "ToolState.topology_id");
+LOP_ASSERT(offsetof(lop_ToolState, tool_stiffness) == 152, "ToolState.tool_stiffness");
 LOP_ASSERT(sizeof(lop_BodyFrame) == 48, "BodyFrame size");
 LOP_ASSERT(offsetof(lop_BodyFrame, model) == 40, "BodyFrame.model");
 LOP_ASSERT(offsetof(lop_BodyFrame, switches) == 44, "BodyFrame.switches");

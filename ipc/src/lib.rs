@@ -9,7 +9,9 @@
 //! - [`control`]: the request–response control service `PREFIX/control` (get and set body
 //!   parameters, pin and release, reset, pause and resume);
 //! - [`clock`]: the one clock every timestamp in a payload uses (`CLOCK_MONOTONIC`, ns), so
-//!   latencies can be computed across processes.
+//!   latencies can be computed across processes;
+//! - [`signals`]: the stop flag set by SIGINT/SIGTERM/SIGHUP and the parent-death signal, for
+//!   every process that holds services and must release them on its way out.
 //!
 //! The rules a client must follow (attach read-only, never the blackboard, retry `open`) are in
 //! the docs of [`services`].
@@ -18,6 +20,7 @@ pub mod clock;
 pub mod control;
 pub mod limits;
 pub mod services;
+pub mod signals;
 pub mod types;
 
 pub use control::*;
@@ -25,6 +28,6 @@ pub use services::{ServiceNames, SERVICE_PREFIX_DEFAULT};
 pub use types::*;
 
 /// Version of the payload layouts (2: `BodyFrame::switches`; 3: `NodeSample::flags` with
-/// burned tissue, `TOOL_FLAG_GRAB` / `TOOL_FLAG_HEAT`). Bumped whenever a type in [`types`] changes shape or meaning;
+/// burned tissue, `TOOL_FLAG_GRAB` / `TOOL_FLAG_HEAT`; 4: `ToolState::tool_stiffness`). Bumped whenever a type in [`types`] changes shape or meaning;
 /// every payload carries it so a reader can refuse data it does not understand.
-pub const CONTRACT_VERSION: u32 = 3;
+pub const CONTRACT_VERSION: u32 = 4;

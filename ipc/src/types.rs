@@ -64,6 +64,10 @@ pub struct ToolState {
     pub _pad: u32,
     /// `TopologyHeader::topology_id` the contact indices refer to.
     pub topology_id: u64,
+    /// Stiffness of the tool law the hand feels against `contact_body` (N/m for the linear law,
+    /// N/m² for the quadratic), after the device's clamp; 0 without contact. The deformation
+    /// process gives the tissue this same spring, so action equals reaction.
+    pub tool_stiffness: f64,
 }
 
 /// Level-of-precision model a body runs right now (`BodyFrame::model`).

@@ -36,7 +36,7 @@ fn c_header_matches_the_rust_layouts() {
     layout!(rust, body;
         ToolState { contract_version, flags, sequence, stamp_ns, device_position, proxy_position,
             force, tool_radius, contact_barycentric, buttons, contact_body, contact_triangle,
-            _pad, topology_id }
+            _pad, topology_id, tool_stiffness }
         BodyFrame { aabb_min, aabb_max, kinetic_energy, max_speed, step_ns, resets, model, state,
             _pad, switches }
         FrameHeader { contract_version, body_count, topology_id, sequence, sim_time, publish_ns,

@@ -15,7 +15,7 @@ fn contract_version_is_one() {
 
 #[test]
 fn tool_state_layout() {
-    assert_eq!(size_of::<ToolState>(), 152);
+    assert_eq!(size_of::<ToolState>(), 160);
     assert_eq!(align_of::<ToolState>(), 8);
     assert_eq!(offset_of!(ToolState, contract_version), 0);
     assert_eq!(offset_of!(ToolState, flags), 4);
@@ -31,6 +31,7 @@ fn tool_state_layout() {
     assert_eq!(offset_of!(ToolState, contact_triangle), 136);
     assert_eq!(offset_of!(ToolState, _pad), 140);
     assert_eq!(offset_of!(ToolState, topology_id), 144);
+    assert_eq!(offset_of!(ToolState, tool_stiffness), 152);
 }
 
 #[test]

@@ -66,7 +66,9 @@ fn press(world: &mut World) -> ([f64; 3], [f64; 3]) {
             s = probe.tick(world, device, false);
         }
         hand = hand_force(&s, ForceLaw::Linear, K, 0.0, [0.0; 3]);
-        world.step_body(0, Some(&tool(device))).unwrap();
+        world
+            .step_body_coupled(0, Some(&tool(device)), probe.coupling())
+            .unwrap();
     }
     (hand, world.bodies[0].last_contact.force_on_tissue)
 }
@@ -144,7 +146,9 @@ fn picking_drags_the_grabbed_tissue_and_releases_it() {
                 assert!(f[1] < 0.0, "grabbing: hand force {f:?}");
             }
         }
-        world.step_body(0, Some(&tool(device))).unwrap();
+        world
+            .step_body_coupled(0, Some(&tool(device)), probe.coupling())
+            .unwrap();
     }
     assert!(grabbed.is_some(), "never grabbed");
     assert!(max_lift > 0.004, "grabbed nodes lifted only {max_lift} m");

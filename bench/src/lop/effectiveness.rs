@@ -7,7 +7,7 @@ use std::path::Path;
 
 use anyhow::{anyhow, bail, Context, Result};
 use lop_config::{BodySpec, ModelPin, Scene};
-use lop_daemon::scene::smallest_extent;
+use lop_scene::smallest_extent;
 use lop_sim::lop::{CageDynamics, CageShape, GcModel, GcParameters};
 use lop_sim::mesh::TetMesh;
 use lop_sim::model::Model;
@@ -372,7 +372,7 @@ fn run_reference(
     if let Some(f) = ref_spec.fem.as_mut() {
         f.mode = lop_config::FemMode::Corotational;
     }
-    let mut precise = lop_daemon::scene::precise_model(scene, &ref_spec, mesh)?;
+    let mut precise = lop_scene::precise_model(scene, &ref_spec, mesh)?;
     let dt = precise.dt();
     let steps = (seconds / dt).round() as usize;
     let force = match reference {

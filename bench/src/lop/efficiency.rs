@@ -9,10 +9,11 @@ use std::time::Instant;
 
 use anyhow::{bail, Result};
 use lop_config::{Importance, ModelPin, Scene, StartLevel};
-use lop_daemon::scene::tool_sphere;
-use lop_drivers::mock::MockScript;
+use lop_drivers::mock::{MockDevice, MockScript};
+use lop_scene::{DeviceClamp, ToolLaws};
 use lop_sim::collide::Collisions;
 use lop_sim::model::{ContactSpring, ModelKind};
+use lop_sim::world::{BodyRound, Coupling, Round, RoundTool};
 use serde::Serialize;
 
 use super::{kind_label, listed, median, quantile_sorted, shipped_scene, write_file};
@@ -431,10 +432,17 @@ fn run_one(
         None => None,
     };
     let workspace = scene.workspace.transform();
-    let tool_spec = scene.tool.clone();
+    let laws = ToolLaws::new(
+        &scene,
+        DeviceClamp {
+            max_stiffness_n_per_mm: MockDevice::omni_limits().max_stiffness_n_per_mm,
+        },
+    );
     let collision_spec = scene.collision.clone();
-    let loaded = lop_daemon::scene::load(scene)?;
+    let loaded = lop_scene::load(scene)?;
     let mut world = loaded.world;
+    // The thesis' trials time the deformation alone: no heat model.
+    world.disable_heat();
     if collide {
         if !world.collisions_enabled() {
             bail!("{key}: the scene's [collision] is disabled; the collision trial needs it on");
@@ -475,84 +483,85 @@ fn run_one(
     let mut max_force = vec![0.0f64; n];
     let mut max_force_x = vec![0.0f64; n];
     let wall = Instant::now();
+    let mut before = vec![ModelKind::Gc; n];
     for k in 1..=ticks {
         let t = k as f64 * tick;
-        // As `lopd deform` does: organ-to-organ contacts at the current shapes, once per round
-        // with a body due, before stepping the bodies due. Timed on its own.
-        if world.collisions_enabled() && (0..n).any(|i| world.body_due(i, t)) {
-            let time = world
-                .bodies
-                .iter()
-                .map(|b| b.time)
-                .fold(f64::INFINITY, f64::min);
-            let t0 = Instant::now();
-            let stats = world.detect_collisions();
-            let detect_us = t0.elapsed().as_secs_f64() * 1e6;
-            let stats = stats.unwrap_or_default();
+        // One round of the world, as `lopd deform` runs it: organ-to-organ contacts at the
+        // current shapes (timed on its own in the report), then the bodies due. The tool is
+        // placed from the script at the round's start; the script plays once, and after its end
+        // the tool is lifted out of the scene (§6.3.2: "removing the scalpel from the model").
+        let now = world
+            .bodies
+            .iter()
+            .map(|b| b.time)
+            .fold(f64::INFINITY, f64::min);
+        let tool = script.as_ref().and_then(|(s, _)| {
+            let st = now + offset;
+            (st <= s.duration()).then(|| RoundTool {
+                center: workspace.device_to_scene(s.sample(st).position_mm),
+                laws: &laws.bodies,
+                coupling: Coupling::Nearest,
+                heat_power: 0.0,
+            })
+        });
+        for (k, b) in before.iter_mut().zip(&world.bodies) {
+            *k = b.model.kind();
+        }
+        world.round(&Round::to(t, u32::MAX).with_tool(tool), || {
+            wall.elapsed().as_nanos() as u64
+        });
+        let report = world.last_round();
+        if report.detected {
+            let stats = report.collisions.unwrap_or_default();
             detections.push(Detection {
                 round: k,
-                time,
-                us: detect_us,
+                time: now,
+                us: report.collision_ns as f64 * 1e-3,
                 penetrations: stats.penetrations,
                 max_depth: stats.max_depth,
                 tree_builds: stats.tree_builds,
             });
         }
-        for i in 0..n {
-            while world.body_due(i, t) {
-                let body_time = world.bodies[i].time;
-                // The script plays once; after its end the tool is lifted out of the scene
-                // (§6.3.2: "removing the scalpel from the model").
-                let tool = script.as_ref().and_then(|(s, _)| {
-                    let st = body_time + offset;
-                    (st <= s.duration()).then(|| {
-                        tool_sphere(
-                            &tool_spec,
-                            workspace.device_to_scene(s.sample(st).position_mm),
-                        )
-                    })
-                });
-                let before = world.bodies[i].model.kind();
-                let colliding = !world.contact_springs(i).is_empty();
-                let t0 = Instant::now();
-                let _ = world.step_body(i, tool.as_ref());
-                let step_us = t0.elapsed().as_secs_f64() * 1e6;
-                let f = contact_force(world.contact_springs(i), world.bodies[i].model.positions());
-                max_force[i] = max_force[i].max(super::norm3(f));
-                max_force_x[i] = max_force_x[i].max(f[0].abs());
-                let b = &mut world.bodies[i];
-                let after = b.model.kind();
-                // Switches go cage ↔ precise: a switch to the precise model happens before the
-                // step (the precise model takes it), a switch to the cage after it.
-                let kind = if before == ModelKind::Gc {
-                    after
-                } else {
-                    before
-                };
+        let rounds: Vec<BodyRound> = report.bodies.clone();
+        for (i, r) in rounds.iter().enumerate().filter(|(_, r)| r.steps > 0) {
+            let colliding = !world.contact_springs(i).is_empty();
+            let f = contact_force(world.contact_springs(i), world.bodies[i].model.positions());
+            max_force[i] = max_force[i].max(super::norm3(f));
+            max_force_x[i] = max_force_x[i].max(f[0].abs());
+            let b = &mut world.bodies[i];
+            let after = b.model.kind();
+            // Switches go cage ↔ precise: a switch to the precise model happens before the
+            // step (the precise model takes it), a switch to the cage after it.
+            let kind = if before[i] == ModelKind::Gc {
+                after
+            } else {
+                before[i]
+            };
+            for _ in 0..r.steps {
                 iterations[i] += 1;
                 samples.push(Sample {
                     body: i,
                     iteration: iterations[i],
                     time: b.time,
                     kind,
-                    us: step_us,
+                    us: r.step_ns as f64 * 1e-3 / r.steps as f64,
                     colliding,
                 });
-                for (x, r) in b.model.positions().iter().zip(&rest[i]) {
-                    let d = [x[0] - r[0], x[1] - r[1], x[2] - r[2]];
-                    max_disp[i] = max_disp[i].max(super::norm3(d));
-                    max_dx[i] = max_dx[i].max(d[0]);
-                }
-                if let Some(sw) = b.lop.as_mut().and_then(|l| l.take_switch()) {
-                    switch_logs[i].push(SwitchRow {
-                        time_s: sw.time,
-                        from: kind_label(sw.from).into(),
-                        to: kind_label(sw.to).into(),
-                        reason: format!("{:?}", sw.reason),
-                        jump_mm: sw.jump * 1e3,
-                        residual_mm: sw.residual * 1e3,
-                    });
-                }
+            }
+            for (x, r) in b.model.positions().iter().zip(&rest[i]) {
+                let d = [x[0] - r[0], x[1] - r[1], x[2] - r[2]];
+                max_disp[i] = max_disp[i].max(super::norm3(d));
+                max_dx[i] = max_dx[i].max(d[0]);
+            }
+            if let Some(sw) = b.lop.as_mut().and_then(|l| l.take_switch()) {
+                switch_logs[i].push(SwitchRow {
+                    time_s: sw.time,
+                    from: kind_label(sw.from).into(),
+                    to: kind_label(sw.to).into(),
+                    reason: format!("{:?}", sw.reason),
+                    jump_mm: sw.jump * 1e3,
+                    residual_mm: sw.residual * 1e3,
+                });
             }
         }
         if let Some(g) = &mut gauge {

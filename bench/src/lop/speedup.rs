@@ -209,7 +209,7 @@ pub fn run(quick: bool) -> Result<Vec<SpeedRow>> {
                 f.mode = lop_config::FemMode::Corotational;
             }
             let t0 = Instant::now();
-            let fem = lop_daemon::scene::precise_model(&scene, &fem_spec, &mesh)?;
+            let fem = lop_scene::precise_model(&scene, &fem_spec, &mesh)?;
             let fem_setup = t0.elapsed().as_secs_f64() * 1e3;
             if !matches!(fem, Model::Fem(_)) {
                 bail!("scene {scene_name}: body {} has no [body.fem]", spec.name);
@@ -234,7 +234,7 @@ pub fn run(quick: bool) -> Result<Vec<SpeedRow>> {
             msd_spec.model = ModelPin::Msd;
             if msd_spec.msd.is_some() {
                 let t0 = Instant::now();
-                let mut msd = lop_daemon::scene::precise_model(&scene, &msd_spec, &mesh)?;
+                let mut msd = lop_scene::precise_model(&scene, &msd_spec, &mesh)?;
                 let setup = t0.elapsed().as_secs_f64() * 1e3;
                 eprintln!("lop: part 2: {} / MSD", spec.name);
                 let dt = msd.dt();
@@ -253,7 +253,7 @@ pub fn run(quick: bool) -> Result<Vec<SpeedRow>> {
                 ));
             }
 
-            let gc_dt = lop_daemon::scene::gc_parameters(&spec, &mesh, fem.dt()).dt;
+            let gc_dt = lop_scene::gc_parameters(&spec, &mesh, fem.dt()).dt;
             for loaded in [true, false] {
                 for shape in SHAPES {
                     let params = gc_variant(&spec, &mesh, shape, DynKind::Projected, gc_dt);

@@ -7,9 +7,9 @@ use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use iceoryx2::prelude::*;
-use lop_daemon::scene::LoadedScene;
 use lop_ipc::services::{self, FramePublisher, Role, TopologyPublisher};
 use lop_ipc::*;
+use lop_scene::LoadedScene;
 
 struct Counting;
 
@@ -87,16 +87,17 @@ impl DeformSide {
         let topo_pub = services::topology_service(&node, names, Role::Owner)
             .unwrap()
             .publisher_builder()
-            .initial_max_slice_len(loaded.topology_indices.len())
+            .initial_max_slice_len(loaded.topology.indices.len())
             .create()
             .unwrap();
         let frame_pub = services::frame_service(&node, names, Role::Owner)
             .unwrap()
             .publisher_builder()
-            .initial_max_slice_len(loaded.topology.node_count as usize)
+            .initial_max_slice_len(loaded.topology.node_count)
             .create()
             .unwrap();
-        let mut topology = loaded.topology;
+        let mut topology =
+            lop_daemon::deform::wire_topology(&loaded.scene, &loaded.topology).unwrap();
         topology.topology_id = TOPOLOGY_ID;
         let bounds = loaded
             .world
@@ -123,7 +124,7 @@ impl DeformSide {
             topo_pub,
             frame_pub,
             topology,
-            indices: loaded.topology_indices.clone(),
+            indices: loaded.topology.indices.clone(),
             bounds,
             nodes,
         }

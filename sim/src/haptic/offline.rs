@@ -12,6 +12,8 @@ pub struct WorldProbe {
     set: SurfaceSet,
     god: GodObject,
     node_offsets: Vec<usize>,
+    /// How the last tick's god-object acts on the tissue.
+    coupling: Coupling,
 }
 
 impl WorldProbe {
@@ -33,6 +35,7 @@ impl WorldProbe {
             set,
             god,
             node_offsets,
+            coupling: Coupling::GodObject(None),
         };
         probe.sync(world);
         probe
@@ -56,13 +59,19 @@ impl WorldProbe {
         self.god.follow_surface(&self.set);
     }
 
+    /// How the last [`tick`](Self::tick)'s god-object acts on the tissue: the anchor to pass to
+    /// the next round (or [`World::step_body_coupled`]) so the tissue receives the force the
+    /// hand feels. `GodObject(None)` before the first tick and out of contact.
+    pub fn coupling(&self) -> Coupling {
+        self.coupling
+    }
+
     /// One tick: synchronises with `world`, moves the god-object towards `device` with the grab
-    /// button `grab`, and sets `world.coupling` so the next steps apply the matching force to
-    /// the tissue.
-    pub fn tick(&mut self, world: &mut World, device: [f64; 3], grab: bool) -> GodState {
+    /// button `grab`, and keeps the matching [`coupling`](Self::coupling).
+    pub fn tick(&mut self, world: &World, device: [f64; 3], grab: bool) -> GodState {
         self.sync(world);
         let s = self.god.update(&mut self.set, device, grab);
-        world.coupling = Coupling::GodObject(s.anchor.map(|a| {
+        self.coupling = Coupling::GodObject(s.anchor.map(|a| {
             let local = a.triangle - self.set.body_triangles(a.body).start;
             (
                 a.body,

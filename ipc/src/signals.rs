@@ -1,6 +1,7 @@
-//! Signal handling: SIGINT, SIGTERM and SIGHUP set one flag that every loop polls. The handler
-//! only stores to an atomic, which is async-signal-safe; the loops then take their normal exit
-//! path, which writes zero force first.
+//! Signal handling for every lop process that holds shared memory (`lopd`'s processes, the
+//! benchmarks that spawn them): SIGINT, SIGTERM and SIGHUP set one flag that every loop polls,
+//! so each takes its normal exit path (the haptic loop writes zero force first; services are
+//! released). The handler only stores to an atomic, which is async-signal-safe.
 
 use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 

@@ -1,12 +1,21 @@
 //! The simulated scene: bodies, each with its mesh and its current model, stepped on its own
-//! time step.
+//! time step; organ-to-organ collision; the heat model.
 //!
-//! `World` owns no clock: the caller decides when a body is due (`body_due`) and steps it
-//! (`step_body`), so the deformation process can time each body and keep simulated time on the
-//! wall clock, while benchmarks and tests step as fast as they like, deterministically.
+//! One round of the world ([`World::round`], in [`round`]) is the only way the deformation
+//! process, `lopd simulate` and the benchmarks advance a scene: tool input → organ collision
+//! detection → the bodies that are due, each on its own `dt`, with the catch-up policy → heat →
+//! a report of timed stages. `World` owns no clock: the caller says how far to advance and
+//! passes the clock that times the stages, so the deformation process keeps simulated time on
+//! the wall clock while benchmarks and tests step as fast as they like, deterministically.
+//! [`World::step_body`] steps one body alone, for tests of a single model.
+
+mod round;
+
+pub use round::{BodyRound, Round, RoundReport, RoundTool, MAX_HEAT_CATCH_UP};
 
 use crate::collide::{CollisionBody, CollisionParams, CollisionStats, Collisions};
 use crate::contact::{closest_on_surface, scale, ToolSphere};
+use crate::heat::HeatWorld;
 use crate::lop::Lop;
 use crate::mesh::TetMesh;
 use crate::model::{BlowUp, ContactReport, ContactSpring, Model, ToolAnchor, ToolContact};
@@ -67,10 +76,22 @@ pub struct World {
     pub bodies: Vec<Body>,
     /// Gravity, m/s².
     pub gravity: [f64; 3],
-    /// How the tool given to [`World::step_body`] acts on the bodies.
-    pub coupling: Coupling,
     /// Organ-to-organ collision, once [enabled](World::enable_collisions).
     collisions: Option<Box<WorldCollisions>>,
+    /// The heat model, once [attached](World::set_heat).
+    heat: Option<Box<WorldHeat>>,
+    /// What the last [`World::round`] did (one entry per body, reused).
+    report: RoundReport,
+}
+
+/// The heat model of a world and its clock.
+#[derive(Debug, Clone)]
+struct WorldHeat {
+    model: HeatWorld,
+    /// Simulated time of the heat model, s.
+    time: f64,
+    /// Set once a heat step failed: the heat model stops, the bodies go on.
+    failed: bool,
 }
 
 /// Organ-to-organ collision in a world: detection structures, the response's law and the
@@ -88,9 +109,41 @@ impl World {
         World {
             bodies: Vec::new(),
             gravity,
-            coupling: Coupling::Nearest,
             collisions: None,
+            heat: None,
+            report: RoundReport::default(),
         }
+    }
+
+    /// Attaches the heat model (one heat body per world body, in the same order): each
+    /// [`World::round`] then heats the point the tool's god-object holds while the heat button
+    /// is pressed and takes the heat steps that are due. Its clock starts at 0.
+    pub fn set_heat(&mut self, model: HeatWorld) {
+        self.heat = Some(Box::new(WorldHeat {
+            model,
+            time: 0.0,
+            failed: false,
+        }));
+    }
+
+    /// Detaches the heat model.
+    pub fn disable_heat(&mut self) {
+        self.heat = None;
+    }
+
+    /// The heat model, if attached.
+    pub fn heat(&self) -> Option<&HeatWorld> {
+        self.heat.as_ref().map(|h| &h.model)
+    }
+
+    /// The heat model, if attached, for changes between rounds.
+    pub fn heat_mut(&mut self) -> Option<&mut HeatWorld> {
+        self.heat.as_mut().map(|h| &mut h.model)
+    }
+
+    /// What the last [`World::round`] did.
+    pub fn last_round(&self) -> &RoundReport {
+        &self.report
     }
 
     /// Turns organ-to-organ collision on for the bodies added so far (add bodies first): each
@@ -196,6 +249,7 @@ impl World {
     /// Adds a body with a model built by the caller (its rest shape must be `mesh`); returns its
     /// index.
     pub fn add_model(&mut self, name: &str, mesh: TetMesh, model: Model) -> usize {
+        self.report.bodies.push(BodyRound::default());
         let n = mesh.nodes.len();
         let mut node_triangles = vec![Vec::new(); n];
         for (t, tri) in mesh.surface.iter().enumerate() {
@@ -271,11 +325,23 @@ impl World {
     }
 
     /// Advances body `i` by one of its steps with its current loads and, if given, the tool
-    /// pressing on it. A blow-up resets the body (counted in `resets`) and is returned; the world
-    /// stays valid either way. Allocation-free after the first steps.
+    /// pressing on the surface nearest to it ([`Coupling::Nearest`]), outside any round: for
+    /// tests and benchmarks of one model. See [`World::step_body_coupled`].
     pub fn step_body(&mut self, i: usize, tool: Option<&ToolSphere>) -> Result<(), BlowUp> {
+        self.step_body_coupled(i, tool, Coupling::Nearest)
+    }
+
+    /// Advances body `i` by one of its steps with its current loads and, if given, the tool
+    /// acting on it as `coupling` says. A blow-up resets the body (counted in `resets`) and is
+    /// returned; the world stays valid either way. Allocation-free after the first steps.
+    pub fn step_body_coupled(
+        &mut self,
+        i: usize,
+        tool: Option<&ToolSphere>,
+        coupling: Coupling,
+    ) -> Result<(), BlowUp> {
         let gravity = self.gravity;
-        let (god, anchor) = match self.coupling {
+        let (god, anchor) = match coupling {
             Coupling::Nearest => (false, None),
             Coupling::GodObject(Some((body, a))) if body == i => (true, Some(a)),
             Coupling::GodObject(_) => (true, None),

@@ -1,12 +1,14 @@
-//! Turns a validated scene file into the simulation world and the static topology that the
-//! deformation process publishes. Shared by `lopd deform`, `lopd simulate`-style tools and the
-//! benchmarks, so every one of them sees the same bodies in the same order.
+//! `lop-scene`: a validated scene file turned into what runs it — the [`World`] (every body's
+//! mesh placed, its models and levels-of-precision controller, organ collision, the heat model),
+//! the static [`Topology`] the frames refer to, and each body's one tool law ([`ToolLaws`]:
+//! scene values, the body's `tool_stiffness`, the device's clamps).
+//!
+//! The haptic loop, the deformation process, `lopd simulate` and every benchmark build their
+//! scene here, so they see the same bodies in the same order and the tissue receives the same
+//! spring the hand feels.
 
 use anyhow::{Context, Result};
 use lop_config::{BodySpec, MassSpec, ModelPin, Scene, ToolSpec};
-use lop_ipc::{
-    TopologyHeader, CONTRACT_VERSION, IMPORTANCE_IMPORTANT, IMPORTANCE_NORMAL, MAX_BODIES,
-};
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::{Fem, FemMode, FemParameters};
 use lop_sim::lop::{CageDynamics, CageShape, GcModel, GcParameters, Lop, LopPolicy, StartLevel};
@@ -16,21 +18,131 @@ use lop_sim::model::Model;
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 use lop_sim::world::World;
 
-/// A loaded scene: the world plus what the wire needs.
+/// A loaded scene: the world and its topology.
 pub struct LoadedScene {
     /// The validated scene description.
     pub scene: Scene,
-    /// The bodies, ready to step.
+    /// The bodies, ready to step, with collision and heat as the scene sets them.
     pub world: World,
-    /// Topology header (ids filled in by the publisher).
-    pub topology: TopologyHeader,
-    /// Triangles then tetrahedra, global node indices (the topology payload).
-    pub topology_indices: Vec<u32>,
-    /// Node offset of each body in a frame.
-    pub node_offsets: Vec<usize>,
+    /// Which nodes, triangles and tetrahedra of a frame belong to which body.
+    pub topology: Topology,
 }
 
-/// The tool sphere of a scene at `center`.
+/// One body's place in the scene-wide node, triangle and tetrahedron lists.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodyTopology {
+    /// Name from the scene.
+    pub name: String,
+    /// First node of the body in a frame.
+    pub node_offset: usize,
+    /// Its nodes.
+    pub node_count: usize,
+    /// First surface triangle of the body.
+    pub triangle_offset: usize,
+    /// Its surface triangles.
+    pub triangle_count: usize,
+    /// First tetrahedron of the body.
+    pub tet_offset: usize,
+    /// Its tetrahedra.
+    pub tet_count: usize,
+    /// Display colour, linear RGB.
+    pub color: [f32; 3],
+    /// Marked important in the scene (runs FEM when touched).
+    pub important: bool,
+}
+
+/// The static topology of a scene: fixed for a load, published once.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Topology {
+    /// Every body, in scene order.
+    pub bodies: Vec<BodyTopology>,
+    /// Nodes of all bodies.
+    pub node_count: usize,
+    /// Surface triangles of all bodies.
+    pub triangle_count: usize,
+    /// Tetrahedra of all bodies.
+    pub tet_count: usize,
+    /// Triangles (3 indices each) then tetrahedra (4 each), global node indices.
+    pub indices: Vec<u32>,
+}
+
+impl Topology {
+    /// Node offset of each body in a frame.
+    pub fn node_offsets(&self) -> Vec<usize> {
+        self.bodies.iter().map(|b| b.node_offset).collect()
+    }
+}
+
+/// What the device can render, for clamping the tool law.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DeviceClamp {
+    /// Largest stiffness the device renders at the stylus, N/mm (`∞`, 0 or not finite: none).
+    pub max_stiffness_n_per_mm: f64,
+}
+
+impl DeviceClamp {
+    /// No clamp (no device, or one without a stiffness limit).
+    pub const NONE: DeviceClamp = DeviceClamp {
+        max_stiffness_n_per_mm: f64::INFINITY,
+    };
+}
+
+/// The tool law of a scene against each body: derived once, from the scene's `[tool]`, each
+/// body's `tool_stiffness` and the device's clamp, and used by whoever renders or receives the
+/// tool's force (the haptic loop, the deformation process, `lopd simulate`, the benchmarks).
+///
+/// The device renders at most `max_stiffness_n_per_mm` at the stylus; a scene spring `k` (N/m)
+/// is felt as `k · 1e-3 · scale` N/mm there (the workspace scales motion, not force). A linear
+/// law stiffer than that is clamped to it. The quadratic law's stiffness grows with depth: it is
+/// not clamped (the haptic process warns at start).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToolLaws {
+    /// The scene's tool (its own stiffness, clamped), centred at the origin.
+    pub tool: ToolSphere,
+    /// The law against each body, in scene order (centre at the origin).
+    pub bodies: Vec<ToolSphere>,
+    /// Damping on the penetration speed, N·s/m.
+    pub damping: f64,
+    /// Cautery power, W.
+    pub heat_power: f64,
+}
+
+impl ToolLaws {
+    /// The laws of `scene` on a device that renders at most `clamp`.
+    pub fn new(scene: &Scene, clamp: DeviceClamp) -> ToolLaws {
+        let m = clamp.max_stiffness_n_per_mm;
+        let k_max = if m.is_finite() && m > 0.0 {
+            m / (1e-3 * scene.workspace.scale)
+        } else {
+            f64::INFINITY
+        };
+        let clamp_k = |k: f64| match scene.tool.force_law {
+            lop_config::ForceLaw::Linear => k.min(k_max),
+            lop_config::ForceLaw::Quadratic => k,
+        };
+        let law = |k: f64| ToolSphere {
+            stiffness: clamp_k(k),
+            ..tool_sphere(&scene.tool, [0.0; 3])
+        };
+        ToolLaws {
+            tool: law(scene.tool.stiffness),
+            bodies: scene
+                .bodies
+                .iter()
+                .map(|b| law(b.tool_stiffness.unwrap_or(scene.tool.stiffness)))
+                .collect(),
+            damping: scene.tool.damping,
+            heat_power: scene.tool.heat_power,
+        }
+    }
+
+    /// Stiffness against body `body` (the scene tool's for an unknown body).
+    pub fn stiffness(&self, body: usize) -> f64 {
+        self.bodies.get(body).unwrap_or(&self.tool).stiffness
+    }
+}
+
+/// The tool sphere of a scene at `center`, with the scene's own stiffness (unclamped).
 pub fn tool_sphere(tool: &ToolSpec, center: [f64; 3]) -> ToolSphere {
     ToolSphere {
         center,
@@ -167,26 +279,15 @@ pub fn body_models(scene: &Scene, spec: &BodySpec, mesh: &TetMesh) -> Result<(Mo
     Ok((active, Some(lop)))
 }
 
-/// Loads every body's mesh, places it, and builds its mass-spring model.
+/// Loads every body's mesh, places it, builds its models and controller, and attaches organ
+/// collision and the heat model as the scene sets them.
 pub fn load(scene: Scene) -> Result<LoadedScene> {
-    if scene.bodies.len() > MAX_BODIES {
-        anyhow::bail!(
-            "scene {} has {} bodies; the frame format holds at most {MAX_BODIES}",
-            scene.path.display(),
-            scene.bodies.len()
-        );
-    }
     let mut world = World::new(scene.gravity);
-    let mut topology = TopologyHeader {
-        contract_version: CONTRACT_VERSION,
-        body_count: scene.bodies.len() as u32,
-        ..Default::default()
-    };
+    let mut topology = Topology::default();
     let mut triangles: Vec<u32> = Vec::new();
     let mut tets: Vec<u32> = Vec::new();
-    let mut node_offsets = Vec::new();
     let mut node_offset = 0usize;
-    for (i, spec) in scene.bodies.iter().enumerate() {
+    for spec in scene.bodies.iter() {
         let mut mesh = read_mesh(&spec.mesh)
             .with_context(|| format!("body {:?} of scene {}", spec.name, scene.path.display()))?;
         for p in mesh.nodes.iter_mut() {
@@ -206,23 +307,20 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
         mesh.fixed.sort_unstable();
         mesh.fixed.dedup();
         let (model, lop) = body_models(&scene, spec, &mesh)?;
-        let bt = &mut topology.bodies[i];
-        bt.set_name(&spec.name);
-        bt.node_offset = node_offset as u32;
-        bt.node_count = mesh.nodes.len() as u32;
-        bt.triangle_offset = (triangles.len() / 3) as u32;
-        bt.triangle_count = mesh.surface.len() as u32;
-        bt.tet_offset = (tets.len() / 4) as u32;
-        bt.tet_count = mesh.tets.len() as u32;
-        bt.color = spec.color;
-        bt.importance = match spec.importance {
-            lop_config::Importance::Important => IMPORTANCE_IMPORTANT,
-            lop_config::Importance::Normal => IMPORTANCE_NORMAL,
-        };
+        topology.bodies.push(BodyTopology {
+            name: spec.name.clone(),
+            node_offset,
+            node_count: mesh.nodes.len(),
+            triangle_offset: triangles.len() / 3,
+            triangle_count: mesh.surface.len(),
+            tet_offset: tets.len() / 4,
+            tet_count: mesh.tets.len(),
+            color: spec.color,
+            important: spec.importance == lop_config::Importance::Important,
+        });
         let off = node_offset as u32;
         triangles.extend(mesh.surface.iter().flatten().map(|&k| k + off));
         tets.extend(mesh.tets.iter().flatten().map(|&k| k + off));
-        node_offsets.push(node_offset);
         node_offset += mesh.nodes.len();
         match lop {
             Some(lop) => world.add_lop_body(&spec.name, mesh, model, lop),
@@ -238,17 +336,17 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
             scene.collision.depth_limit,
         );
     }
-    topology.node_count = node_offset as u32;
-    topology.triangle_count = (triangles.len() / 3) as u32;
-    topology.tet_count = (tets.len() / 4) as u32;
-    let mut topology_indices = triangles;
-    topology_indices.extend(tets);
+    let heat = heat_world(&scene, &world)?;
+    world.set_heat(heat);
+    topology.node_count = node_offset;
+    topology.triangle_count = triangles.len() / 3;
+    topology.tet_count = tets.len() / 4;
+    topology.indices = triangles;
+    topology.indices.extend(tets);
     Ok(LoadedScene {
         scene,
         world,
         topology,
-        topology_indices,
-        node_offsets,
     })
 }
 

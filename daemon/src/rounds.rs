@@ -1,0 +1,111 @@
+//! The deformation side's rounds, shared by `lopd deform` (on the wall clock) and `lopd
+//! simulate` (on simulated time): the tool as the haptic side resolved it ([`TickTool`]) and
+//! the scene's tool laws become one [`lop_sim::world::World::round`]. Nothing else advances a
+//! world in the daemon.
+//!
+//! The two callers differ only in where the tool comes from (the haptic loop's tool state, or a
+//! script through an offline god-object) and in the catch-up policy ([`Rounds::live`] drops
+//! the lag of a body that cannot keep up with the wall clock; [`Rounds::offline`] never does).
+
+use lop_scene::ToolLaws;
+use lop_sim::contact::ToolSphere;
+use lop_sim::world::{Coupling, Round, RoundTool, World};
+
+/// Most steps a body takes in one live round to catch up with the wall clock; beyond that its
+/// simulated time is dropped rather than spiralling (counted as lag).
+pub const MAX_CATCH_UP: u32 = 4;
+
+/// The tool for one round, as the haptic side resolved it.
+#[derive(Debug, Clone, Copy)]
+pub struct TickTool {
+    /// Device tip in the scene, m.
+    pub center: [f64; 3],
+    /// Which body the god-object touches or holds, and where (`GodObject(None)`: none).
+    pub coupling: Coupling,
+    /// The heat button is pressed.
+    pub heat: bool,
+    /// The stiffness the hand feels against the held body, as the haptic loop rendered it
+    /// (device-clamped); `None`: the scene law's.
+    pub stiffness: Option<f64>,
+}
+
+/// Rounds of one world with one scene's tool laws.
+#[derive(Debug, Clone)]
+pub struct Rounds {
+    laws: ToolLaws,
+    /// This round's laws: the scene's, with the hand's stiffness on the held body.
+    round_laws: Vec<ToolSphere>,
+    max_catch_up: u32,
+    drop_lag: bool,
+}
+
+impl Rounds {
+    /// Rounds on the wall clock (`lopd deform`): at most [`MAX_CATCH_UP`] steps a body, then
+    /// its lag is dropped.
+    pub fn live(laws: ToolLaws) -> Rounds {
+        Rounds::new(laws, MAX_CATCH_UP, true)
+    }
+
+    /// Rounds on simulated time (`lopd simulate`): each round advances to the earliest next
+    /// step, one step per body due, and no time is ever dropped.
+    pub fn offline(laws: ToolLaws) -> Rounds {
+        Rounds::new(laws, 1, false)
+    }
+
+    fn new(laws: ToolLaws, max_catch_up: u32, drop_lag: bool) -> Rounds {
+        Rounds {
+            round_laws: laws.bodies.clone(),
+            laws,
+            max_catch_up,
+            drop_lag,
+        }
+    }
+
+    /// The scene's tool laws.
+    pub fn laws(&self) -> &ToolLaws {
+        &self.laws
+    }
+
+    /// Runs one round of `world` to simulated time `until` with `tool` (see
+    /// [`World::round`]); bodies marked in `skip` are left alone; `paused` steps no body.
+    /// The report is `world.last_round()`. Allocation-free.
+    pub fn advance(
+        &mut self,
+        world: &mut World,
+        until: f64,
+        tool: Option<&TickTool>,
+        skip: &[bool],
+        paused: bool,
+        clock: impl FnMut() -> u64,
+    ) {
+        self.round_laws.copy_from_slice(&self.laws.bodies);
+        if let Some(TickTool {
+            coupling: Coupling::GodObject(Some((b, _))),
+            stiffness: Some(k),
+            ..
+        }) = tool
+        {
+            if let Some(law) = self.round_laws.get_mut(*b) {
+                if k.is_finite() && *k > 0.0 {
+                    law.stiffness = *k;
+                }
+            }
+        }
+        let heat_power = self.laws.heat_power;
+        let tool = tool.map(|t| RoundTool {
+            center: t.center,
+            laws: &self.round_laws,
+            coupling: t.coupling,
+            heat_power: if t.heat { heat_power } else { 0.0 },
+        });
+        let round = Round {
+            until,
+            max_catch_up: self.max_catch_up,
+            drop_lag: self.drop_lag,
+            tool,
+            skip,
+            paused,
+        };
+        world.round(&round, clock);
+    }
+}

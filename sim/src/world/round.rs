@@ -1,0 +1,227 @@
+//! One round of the world: the straight line of stages every caller runs.
+//!
+//! 1. **Tool input**: the device tip, each body's tool law and who the tool touches (the nearest
+//!    surface, or the god-object's anchor) arrive as arguments ([`RoundTool`]).
+//! 2. **Organ collision detection** at the current shapes, once, when a body is due: the contact
+//!    springs hold for every step of the round.
+//! 3. **The bodies that are due**, each on its own `dt`, at most [`Round::max_catch_up`] steps
+//!    each; on the wall clock ([`Round::drop_lag`]) a body still due after them drops the rest
+//!    of its simulated time (counted as lag) rather than spiral behind.
+//! 4. **Heat**: the cautery on the held point, then the heat steps that are due (at most
+//!    [`MAX_HEAT_CATCH_UP`]); a failed heat step stops the heat model, never the bodies.
+//! 5. **A report** of what happened and how long each stage took ([`RoundReport`]), timed with
+//!    the clock the caller passes (the physics crate reads no clock itself).
+//!
+//! `lopd deform` calls it once per loop iteration with the wall clock's simulated time; `lopd
+//! simulate` and the benchmarks call it with simulated time alone. The same inputs give the same
+//! positions, bit for bit, whoever calls. Allocation-free after the first rounds.
+
+use super::{Coupling, World};
+use crate::collide::CollisionStats;
+use crate::contact::ToolSphere;
+use crate::heat::HeatError;
+use crate::model::BlowUp;
+
+/// Most heat steps in one round; beyond that the heat model drops simulated time.
+pub const MAX_HEAT_CATCH_UP: u32 = 8;
+
+/// The tool as one round sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct RoundTool<'a> {
+    /// Device tip in the scene, m.
+    pub center: [f64; 3],
+    /// The tool law against each body, in body order: radius, stiffness and force law (the
+    /// centre is ignored). One value per body, the same the hand feels.
+    pub laws: &'a [ToolSphere],
+    /// Which body the tool acts on, and where.
+    pub coupling: Coupling,
+    /// Cautery power delivered at the god-object's anchor this round, W: 0 with the heat button
+    /// up. Heats only a touched (not grabbed) point.
+    pub heat_power: f64,
+}
+
+impl RoundTool<'_> {
+    /// The tool sphere against body `i` (its law, centred on the device tip).
+    pub fn sphere(&self, i: usize) -> Option<ToolSphere> {
+        self.laws.get(i).map(|law| ToolSphere {
+            center: self.center,
+            ..*law
+        })
+    }
+}
+
+/// What one round is asked to do.
+#[derive(Debug, Clone, Copy)]
+pub struct Round<'a> {
+    /// Simulated time to advance to, s: every body steps while its next step ends by then.
+    pub until: f64,
+    /// Most steps one body takes in this round.
+    pub max_catch_up: u32,
+    /// A body still due after `max_catch_up` steps drops the rest of its simulated time (the
+    /// wall-clock pace of `lopd deform`); `false`: it stays due for the next round (`lopd
+    /// simulate`, which advances on simulated time alone).
+    pub drop_lag: bool,
+    /// The tool, if a device is present.
+    pub tool: Option<RoundTool<'a>>,
+    /// Bodies left alone this round (`lopd simulate` once a body has taken its steps); empty
+    /// or shorter than the bodies: none.
+    pub skip: &'a [bool],
+    /// Paused: no body steps and no collision is detected (their clocks are the caller's to
+    /// hold); the heat model goes on.
+    pub paused: bool,
+}
+
+impl<'a> Round<'a> {
+    /// A round to simulated time `until`, `max_catch_up` steps per body at most (then it drops
+    /// its lag), no tool.
+    pub fn to(until: f64, max_catch_up: u32) -> Round<'a> {
+        Round {
+            until,
+            max_catch_up,
+            drop_lag: true,
+            tool: None,
+            skip: &[],
+            paused: false,
+        }
+    }
+
+    /// The same round with `tool`.
+    pub fn with_tool(self, tool: Option<RoundTool<'a>>) -> Round<'a> {
+        Round { tool, ..self }
+    }
+}
+
+/// What one body did in a round.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct BodyRound {
+    /// Steps taken.
+    pub steps: u32,
+    /// Duration of the last step taken, ns (0 without a step).
+    pub last_step_ns: u64,
+    /// Duration of all its steps, ns.
+    pub step_ns: u64,
+    /// The last blow-up (the body was reset to rest), if any.
+    pub blow_up: Option<BlowUp>,
+    /// Still due after [`Round::max_catch_up`] steps: its clock was moved to the round's end.
+    pub lagged: bool,
+}
+
+/// What the last round did, stage by stage.
+#[derive(Debug, Clone, Default)]
+pub struct RoundReport {
+    /// Organ-to-organ detection, if it ran (collision on and a body due).
+    pub collisions: Option<CollisionStats>,
+    /// Whether detection ran this round (collision on and a body due).
+    pub detected: bool,
+    /// Detection time, ns.
+    pub collision_ns: u64,
+    /// Per body, in body order.
+    pub bodies: Vec<BodyRound>,
+    /// Heat steps taken.
+    pub heat_steps: u32,
+    /// Heat time (sources and steps), ns.
+    pub heat_ns: u64,
+    /// The heat model failed in this round (it stops from now on).
+    pub heat_error: Option<HeatError>,
+    /// The whole round, ns.
+    pub total_ns: u64,
+}
+
+impl RoundReport {
+    /// Whether anything advanced: a body step or a heat step.
+    pub fn stepped(&self) -> bool {
+        self.heat_steps > 0 || self.bodies.iter().any(|b| b.steps > 0)
+    }
+}
+
+impl World {
+    /// Runs one round (see the [module](self)) and returns its report; `clock` gives
+    /// monotonic nanoseconds for the stage timings (pass `|| 0` where time does not matter).
+    /// Allocation-free after the first rounds, except when the heat model fails.
+    pub fn round(&mut self, round: &Round<'_>, mut clock: impl FnMut() -> u64) -> &RoundReport {
+        let start = clock();
+        let n = self.bodies.len();
+        self.report.bodies.resize(n, BodyRound::default());
+        self.report.bodies.fill(BodyRound::default());
+        self.report.collisions = None;
+        self.report.detected = false;
+        self.report.collision_ns = 0;
+        self.report.heat_steps = 0;
+        self.report.heat_ns = 0;
+        self.report.heat_error = None;
+        let skipped = |i: usize| round.skip.get(i).copied().unwrap_or(false);
+        let coupling = round.tool.map_or(Coupling::Nearest, |t| t.coupling);
+
+        if !round.paused {
+            // Organ-to-organ contacts at the current shapes, for the steps about to be taken.
+            if self.collisions.is_some()
+                && (0..n).any(|i| !skipped(i) && self.body_due(i, round.until))
+            {
+                let t0 = clock();
+                self.report.collisions = self.detect_collisions();
+                self.report.detected = true;
+                self.report.collision_ns = clock().saturating_sub(t0);
+            }
+            for i in (0..n).filter(|&i| !skipped(i)) {
+                let tool = round.tool.and_then(|t| t.sphere(i));
+                let mut r = BodyRound::default();
+                while self.body_due(i, round.until) && r.steps < round.max_catch_up {
+                    let t0 = clock();
+                    if let Err(cause) = self.step_body_coupled(i, tool.as_ref(), coupling) {
+                        r.blow_up = Some(cause);
+                    }
+                    r.last_step_ns = clock().saturating_sub(t0);
+                    r.step_ns += r.last_step_ns;
+                    r.steps += 1;
+                }
+                if round.drop_lag && self.body_due(i, round.until) {
+                    self.bodies[i].time = round.until;
+                    r.lagged = true;
+                }
+                self.report.bodies[i] = r;
+            }
+        }
+
+        if let Some(h) = self.heat.as_mut().filter(|h| !h.failed) {
+            let t0 = clock();
+            for b in 0..n {
+                if let Ok(hb) = h.model.body_mut(b) {
+                    hb.clear_sources();
+                }
+            }
+            if let Some(t) = round.tool.filter(|t| t.heat_power > 0.0) {
+                if let Coupling::GodObject(Some((b, a))) = t.coupling {
+                    if !a.grab {
+                        let tri = self.bodies[b]
+                            .mesh
+                            .surface
+                            .get(a.triangle as usize)
+                            .copied();
+                        if let (Some(tri), Ok(hb)) = (tri, h.model.body_mut(b)) {
+                            let _ = hb.heat_point(tri, a.bary, t.heat_power);
+                        }
+                    }
+                }
+            }
+            if let Some(dt) = h.model.bodies().first().map(|b| b.dt()) {
+                while h.time + dt <= round.until + 1e-12
+                    && self.report.heat_steps < MAX_HEAT_CATCH_UP
+                {
+                    if let Err(e) = h.model.step() {
+                        h.failed = true;
+                        self.report.heat_error = Some(e);
+                        break;
+                    }
+                    h.time += dt;
+                    self.report.heat_steps += 1;
+                }
+                if h.time + dt <= round.until {
+                    h.time = round.until; // fell behind: drop simulated heat time
+                }
+            }
+            self.report.heat_ns = clock().saturating_sub(t0);
+        }
+        self.report.total_ns = clock().saturating_sub(start);
+        &self.report
+    }
+}
