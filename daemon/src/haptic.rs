@@ -652,26 +652,13 @@ pub fn run_loop(
     let mut hl = HapticLoop::new(names, settings, tool_ring, telemetry_ring)?;
 
     // Start: privileges (each optional, reported once), then a warm stack.
-    let mut flags = 0;
-    let mut pinned = -1;
-    if let Some(core) = rt_request.core {
-        match rt::pin_to_core(core) {
-            Ok(()) => {
-                flags |= RT_FLAG_PINNED;
-                pinned = core as i32;
-            }
-            Err(e) => tracing::warn!("haptic loop not pinned: {e}"),
-        }
-    }
-    match rt::set_fifo(rt_request.priority) {
-        Ok(()) => flags |= RT_FLAG_FIFO,
-        Err(e) => tracing::warn!("haptic loop runs without real-time priority: {e}"),
-    }
-    if crate::MEMORY_LOCKED.load(Ordering::Relaxed) {
-        flags |= RT_FLAG_MLOCKED;
-    }
-    hl.set_rt_state(flags, pinned);
-    rt::prefault_stack(256 * 1024);
+    let state = rt::set_up_thread(
+        "haptic loop",
+        rt_request.core,
+        rt::Priority::Fifo(rt_request.priority),
+        256 * 1024,
+    );
+    hl.set_rt_state(state.flags, state.pinned_core);
 
     // Process: absolute deadlines; a late tick is counted, never caught up in a burst.
     let mut fatal = None;

@@ -11,6 +11,7 @@ pub mod ctl;
 pub mod deform;
 pub mod doctor;
 pub mod haptic;
+pub mod haptic_process;
 pub mod record;
 pub mod rounds;
 pub mod rt;

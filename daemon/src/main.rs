@@ -4,8 +4,6 @@
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
@@ -13,13 +11,12 @@ use clap::{Args, Parser, Subcommand};
 use lop_config::{
     load_daemon_config, load_scene, resolve_scene, resolve_script, DaemonConfig, Scene,
 };
-use lop_daemon::haptic::{self, HapticSettings, RtRequest};
-use lop_daemon::record::{self, Recorded};
-use lop_daemon::{deform, rt, servo, signals, supervisor, MEMORY_LOCKED};
+use lop_daemon::haptic_process::{Device, HapticProcess};
+use lop_daemon::{deform, signals, supervisor};
 use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::openhaptics::OpenHapticsDevice;
 use lop_drivers::replay::ReplayDevice;
-use lop_drivers::{DeviceSpec, HapticDevice, Pacing};
+use lop_drivers::DeviceSpec;
 use lop_ipc::ServiceNames;
 
 #[derive(Parser)]
@@ -259,37 +256,6 @@ fn load_common(a: &CommonArgs) -> Result<(Scene, DaemonConfig, ServiceNames, Opt
     Ok((scene, config, names, duration))
 }
 
-/// The opened device, concrete so device-specific extras (the mock's force record) stay
-/// reachable after the loop.
-enum Device {
-    Mock(MockDevice),
-    Replay(ReplayDevice),
-    OpenHaptics(Box<OpenHapticsDevice>),
-}
-
-impl Device {
-    fn as_dyn(&mut self) -> &mut dyn HapticDevice {
-        match self {
-            Device::Mock(m) => m,
-            Device::Replay(r) => r,
-            Device::OpenHaptics(o) => o.as_mut(),
-        }
-    }
-    fn as_ref_dyn(&self) -> &dyn HapticDevice {
-        match self {
-            Device::Mock(m) => m,
-            Device::Replay(r) => r,
-            Device::OpenHaptics(o) => o.as_ref(),
-        }
-    }
-    fn mock(&self) -> Option<&MockDevice> {
-        match self {
-            Device::Mock(m) => Some(m),
-            _ => None,
-        }
-    }
-}
-
 fn open_device(spec: &DeviceSpec, scene: &Scene, config: &DaemonConfig) -> Result<Device> {
     match spec {
         DeviceSpec::Mock { script } => {
@@ -359,183 +325,12 @@ fn cmd_run(a: RunArgs) -> Result<i32> {
 fn cmd_haptic(a: HapticArgs) -> Result<()> {
     let (scene, config, names, duration) = load_common(&a.common)?;
     let spec: DeviceSpec = bad(a.device.parse())?;
-    let mut device = open_device(&spec, &scene, &config)?;
-    device.as_dyn().start().context("starting the device")?;
-    if config.haptic.lock_memory {
-        match rt::lock_memory() {
-            Ok(()) => MEMORY_LOCKED.store(true, Ordering::Relaxed),
-            Err(e) => tracing::warn!("memory not locked: {e}"),
-        }
-    }
-    let limits = device.as_ref_dyn().limits();
-    let settings = HapticSettings::new(&config, &scene, limits);
-    let max_ticks = duration.map(|d| (d.as_secs_f64() * settings.rate_hz).round() as u64);
-    let rt_request = RtRequest {
-        core: config.haptic.core.or_else(rt::last_core),
-        priority: config.haptic.rt_priority,
-    };
-    let pacing = device.as_ref_dyn().pacing();
-    if let Some(w) = servo::stiffness_warning(&scene, &limits) {
-        tracing::warn!("{w}");
-    }
-    tracing::info!(
-        "haptic loop: {} Hz on {}{}, force clamp {:.2} N, stale limit {} ms",
-        settings.rate_hz,
-        device.as_ref_dyn().name(),
-        if pacing == Pacing::DeviceClock {
-            " (the device's servo callback is the clock)"
-        } else {
-            ""
-        },
-        settings.max_force,
-        settings.stale_ns / 1_000_000
-    );
-    let recording = match &a.record {
-        Some(path) => {
-            let header = record::header(
-                settings.rate_hz,
-                limits,
-                &scene.name,
-                &scene.path,
-                &a.device,
-            );
-            let (tap, writer) = record::start(path, &header)?;
-            tracing::info!("recording the device stream to {}", writer.path().display());
-            Some((tap, writer))
-        }
-        None => None,
-    };
-    let (mut tap, writer) = match recording {
-        Some((tap, writer)) => (Some(tap), Some(writer)),
-        None => (None, None),
-    };
-    let ((tool_tx, tool_rx), (tel_tx, tel_rx)) = haptic::rings();
-    let done = Arc::new(AtomicBool::new(false));
-    let publisher = {
-        let names = names.clone();
-        let done = done.clone();
-        std::thread::Builder::new()
-            .name("lop-tool-pub".into())
-            .spawn(move || haptic::run_publisher(&names, tool_rx, tel_rx, done))?
-    };
-    let (result, mut device) = match pacing {
-        Pacing::SelfPaced => {
-            let rt_thread = {
-                let names = names.clone();
-                let tap = tap.as_mut();
-                std::thread::scope(|scope| {
-                    std::thread::Builder::new()
-                        .name("lop-haptic-rt".into())
-                        .stack_size(1 << 20)
-                        .spawn_scoped(scope, move || {
-                            let r = match tap {
-                                Some(tap) => haptic::run_loop(
-                                    &names,
-                                    settings,
-                                    &mut Recorded {
-                                        device: device.as_dyn(),
-                                        tap,
-                                    },
-                                    &rt_request,
-                                    &signals::STOP,
-                                    max_ticks,
-                                    tool_tx,
-                                    tel_tx,
-                                ),
-                                None => haptic::run_loop(
-                                    &names,
-                                    settings,
-                                    device.as_dyn(),
-                                    &rt_request,
-                                    &signals::STOP,
-                                    max_ticks,
-                                    tool_tx,
-                                    tel_tx,
-                                ),
-                            };
-                            (r, device)
-                        })
-                        .map(|h| h.join())
-                })?
-            };
-            match rt_thread {
-                Ok(v) => v,
-                Err(_) => {
-                    done.store(true, Ordering::Release);
-                    let _ = publisher.join();
-                    bail!("the haptic loop panicked; zero force was written by its guard")
-                }
-            }
-        }
-        Pacing::DeviceClock => {
-            let task = servo::ServoTask::new(
-                &names,
-                settings,
-                rt_request.core,
-                &signals::STOP,
-                max_ticks,
-                tool_tx,
-                tel_tx,
-                tap.as_mut(),
-            );
-            let r = servo::run(device.as_dyn(), task);
-            (r, device)
-        }
-    };
-    done.store(true, Ordering::Release);
-    let _ = publisher.join();
-    device.as_dyn().stop();
-    if let Some(writer) = writer {
-        let path = writer.path().to_path_buf();
-        let records = writer.finish()?;
-        let dropped = tap.as_ref().map_or(0, |t| t.dropped());
-        tracing::info!(
-            "recorded {records} device samples to {}{}",
-            path.display(),
-            if dropped > 0 {
-                format!(" ({dropped} lost: the writer fell behind)")
-            } else {
-                String::new()
-            }
-        );
-    }
-    if let Device::OpenHaptics(o) = &device {
-        let s = o.stats();
-        if s.clamped_forces + s.non_finite_forces + s.recoverable_errors > 0 {
-            tracing::info!(
-                "device: {} forces clamped to its peak, {} non-finite refused, {} force errors",
-                s.clamped_forces,
-                s.non_finite_forces,
-                s.recoverable_errors
-            );
-        }
-    }
-    let summary = result?;
-    if let Some(path) = &a.force_log {
-        if let Some(mock) = device.mock() {
-            mock.write_force_csv(path)
-                .with_context(|| format!("writing {}", path.display()))?;
-        }
-    }
-    let last = device.mock().map(|m| m.last_force());
-    tracing::info!(
-        "haptic loop stopped after {} ticks, {} overruns{}{}",
-        summary.ticks,
-        summary.overruns,
-        match last {
-            Some(f) => format!("; last force written [{}, {}, {}] N", f[0], f[1], f[2]),
-            None => String::new(),
-        },
-        if summary.ring_drops > 0 {
-            format!("; {} tool states not published", summary.ring_drops)
-        } else {
-            String::new()
-        }
-    );
-    if let Some(e) = summary.fatal {
-        bail!("device error stopped the haptic loop: {e}");
-    }
-    Ok(())
+    let device = open_device(&spec, &scene, &config)?;
+    HapticProcess::builder(scene, config, names, device, &a.device)
+        .duration(duration)
+        .record(a.record)
+        .force_log(a.force_log)
+        .run()
 }
 
 fn cmd_deform(a: CommonArgs) -> Result<()> {

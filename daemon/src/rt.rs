@@ -112,3 +112,72 @@ pub fn sleep_until(deadline_ns: u64, spin_ns: u64) -> u64 {
 pub fn ns(d: Duration) -> u64 {
     d.as_nanos().min(u64::MAX as u128) as u64
 }
+
+/// How the calling thread gets its real-time priority.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Priority {
+    /// Ask for `SCHED_FIFO` at this priority (the timed loop's own thread).
+    Fifo(u8),
+    /// The thread's owner set it (the device's servo thread): only check and report it.
+    Inherited,
+}
+
+/// What [`set_up_thread`] obtained, as `RT_FLAG_*` bits and the pinned core (-1: none), for
+/// the loop's telemetry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RtState {
+    /// `RT_FLAG_*` bits.
+    pub flags: u32,
+    /// The core the thread is pinned to, or -1.
+    pub pinned_core: i32,
+}
+
+/// The real-time set-up of the calling thread, shared by the timed haptic loop and the
+/// device-clocked servo path: pin to `core`, the priority as `priority` says, note whether
+/// memory is locked, and pre-fault `prefault_stack` bytes of stack. Each privilege is optional:
+/// a missing one is reported once (`who` names the thread) and the thread runs anyway.
+pub fn set_up_thread(
+    who: &str,
+    core: Option<usize>,
+    priority: Priority,
+    prefault_stack_bytes: usize,
+) -> RtState {
+    use lop_ipc::{RT_FLAG_FIFO, RT_FLAG_MLOCKED, RT_FLAG_PINNED};
+    let mut state = RtState {
+        flags: 0,
+        pinned_core: -1,
+    };
+    if let Some(core) = core {
+        match pin_to_core(core) {
+            Ok(()) => {
+                state.flags |= RT_FLAG_PINNED;
+                state.pinned_core = core as i32;
+            }
+            Err(e) => tracing::warn!("{who} not pinned: {e}"),
+        }
+    }
+    match priority {
+        Priority::Fifo(p) => match set_fifo(p) {
+            Ok(()) => state.flags |= RT_FLAG_FIFO,
+            Err(e) => tracing::warn!("{who} runs without real-time priority: {e}"),
+        },
+        // SAFETY: plain query of the calling thread's policy.
+        Priority::Inherited => {
+            if unsafe { libc::sched_getscheduler(0) } == libc::SCHED_FIFO {
+                state.flags |= RT_FLAG_FIFO;
+            } else {
+                tracing::warn!(
+                    "{who} does not run SCHED_FIFO: grant the service real-time limits \
+                     (LimitRTPRIO, see docs/deploy.md)"
+                );
+            }
+        }
+    }
+    if crate::MEMORY_LOCKED.load(std::sync::atomic::Ordering::Relaxed) {
+        state.flags |= RT_FLAG_MLOCKED;
+    }
+    if prefault_stack_bytes > 0 {
+        prefault_stack(prefault_stack_bytes);
+    }
+    state
+}

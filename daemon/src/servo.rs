@@ -20,9 +20,7 @@ use lop_config::{ForceLaw, Scene};
 use lop_drivers::{
     DeviceError, DeviceLimits, HapticDevice, ServoClock, ServoControl, ServoEnd, ServoRun,
 };
-use lop_ipc::{
-    HapticTelemetry, ServiceNames, ToolState, RT_FLAG_FIFO, RT_FLAG_MLOCKED, RT_FLAG_PINNED,
-};
+use lop_ipc::{HapticTelemetry, ServiceNames, ToolState};
 
 use crate::haptic::{HapticLoop, HapticSettings, HapticSummary};
 use crate::record::{RecordTap, Recorded};
@@ -125,32 +123,16 @@ impl<'a> ServoTask<'a> {
         let Some(s) = self.setup.take() else {
             return ServoControl::Stop;
         };
-        let mut flags = 0;
-        let mut pinned = -1;
-        if let Some(core) = s.core {
-            match rt::pin_to_core(core) {
-                Ok(()) => {
-                    flags |= RT_FLAG_PINNED;
-                    pinned = core as i32;
-                }
-                Err(e) => tracing::warn!("servo thread not pinned: {e}"),
-            }
-        }
-        // SAFETY: plain query of the calling thread's policy.
-        if unsafe { libc::sched_getscheduler(0) } == libc::SCHED_FIFO {
-            flags |= RT_FLAG_FIFO;
-        } else {
-            tracing::warn!(
-                "the device's servo thread does not run SCHED_FIFO: grant the service real-time \
-                 limits (LimitRTPRIO, see docs/deploy.md)"
-            );
-        }
-        if crate::MEMORY_LOCKED.load(Ordering::Relaxed) {
-            flags |= RT_FLAG_MLOCKED;
-        }
+        // The vendor's thread: its priority is the vendor's, its stack is not ours to pre-fault.
+        let state = rt::set_up_thread(
+            "the device's servo thread",
+            s.core,
+            rt::Priority::Inherited,
+            0,
+        );
         match HapticLoop::new(&s.names, s.settings, s.tool_ring, s.telemetry_ring) {
             Ok(mut hl) => {
-                hl.set_rt_state(flags, pinned);
+                hl.set_rt_state(state.flags, state.pinned_core);
                 self.hl = Some(hl);
                 self.last_wake_ns = clock.now_ns;
                 ServoControl::Continue
