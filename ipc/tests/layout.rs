@@ -10,7 +10,7 @@ use lop_ipc::*;
 
 #[test]
 fn contract_version_is_one() {
-    assert_eq!(CONTRACT_VERSION, 3);
+    assert_eq!(CONTRACT_VERSION, 4);
 }
 
 #[test]
