@@ -223,11 +223,6 @@ impl SparseSpd {
         }
     }
 
-    /// Order of the matrix.
-    pub fn dim(&self) -> usize {
-        self.n
-    }
-
     /// Stored non-zeros of the matrix (one triangle) and of its Cholesky factor.
     pub fn nnz(&self) -> (usize, usize) {
         (self.values.len(), self.symbolic.len_val())
