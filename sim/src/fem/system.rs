@@ -30,8 +30,8 @@ use faer::Side;
 use super::element::{stiffness_block, Element};
 use super::ordering::{self, Graph};
 use super::packed::{HalfFactor, PackedFactor};
-pub(crate) use crate::solve::sparse::{NotPositiveDefinite, Precision};
 use crate::solve::sparse::{analyse, Method, Ordering, SparseSpd};
+pub(crate) use crate::solve::sparse::{NotPositiveDefinite, Precision};
 
 /// "No DOF" / "not stored" marker.
 pub(crate) const NONE: u32 = u32::MAX;
@@ -205,9 +205,7 @@ impl System {
 
         // Diagonal positions and element scatter map.
         let find = |row: u32, col: u32| -> u32 {
-            matrix
-                .position(row, col)
-                .expect("entry is in the pattern") as u32
+            matrix.position(row, col).expect("entry is in the pattern") as u32
         };
         let diag: Vec<u32> = (0..n_dof as u32).map(|d| find(d, d)).collect();
         let scatter = elements

@@ -105,9 +105,8 @@ impl HeatSystem {
         let (col_ptr, row_idx) = self.matrix.pattern();
         for c in 0..self.n {
             let (s, e) = (col_ptr[c] as usize, col_ptr[c + 1] as usize);
-            for p in s..e {
-                let r = row_idx[p] as usize;
-                let k = self.conductance[p];
+            for (&r, &k) in row_idx[s..e].iter().zip(&self.conductance[s..e]) {
+                let r = r as usize;
                 out[r] += k * x[c];
                 if r != c {
                     out[c] += k * x[r];

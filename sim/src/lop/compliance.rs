@@ -143,9 +143,8 @@ pub(super) fn matched_stiffness(
 fn factorize(k: &SparseColMat<usize, f64>) -> Option<SparseSpd> {
     let pattern = k.symbolic();
     assert!(pattern.col_nnz().is_none(), "compressed columns");
-    let as_u32 = |v: &[usize]| -> Option<Vec<u32>> {
-        v.iter().map(|&i| u32::try_from(i).ok()).collect()
-    };
+    let as_u32 =
+        |v: &[usize]| -> Option<Vec<u32>> { v.iter().map(|&i| u32::try_from(i).ok()).collect() };
     let mut spd = SparseSpd::new(
         k.nrows(),
         as_u32(pattern.col_ptr())?,

@@ -44,14 +44,8 @@ impl std::fmt::Debug for ImplicitSolver {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ImplicitSolver")
             .field("unknowns", &self.rhs.len())
-            .field(
-                "matrix_entries",
-                &self.a.as_ref().map_or(0, |a| a.nnz().0),
-            )
-            .field(
-                "factor_entries",
-                &self.a.as_ref().map_or(0, |a| a.nnz().1),
-            )
+            .field("matrix_entries", &self.a.as_ref().map_or(0, |a| a.nnz().0))
+            .field("factor_entries", &self.a.as_ref().map_or(0, |a| a.nnz().1))
             .finish()
     }
 }

@@ -179,7 +179,11 @@ impl SparseSpd {
         side: Side,
         symbolic: SymbolicCholesky<u32>,
     ) -> Result<SparseSpd, FaerError> {
-        assert_eq!(symbolic.nrows(), n, "symbolic factorisation of another size");
+        assert_eq!(
+            symbolic.nrows(),
+            n,
+            "symbolic factorisation of another size"
+        );
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
             symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
