@@ -19,5 +19,6 @@ pub mod lop;
 pub mod mesh;
 pub mod model;
 pub mod msd;
+mod solve;
 mod vec3;
 pub mod world;

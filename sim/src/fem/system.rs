@@ -16,27 +16,22 @@
 //!   stored entries of its 12×12 matrix (the 6 upper-triangle node blocks with 9 entries and
 //!   the 4 diagonal node blocks with 6), or `NONE` where a node is held. Assembly is then a
 //!   scatter-add: no search, no allocation.
-//! - **Factorisation.** Symbolic once per candidate ordering (faer
-//!   `factorize_symbolic_cholesky`, identity ordering on the pre-ordered numbering; faer
-//!   chooses supernodal or simplicial by its flop estimate); numeric LLᵀ into a value buffer owned here, in double precision (direct solves) or single
-//!   precision (the corotational preconditioner), with one `MemBuffer` sized for all of them.
+//! - **Factorisation.** By the crate's sparse SPD solver (`solve/sparse.rs`): symbolic once per
+//!   candidate ordering (identity ordering on the pre-ordered numbering; faer chooses
+//!   supernodal or simplicial by its flop estimate); numeric LLᵀ into reused buffers, in double
+//!   precision (direct solves) or single precision (the corotational preconditioner). On top of
+//!   it, this system repacks supernodal factors for its own solves (`packed.rs`).
 
 use std::fmt;
-use std::sync::Arc;
 
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
-    SymbolicCholeskyRaw, SymmetricOrdering,
-};
-use faer::sparse::linalg::SupernodalThreshold;
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Par, Side};
+use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
+use faer::Side;
 
 use super::element::{stiffness_block, Element};
 use super::ordering::{self, Graph};
 use super::packed::{HalfFactor, PackedFactor};
+use crate::solve::sparse::{analyse, Method, Ordering, SparseSpd};
+pub(crate) use crate::solve::sparse::{NotPositiveDefinite, Precision};
 
 /// "No DOF" / "not stored" marker.
 pub(crate) const NONE: u32 = u32::MAX;
@@ -59,42 +54,23 @@ const PAIRS: [(usize, usize); 10] = [
     (3, 3),
 ];
 
-/// Why the numeric factorisation failed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct NotPositiveDefinite;
-
 /// A fixed-pattern SPD system with its Cholesky factor.
 pub(crate) struct System {
     /// Per node: its first DOF (x; y and z follow), or [`NONE`] for a held node.
     pub dof: Vec<u32>,
     /// Number of free DOFs.
     pub n_dof: usize,
-    /// CSC column pointers of the stored triangle.
-    col_ptr: Vec<u32>,
-    /// CSC row indices (sorted within each column).
-    row_idx: Vec<u32>,
-    /// Matrix values, filled by [`System::clear_with_mass`] and [`System::add_element`], read
-    /// by [`System::factorize`].
-    pub values: Vec<f64>,
+    /// The matrix (one triangle, CSC; values filled by [`System::clear_with_mass`] and
+    /// [`System::add_element`]), its symbolic factorisation and faer's numeric factor in double
+    /// or single precision, filled by [`System::factorize`].
+    matrix: SparseSpd,
     /// Per DOF: index of its diagonal entry in `values`.
     diag: Vec<u32>,
     /// Per element: the value index of each stored entry, in [`PAIRS`] order.
     scatter: Vec<[u32; ELEMENT_ENTRIES]>,
-    /// Symbolic factorisation (shared by clones: it never changes).
-    symbolic: Arc<SymbolicCholesky<u32>>,
-    /// Numeric factor in double or single precision (allocated on first use), filled by
-    /// [`System::factorize`], read by [`System::solve_in_place`]; `current` says which one
-    /// holds the factor of `values`, if any.
-    l64: Vec<f64>,
-    l32: Vec<f32>,
-    current: Option<Precision>,
-    /// Scratch for single precision: `values` and the right-hand side rounded to `f32`,
-    /// written and read by `factorize` / `solve_in_place`.
-    values32: Vec<f32>,
-    rhs32: Vec<f32>,
     /// The single-precision factor rounded to half precision (supernodal factors only;
-    /// allocated with `l32`), and whether it holds the current factor: the single-precision
-    /// solves use it instead of `l32` (`packed.rs`).
+    /// allocated on first use), and whether it holds the current factor: the single-precision
+    /// solves use it instead of faer's (`packed.rs`).
     half: Option<HalfFactor>,
     half_current: bool,
     /// Factor size (values) from which the half-precision copy is used: [`HALF_MIN_VALUES`].
@@ -107,10 +83,6 @@ pub(crate) struct System {
     packed: Option<PackedFactor<f64>>,
     packed_current: bool,
     use_packed: bool,
-    /// Scratch memory for faer's factorisation and solve.
-    work: Workspace,
-    /// Numeric factorisations attempted so far (for benchmarks).
-    factorizations: u64,
     /// The fill-reducing ordering in use.
     ordering: NodeOrdering,
     /// Floating-point operations of one numeric factorisation, estimated from the symbolic
@@ -227,20 +199,13 @@ impl System {
         let n_dof = 3 * n_free;
         let lower = matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_));
         let (col_ptr, row_idx) = build_pattern(&nb, lower);
+        let factor_flops = factor_flops(&symbolic);
+        let side = if lower { Side::Lower } else { Side::Upper };
+        let matrix = SparseSpd::with_symbolic(n_dof, col_ptr, row_idx, side, symbolic)?;
 
         // Diagonal positions and element scatter map.
         let find = |row: u32, col: u32| -> u32 {
-            let (r, c) = if lower == (row >= col) {
-                (row, col)
-            } else {
-                (col, row)
-            };
-            let start = col_ptr[c as usize] as usize;
-            let end = col_ptr[c as usize + 1] as usize;
-            let pos = row_idx[start..end]
-                .binary_search(&r)
-                .expect("entry is in the pattern");
-            (start + pos) as u32
+            matrix.position(row, col).expect("entry is in the pattern") as u32
         };
         let diag: Vec<u32> = (0..n_dof as u32).map(|d| find(d, d)).collect();
         let scatter = elements
@@ -266,36 +231,18 @@ impl System {
             })
             .collect();
 
-        let req = StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
-            symbolic.factorize_numeric_llt_scratch::<f32>(Par::Seq, Default::default()),
-            symbolic.solve_in_place_scratch::<f32>(1, Par::Seq),
-        ]);
-        let values = vec![0.0; row_idx.len()];
-        let factor_flops = factor_flops(&symbolic);
         Ok(System {
             dof,
             n_dof,
-            col_ptr,
-            row_idx,
-            values,
+            matrix,
             diag,
             scatter,
-            symbolic: Arc::new(symbolic),
-            l64: Vec::new(),
-            l32: Vec::new(),
-            current: None,
-            values32: Vec::new(),
-            rhs32: Vec::new(),
             half: None,
             half_current: false,
             half_min_values: HALF_MIN_VALUES,
             packed: None,
             packed_current: false,
             use_packed: true,
-            work: Workspace::new(req)?,
-            factorizations: 0,
             ordering: chosen,
             factor_flops,
         })
@@ -303,7 +250,7 @@ impl System {
 
     /// Stored non-zeros of the matrix (one triangle) and of its Cholesky factor.
     pub fn nnz(&self) -> (usize, usize) {
-        (self.values.len(), self.symbolic.len_val())
+        self.matrix.nnz()
     }
 
     /// The fill-reducing ordering chosen (never `Auto`).
@@ -321,27 +268,28 @@ impl System {
     /// assembly over iteration incl. the matrix-free product): liver ~10, 10k-tet box ~14,
     /// 30k ~22, 50k ~26, 100k ~25-30; the estimate gives 9.4, 16.5, 23, 27 and 33.
     pub fn refactor_price(&self) -> usize {
-        let flops_per_entry = self.factor_flops / self.symbolic.len_val().max(1) as f64;
+        let flops_per_entry = self.factor_flops / self.matrix.nnz().1.max(1) as f64;
         (flops_per_entry.sqrt().round() as usize).max(MIN_REFACTOR_PRICE)
     }
 
     /// Numeric factorisations attempted since construction.
     pub fn factorizations(&self) -> u64 {
-        self.factorizations
+        self.matrix.factorizations()
     }
 
     /// True if faer runs the supernodal factorisation.
     pub fn is_supernodal(&self) -> bool {
-        matches!(self.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_))
+        self.matrix.is_supernodal()
     }
 
     /// Starts an assembly: `values = diag(mass_coef · mᵢ)` on the free DOFs.
     pub fn clear_with_mass(&mut self, mass: &[f64], mass_coef: f64) {
-        self.values.fill(0.0);
+        let values = self.matrix.values_mut();
+        values.fill(0.0);
         for (i, &d) in self.dof.iter().enumerate() {
             if d != NONE {
                 for c in 0..3 {
-                    self.values[self.diag[d as usize + c] as usize] += mass_coef * mass[i];
+                    values[self.diag[d as usize + c] as usize] += mass_coef * mass[i];
                 }
             }
         }
@@ -352,6 +300,7 @@ impl System {
     #[inline]
     pub fn add_element(&mut self, e: usize, g: &[[f64; 3]; 4], vl: f64, vm: f64) {
         let map = &self.scatter[e];
+        let values = self.matrix.values_mut();
         let mut k = 0;
         for (a, b) in PAIRS {
             let block = stiffness_block(g[a], g[b], vl, vm);
@@ -362,7 +311,7 @@ impl System {
                     }
                     let at = map[k];
                     if at != NONE {
-                        self.values[at as usize] += block[r][c];
+                        values[at as usize] += block[r][c];
                     }
                     k += 1;
                 }
@@ -381,163 +330,73 @@ impl System {
         if a == b {
             for r in 0..3 {
                 for c in 0..=r {
-                    match self.position(a + r as u32, a + c as u32) {
-                        Some(at) => self.values[at] += s * blk[r][c],
+                    match self.matrix.position(a + r as u32, a + c as u32) {
+                        Some(at) => self.matrix.values_mut()[at] += s * blk[r][c],
                         None => return false,
                     }
                 }
             }
             return true;
         }
-        if self.position(a, b).is_none() {
+        if self.matrix.position(a, b).is_none() {
             return false;
         }
         for r in 0..3 {
             for c in 0..3 {
-                if let Some(at) = self.position(a + r as u32, b + c as u32) {
-                    self.values[at] += s * blk[r][c];
+                if let Some(at) = self.matrix.position(a + r as u32, b + c as u32) {
+                    self.matrix.values_mut()[at] += s * blk[r][c];
                 }
             }
         }
         true
     }
 
-    /// Index in `values` of the stored entry for `(row, col)` of the symmetric matrix.
-    fn position(&self, row: u32, col: u32) -> Option<usize> {
-        let lower = self.is_supernodal();
-        let (r, c) = if lower == (row >= col) {
-            (row, col)
-        } else {
-            (col, row)
-        };
-        let start = self.col_ptr[c as usize] as usize;
-        let end = self.col_ptr[c as usize + 1] as usize;
-        self.row_idx[start..end]
-            .binary_search(&r)
-            .ok()
-            .map(|p| start + p)
-    }
-
     /// Numeric Cholesky factorisation of `values` into the owned factor buffer of the given
     /// precision (allocated on its first use). Single precision halves the memory traffic of
     /// factorisation and solves; it serves as a preconditioner only.
     pub fn factorize(&mut self, precision: Precision) -> Result<(), NotPositiveDefinite> {
-        self.current = None;
         self.half_current = false;
         self.packed_current = false;
-        self.factorizations += 1;
-        let side = if self.is_supernodal() {
-            Side::Lower
-        } else {
-            Side::Upper
+        self.matrix.factorize(precision)?;
+        let m = &self.matrix;
+        let SymbolicCholeskyRaw::Supernodal(sn) = m.symbolic().raw() else {
+            return Ok(());
         };
-        let n = self.n_dof;
-        let len = self.symbolic.len_val();
-        let pattern =
-            SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
-        let stack = MemStack::new(&mut self.work.buf);
-        let ok = match precision {
-            Precision::Double => {
-                if self.l64.len() != len {
-                    self.l64 = vec![0.0; len];
-                }
-                self.symbolic
-                    .factorize_numeric_llt::<f64>(
-                        &mut self.l64,
-                        SparseColMatRef::new(pattern, &self.values),
-                        side,
-                        LltRegularization::default(),
-                        Par::Seq,
-                        stack,
-                        Default::default(),
-                    )
-                    .is_ok()
-            }
-            Precision::Single => {
-                if self.l32.len() != len {
-                    self.l32 = vec![0.0; len];
-                    self.values32 = vec![0.0; self.values.len()];
-                    self.rhs32 = vec![0.0; n];
-                }
-                for (s, d) in self.values32.iter_mut().zip(&self.values) {
-                    *s = *d as f32;
-                }
-                self.symbolic
-                    .factorize_numeric_llt::<f32>(
-                        &mut self.l32,
-                        SparseColMatRef::new(pattern, &self.values32),
-                        side,
-                        LltRegularization::default(),
-                        Par::Seq,
-                        stack,
-                        Default::default(),
-                    )
-                    .is_ok()
-            }
-        };
-        if ok && precision == Precision::Single && self.symbolic.len_val() >= self.half_min_values {
-            if let SymbolicCholeskyRaw::Supernodal(sn) = self.symbolic.raw() {
+        let diag = &self.diag;
+        let values = m.values();
+        let a_ii = |i: usize| values[diag[i] as usize];
+        match precision {
+            Precision::Single if m.nnz().1 >= self.half_min_values => {
                 let half = self.half.get_or_insert_with(|| HalfFactor::new(sn));
-                let (values, diag) = (&self.values, &self.diag);
-                self.half_current = half.fill(sn, &self.l32, |i| values[diag[i] as usize]);
+                self.half_current = half.fill(sn, m.factor32(), a_ii);
             }
-        }
-        if ok && precision == Precision::Double && self.use_packed {
-            if let SymbolicCholeskyRaw::Supernodal(sn) = self.symbolic.raw() {
+            Precision::Double if self.use_packed => {
                 let packed = self.packed.get_or_insert_with(|| PackedFactor::new(sn));
-                let (values, diag) = (&self.values, &self.diag);
-                self.packed_current = packed.fill(sn, &self.l64, |i| values[diag[i] as usize]);
+                self.packed_current = packed.fill(sn, m.factor64(), a_ii);
             }
+            _ => {}
         }
-        if ok {
-            self.current = Some(precision);
-            Ok(())
-        } else {
-            Err(NotPositiveDefinite)
-        }
+        Ok(())
     }
 
     /// Solves `A x = rhs` in place with the current factor (in its precision; the result is
     /// `f64` either way). Without a factor, leaves `rhs` unchanged.
     pub fn solve_in_place(&mut self, rhs: &mut [f64]) {
-        let n = self.n_dof;
-        if n == 0 {
+        if self.n_dof == 0 {
             return;
         }
-        let stack = MemStack::new(&mut self.work.buf);
-        match self.current {
+        match self.matrix.current() {
             Some(Precision::Double) if self.packed_current => {
                 if let Some(packed) = &mut self.packed {
                     packed.solve_in_place(rhs);
                 }
             }
-            Some(Precision::Double) => LltRef::<u32, f64>::new(&self.symbolic, &self.l64)
-                .solve_in_place_with_conj(
-                    Conj::No,
-                    MatMut::from_column_major_slice_mut(rhs, n, 1),
-                    Par::Seq,
-                    stack,
-                ),
             Some(Precision::Single) if self.half_current => {
                 if let Some(half) = &mut self.half {
                     half.solve_in_place(rhs);
                 }
             }
-            Some(Precision::Single) => {
-                for (s, d) in self.rhs32.iter_mut().zip(rhs.iter()) {
-                    *s = *d as f32;
-                }
-                LltRef::<u32, f32>::new(&self.symbolic, &self.l32).solve_in_place_with_conj(
-                    Conj::No,
-                    MatMut::from_column_major_slice_mut(&mut self.rhs32, n, 1),
-                    Par::Seq,
-                    stack,
-                );
-                for (d, s) in rhs.iter_mut().zip(&self.rhs32) {
-                    *d = f64::from(*s);
-                }
-            }
-            None => debug_assert!(false, "solve without a factor"),
+            _ => self.matrix.solve_in_place(rhs),
         }
     }
 }
@@ -608,25 +467,14 @@ fn symbolic_factor(
 ) -> Result<SymbolicCholesky<u32>, faer::sparse::FaerError> {
     let n_dof = 3 * nb.len();
     let (ptr, idx) = build_pattern(nb, false);
-    let a = SymbolicSparseColMatRef::new_checked(n_dof, n_dof, &ptr, None, &idx);
-    let params = CholeskySymbolicParams {
-        supernodal_flop_ratio_threshold: match supernodal {
-            None => SupernodalThreshold::AUTO,
-            Some(true) => SupernodalThreshold::FORCE_SUPERNODAL,
-            Some(false) => SupernodalThreshold::FORCE_SIMPLICIAL,
-        },
-        ..Default::default()
-    };
-    factorize_symbolic_cholesky(a, Side::Upper, SymmetricOrdering::Identity, params)
-}
-
-/// Precision of the numeric factor.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Precision {
-    /// `f64`: direct solves (linear mode, static solves, the `Refactor` solver).
-    Double,
-    /// `f32`: the corotational preconditioner.
-    Single,
+    analyse(
+        n_dof,
+        &ptr,
+        &idx,
+        Side::Upper,
+        Ordering::Identity,
+        Method::from_choice(supernodal),
+    )
 }
 
 /// CSC pattern (one triangle) of the DOF matrix whose node blocks are `nb` (per node, its
@@ -653,54 +501,20 @@ fn build_pattern(nb: &[Vec<u32>], lower: bool) -> (Vec<u32>, Vec<u32>) {
     (col_ptr, row_idx)
 }
 
-/// Scratch memory for faer; a clone gets a fresh buffer of the same size.
-struct Workspace {
-    req: StackReq,
-    buf: MemBuffer,
-}
-
-impl Workspace {
-    fn new(req: StackReq) -> Result<Workspace, faer::sparse::FaerError> {
-        Ok(Workspace {
-            req,
-            buf: MemBuffer::try_new(req)?,
-        })
-    }
-}
-
-impl Clone for Workspace {
-    fn clone(&self) -> Workspace {
-        Workspace {
-            req: self.req,
-            buf: MemBuffer::new(self.req),
-        }
-    }
-}
-
 impl Clone for System {
     fn clone(&self) -> System {
         System {
             dof: self.dof.clone(),
             n_dof: self.n_dof,
-            col_ptr: self.col_ptr.clone(),
-            row_idx: self.row_idx.clone(),
-            values: self.values.clone(),
+            matrix: self.matrix.clone(),
             diag: self.diag.clone(),
             scatter: self.scatter.clone(),
-            symbolic: Arc::clone(&self.symbolic),
-            l64: self.l64.clone(),
-            l32: self.l32.clone(),
-            current: self.current,
-            values32: self.values32.clone(),
-            rhs32: self.rhs32.clone(),
             half: self.half.clone(),
             half_current: self.half_current,
             half_min_values: self.half_min_values,
             packed: self.packed.clone(),
             packed_current: self.packed_current,
             use_packed: self.use_packed,
-            work: self.work.clone(),
-            factorizations: self.factorizations,
             ordering: self.ordering,
             factor_flops: self.factor_flops,
         }

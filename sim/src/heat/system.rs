@@ -5,20 +5,15 @@
 //!   unknown per node, columns sorted. It never changes.
 //! - **Factorisation.** Symbolic once, with faer's AMD ordering (one unknown per node: there are
 //!   no node blocks to keep contiguous, unlike the FEM system, so faer may permute); numeric
-//!   `LLᵀ` into a value buffer owned here, with one `MemBuffer` sized for factorisation and
-//!   solve. `A` only changes when `Δt` or the air coefficient does, so a body factorises once.
+//!   `LLᵀ` into reused buffers, all by the crate's sparse SPD solver (`solve/sparse.rs`). `A`
+//!   only changes when `Δt` or the air coefficient does, so a body factorises once.
 
 use std::fmt;
-use std::sync::Arc;
 
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
-    SymmetricOrdering,
-};
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Par, Side};
+use faer::Side;
+
+pub(crate) use crate::solve::sparse::NotPositiveDefinite;
+use crate::solve::sparse::{Method, Ordering, Precision, SparseSpd};
 
 /// Local node pairs `(a, b)` of a tetrahedron whose entry is scattered (both orders of an
 /// off-diagonal pair land on the one stored lower entry).
@@ -35,31 +30,17 @@ pub(crate) const PAIRS: [(usize, usize); 10] = [
     (2, 3),
 ];
 
-/// The step matrix was not positive definite (cannot happen for valid parameters: `C/Δt` is
-/// positive on every used node and `K`, `H` are positive semi-definite).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct NotPositiveDefinite;
-
 /// Fixed-pattern SPD system of one heat body.
 pub(crate) struct HeatSystem {
     n: usize,
-    /// CSC of the lower triangle.
-    col_ptr: Vec<u32>,
-    row_idx: Vec<u32>,
     /// Per node: index of its diagonal entry in the value arrays.
     pub diag: Vec<u32>,
     /// Per element: value index of each entry of [`PAIRS`].
     pub scatter: Vec<[u32; 10]>,
-    /// Conductance matrix `K`, W/K, assembled once by the body.
+    /// Conductance matrix `K`, W/K, assembled once by the body (the step matrix's pattern).
     pub conductance: Vec<f64>,
-    /// Step matrix `A`, filled by [`HeatSystem::factorize_with_diagonal`].
-    values: Vec<f64>,
-    symbolic: Arc<SymbolicCholesky<u32>>,
-    /// Numeric factor of `values`.
-    factor: Vec<f64>,
-    /// faer's scratch memory (factorisation and solve).
-    work: MemBuffer,
-    work_req: StackReq,
+    /// Step matrix `A` (filled by [`HeatSystem::factorize_with_diagonal`]) and its factor.
+    matrix: SparseSpd,
 }
 
 impl HeatSystem {
@@ -99,43 +80,33 @@ impl HeatSystem {
             .iter()
             .map(|t| PAIRS.map(|(a, b)| find(t[a], t[b])))
             .collect();
-        let symbolic = {
-            let a = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-            factorize_symbolic_cholesky(
-                a,
-                Side::Lower,
-                SymmetricOrdering::Amd,
-                CholeskySymbolicParams::default(),
-            )?
-        };
-        let work_req = StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
-        ]);
         let nnz = row_idx.len();
-        Ok(HeatSystem {
+        let mut matrix = SparseSpd::new(
             n,
             col_ptr,
             row_idx,
+            Side::Lower,
+            Ordering::Amd,
+            Method::Auto,
+        )?;
+        matrix.reserve(Precision::Double);
+        Ok(HeatSystem {
+            n,
             diag,
             scatter,
             conductance: vec![0.0; nnz],
-            values: vec![0.0; nnz],
-            factor: vec![0.0; symbolic.len_val()],
-            symbolic: Arc::new(symbolic),
-            work: MemBuffer::try_new(work_req)?,
-            work_req,
+            matrix,
         })
     }
 
     /// `K x` (both triangles of the symmetric `K`), into `out`.
     pub fn conductance_times(&self, x: &[f64], out: &mut [f64]) {
         out.fill(0.0);
+        let (col_ptr, row_idx) = self.matrix.pattern();
         for c in 0..self.n {
-            let (s, e) = (self.col_ptr[c] as usize, self.col_ptr[c + 1] as usize);
-            for p in s..e {
-                let r = self.row_idx[p] as usize;
-                let k = self.conductance[p];
+            let (s, e) = (col_ptr[c] as usize, col_ptr[c + 1] as usize);
+            for (&r, &k) in row_idx[s..e].iter().zip(&self.conductance[s..e]) {
+                let r = r as usize;
                 out[r] += k * x[c];
                 if r != c {
                     out[c] += k * x[r];
@@ -146,44 +117,22 @@ impl HeatSystem {
 
     /// Sets `A = K + diag(d)` and factorises it (no allocation: every buffer is sized).
     pub fn factorize_with_diagonal(&mut self, d: &[f64]) -> Result<(), NotPositiveDefinite> {
-        self.values.copy_from_slice(&self.conductance);
+        let values = self.matrix.values_mut();
+        values.copy_from_slice(&self.conductance);
         for (i, &at) in self.diag.iter().enumerate() {
-            self.values[at as usize] += d[i];
+            values[at as usize] += d[i];
         }
-        let n = self.n;
-        let pattern =
-            SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
-        self.symbolic
-            .factorize_numeric_llt::<f64>(
-                &mut self.factor,
-                SparseColMatRef::new(pattern, &self.values),
-                Side::Lower,
-                LltRegularization::default(),
-                Par::Seq,
-                MemStack::new(&mut self.work),
-                Default::default(),
-            )
-            .map(|_| ())
-            .map_err(|_| NotPositiveDefinite)
+        self.matrix.factorize(Precision::Double)
     }
 
     /// Solves `A x = rhs` in place with the current factor.
     pub fn solve_in_place(&mut self, rhs: &mut [f64]) {
-        let n = self.n;
-        if n == 0 {
-            return;
-        }
-        LltRef::<u32, f64>::new(&self.symbolic, &self.factor).solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(rhs, n, 1),
-            Par::Seq,
-            MemStack::new(&mut self.work),
-        );
+        self.matrix.solve_in_place(rhs);
     }
 
     /// Stored non-zeros of the matrix (lower triangle) and of its factor.
     pub fn nnz(&self) -> (usize, usize) {
-        (self.values.len(), self.factor.len())
+        self.matrix.nnz()
     }
 }
 
@@ -191,16 +140,10 @@ impl Clone for HeatSystem {
     fn clone(&self) -> HeatSystem {
         HeatSystem {
             n: self.n,
-            col_ptr: self.col_ptr.clone(),
-            row_idx: self.row_idx.clone(),
             diag: self.diag.clone(),
             scatter: self.scatter.clone(),
             conductance: self.conductance.clone(),
-            values: self.values.clone(),
-            symbolic: Arc::clone(&self.symbolic),
-            factor: self.factor.clone(),
-            work: MemBuffer::new(self.work_req),
-            work_req: self.work_req,
+            matrix: self.matrix.clone(),
         }
     }
 }

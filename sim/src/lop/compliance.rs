@@ -22,15 +22,16 @@
 //! axis (a unit displacement of every node of that colour) recovers every column of `K`, since
 //! a node's force then comes from at most one displaced neighbour. About 3 × 40 products for an
 //! organ mesh instead of 3N; a final product with a dense test field checks the assembly.
-//! The sparse matrix is then factorised once (faer's Cholesky) for the `3V` solves `K⁻¹MG`.
+//! The sparse matrix is then factorised once (the crate's sparse SPD solver, faer's Cholesky
+//! with AMD) for the `3V` solves `K⁻¹MG`.
 
-use faer::linalg::solvers::SolveCore;
 use faer::sparse::{SparseColMat, Triplet};
-use faer::{Conj, MatMut, Side};
+use faer::Side;
 use nalgebra::{Cholesky, DMatrix};
 
 use super::gc_model::{GcModelError, StiffnessProduct};
 use crate::mesh::TetMesh;
+use crate::solve::sparse::{Method, Ordering, Precision, SparseSpd};
 
 const NONE: usize = usize::MAX;
 
@@ -106,7 +107,7 @@ pub(super) fn matched_stiffness(
         .map_err(|e| GcModelError::Parameter(format!("assembling the rest stiffness: {e:?}")))?;
     check_assembly(&k_ff, &free, n, stiffness, tolerance)?;
 
-    let Ok(llt) = k_ff.sp_cholesky(Side::Lower) else {
+    let Some(mut k_ff) = factorize(&k_ff) else {
         return Ok(None);
     };
     // X = K⁻¹ MG on the free DOFs, then C_r = (MG)ᵀ X.
@@ -118,7 +119,7 @@ pub(super) fn matched_stiffness(
             }
         }
     }
-    llt.solve_in_place_with_conj(Conj::No, MatMut::from_column_major_slice_mut(&mut x, nf, m));
+    k_ff.solve_columns_in_place(&mut x, m);
     let mut c_r = DMatrix::zeros(m, m);
     for c in 0..m {
         for r in 0..m {
@@ -135,6 +136,27 @@ pub(super) fn matched_stiffness(
     let c_inv = Cholesky::new(c_r).ok_or(GcModelError::Singular)?.inverse();
     let k_r = m_r * c_inv * m_r;
     Ok(Some((&k_r + k_r.transpose()) * 0.5))
+}
+
+/// The Cholesky factorisation (AMD ordering) of the matrix whose lower triangle is `k`; `None`
+/// if it is not positive definite (or the analysis runs out of memory).
+fn factorize(k: &SparseColMat<usize, f64>) -> Option<SparseSpd> {
+    let pattern = k.symbolic();
+    assert!(pattern.col_nnz().is_none(), "compressed columns");
+    let as_u32 =
+        |v: &[usize]| -> Option<Vec<u32>> { v.iter().map(|&i| u32::try_from(i).ok()).collect() };
+    let mut spd = SparseSpd::new(
+        k.nrows(),
+        as_u32(pattern.col_ptr())?,
+        as_u32(pattern.row_idx())?,
+        Side::Lower,
+        Ordering::Amd,
+        Method::Auto,
+    )
+    .ok()?;
+    spd.values_mut().copy_from_slice(k.val());
+    spd.factorize(Precision::Double).ok()?;
+    Some(spd)
 }
 
 /// Per free node (in free numbering), the free nodes it shares a tetrahedron with.

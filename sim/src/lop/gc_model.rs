@@ -15,6 +15,7 @@ use crate::vec3::{add, dot, norm, scale, sub};
 
 use super::compliance::matched_stiffness;
 use super::kernel::{gemv_acc, Kernel};
+use crate::solve::dense::spd_solve_in_place;
 
 /// The cage's shape.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1005,56 +1006,13 @@ fn resolve_springs(
             }
         }
     }
-    if !cholesky_in_place(&mut r.sys, m) {
+    if !spd_solve_in_place(&mut r.sys, m, &mut r.rhs) {
         return None;
     }
-    cholesky_solve(&r.sys, m, &mut r.rhs);
     r.d.iter_mut()
         .zip(&r.rhs)
         .for_each(|(d, delta)| *d += delta);
     tool.map(|t| t.depth - r.c_tool.iter().zip(&r.d).map(|(c, d)| c * d).sum::<f64>())
-}
-
-/// Dense Cholesky factorisation `A = L Lᵀ` in place (column-major `m × m`, `L` in the lower
-/// triangle). False if `A` is not numerically positive definite.
-fn cholesky_in_place(a: &mut [f64], m: usize) -> bool {
-    for j in 0..m {
-        let mut d = a[j * m + j];
-        for k in 0..j {
-            d -= a[k * m + j] * a[k * m + j];
-        }
-        if !(d > 0.0) || !d.is_finite() {
-            return false;
-        }
-        let d = d.sqrt();
-        a[j * m + j] = d;
-        for i in j + 1..m {
-            let mut s = a[j * m + i];
-            for k in 0..j {
-                s -= a[k * m + i] * a[k * m + j];
-            }
-            a[j * m + i] = s / d;
-        }
-    }
-    true
-}
-
-/// Solves `L Lᵀ y = b` in place with the factor of [`cholesky_in_place`].
-fn cholesky_solve(l: &[f64], m: usize, b: &mut [f64]) {
-    for i in 0..m {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= l[k * m + i] * b[k];
-        }
-        b[i] = s / l[i * m + i];
-    }
-    for i in (0..m).rev() {
-        let mut s = b[i];
-        for k in i + 1..m {
-            s -= l[i * m + k] * b[k];
-        }
-        b[i] = s / l[i * m + i];
-    }
 }
 
 /// Calls `add` with every non-zero nodal load: the first `n` of `external`, then the tool's

@@ -8,60 +8,29 @@
 //! a 3×3 block in the columns of the lower-numbered node. `diag` and `off` hold where each block's
 //! values live, so assembly writes straight into the value array.
 
-use std::sync::Arc;
-
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering,
-};
-use faer::sparse::linalg::SupernodalThreshold;
-use faer::sparse::{SparseColMat, SymbolicSparseColMat};
-use faer::{Conj, MatMut, Par, Side};
+use faer::Side;
 
 use super::forces::{self, Loads, Network};
 use crate::contact::{add, dot, norm, scale, sub};
+use crate::solve::sparse::{Method, Ordering, Precision, SparseSpd};
 
 /// Marks an eliminated node or a block that is not stored.
 const NONE: usize = usize::MAX;
-
-/// The numeric side of the sparse Cholesky: the symbolic analysis (shared between clones, it
-/// never changes), the factor's values and the workspace, both reused every step.
-struct Factor {
-    symbolic: Arc<SymbolicCholesky<usize>>,
-    /// Filled by the numeric factorisation, read by the solve.
-    l_values: Vec<f64>,
-    /// Workspace of the numeric factorisation and of the solve.
-    mem: MemBuffer,
-    mem_req: StackReq,
-}
-
-impl Clone for Factor {
-    fn clone(&self) -> Factor {
-        Factor {
-            symbolic: Arc::clone(&self.symbolic),
-            l_values: self.l_values.clone(),
-            mem: MemBuffer::new(self.mem_req),
-            mem_req: self.mem_req,
-        }
-    }
-}
 
 /// The implicit Euler system of one body and its reusable factorisation.
 #[derive(Clone)]
 pub(super) struct ImplicitSolver {
     /// Unknown block of each node (`NONE` when eliminated).
     dof: Vec<usize>,
-    /// Lower triangle of `A`; pattern fixed at construction, values rewritten every step.
-    a: SparseColMat<usize, f64>,
+    /// Lower triangle of `A` (pattern fixed at construction, values rewritten every step) and
+    /// its reusable factorisation; `None` when no node can move.
+    a: Option<SparseSpd>,
     /// Per unknown block `d`, per column `c` of it: index of entry `(3d + c, 3d + c)`; the
     /// column's rows `3d + c ..= 3d + 2` follow it.
     diag: Vec<[usize; 3]>,
     /// Per spring between free nodes, per column `c` of its lower-numbered node: index of the
     /// first of the three rows of the higher-numbered node (`NONE` if an end is eliminated).
     off: Vec<[usize; 3]>,
-    /// `None` when no node can move.
-    factor: Option<Factor>,
     /// Filled with the conservative forces plus the tool load at the start of the step; read by
     /// the right-hand side.
     force: Vec<[f64; 3]>,
@@ -75,11 +44,8 @@ impl std::fmt::Debug for ImplicitSolver {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ImplicitSolver")
             .field("unknowns", &self.rhs.len())
-            .field("matrix_entries", &self.a.symbolic().row_idx().len())
-            .field(
-                "factor_entries",
-                &self.factor.as_ref().map_or(0, |f| f.l_values.len()),
-            )
+            .field("matrix_entries", &self.a.as_ref().map_or(0, |a| a.nnz().0))
+            .field("factor_entries", &self.a.as_ref().map_or(0, |a| a.nnz().1))
             .finish()
     }
 }
@@ -122,39 +88,32 @@ impl ImplicitSolver {
             }
         }
         col_ptr.push(row_idx.len());
-        let nnz = row_idx.len();
-        let pattern = SymbolicSparseColMat::new_checked(dim, dim, col_ptr, None, row_idx);
-        let a = SparseColMat::new(pattern, vec![0.0; nnz]);
-        let factor = (blocks > 0).then(|| {
-            let symbolic = factorize_symbolic_cholesky(
-                a.symbolic(),
+        let as_u32 = |v: Vec<usize>| -> Vec<u32> {
+            v.into_iter()
+                .map(|i| u32::try_from(i).expect("fewer than 2³² matrix entries"))
+                .collect()
+        };
+        let (col_ptr, row_idx) = (as_u32(col_ptr), as_u32(row_idx));
+        let a = (blocks > 0).then(|| {
+            let mut a = SparseSpd::new(
+                dim,
+                col_ptr,
+                row_idx,
                 Side::Lower,
-                SymmetricOrdering::Amd,
-                CholeskySymbolicParams {
-                    // Measured 3-4x faster than the simplicial variant faer picks by itself
-                    // on the shipped meshes (see the module docs of `msd`).
-                    supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-                    ..CholeskySymbolicParams::default()
-                },
+                Ordering::Amd,
+                // Measured 3-4x faster than the simplicial variant faer picks by itself on the
+                // shipped meshes (see the module docs of `msd`).
+                Method::Supernodal,
             )
             .expect("symbolic Cholesky analysis fails only when out of memory");
-            let mem_req = StackReq::any_of(&[
-                symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-                symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
-            ]);
-            Factor {
-                l_values: vec![0.0; symbolic.len_val()],
-                symbolic: Arc::new(symbolic),
-                mem: MemBuffer::new(mem_req),
-                mem_req,
-            }
+            a.reserve(Precision::Double);
+            a
         });
         ImplicitSolver {
             dof,
             a,
             diag,
             off,
-            factor,
             force: vec![[0.0; 3]; n],
             kv: vec![[0.0; 3]; n],
             rhs: vec![0.0; dim],
@@ -171,7 +130,7 @@ impl ImplicitSolver {
         loads: &Loads<'_, '_>,
         h: f64,
     ) -> bool {
-        if self.factor.is_none() {
+        if self.a.is_none() {
             return true;
         }
         self.assemble(net, x, v, loads, h);
@@ -208,7 +167,10 @@ impl ImplicitSolver {
         }
 
         let h2 = h * h;
-        let vals = self.a.val_mut();
+        let Some(a) = self.a.as_mut() else {
+            return;
+        };
+        let vals = a.values_mut();
         vals.fill(0.0);
         self.kv.iter_mut().for_each(|k| *k = [0.0; 3]);
         for (i, &d) in self.dof.iter().enumerate() {
@@ -268,33 +230,13 @@ impl ImplicitSolver {
     /// Numeric refactorisation into the reused buffers, then the solve: `rhs` becomes `Δv`.
     /// False if `A` is not numerically positive definite (non-finite values).
     fn solve(&mut self) -> bool {
-        let Some(Factor {
-            symbolic,
-            l_values,
-            mem,
-            ..
-        }) = self.factor.as_mut()
-        else {
+        let Some(a) = self.a.as_mut() else {
             return true;
         };
-        let Ok(llt) = symbolic.factorize_numeric_llt(
-            l_values,
-            self.a.as_ref(),
-            Side::Lower,
-            LltRegularization::default(),
-            Par::Seq,
-            MemStack::new(mem),
-            Default::default(),
-        ) else {
+        if a.factorize(Precision::Double).is_err() {
             return false;
-        };
-        let dim = self.rhs.len();
-        llt.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(&mut self.rhs, dim, 1),
-            Par::Seq,
-            MemStack::new(mem),
-        );
+        }
+        a.solve_in_place(&mut self.rhs);
         true
     }
 
@@ -318,7 +260,10 @@ impl ImplicitSolver {
         } else {
             scale(n, dot(vw, n))
         };
-        let vals = self.a.val_mut();
+        let Some(a) = self.a.as_mut() else {
+            return;
+        };
+        let vals = a.values_mut();
         for p in 0..3 {
             let i = t.tri[p] as usize;
             let wi = t.weights[p];

@@ -87,9 +87,10 @@
 //! (3×3 blocks per free node and per spring between free nodes) whose value slots are
 //! precomputed, so assembly writes in place.
 //!
-//! The system is solved with faer's sparse Cholesky (`LLᵀ`): the symbolic analysis (AMD
-//! ordering, elimination tree, supernodal structure) runs once per body, and each step
-//! refactorises numerically into the same factor buffer with a preallocated workspace.
+//! The system is solved with faer's sparse Cholesky (`LLᵀ`) through the crate's sparse SPD
+//! solver (`solve/sparse.rs`): the symbolic analysis (AMD ordering, elimination tree,
+//! supernodal structure) runs once per body, and each step refactorises numerically into the
+//! same factor buffer with a preallocated workspace.
 //!
 //! Why this solver: measured against a warm-started Jacobi-preconditioned conjugate gradient
 //! (same matrix and right-hand side, relative residual 1e-8) on the shipped meshes with their
