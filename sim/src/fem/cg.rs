@@ -5,7 +5,7 @@
 use super::contact::Pressed;
 use super::system::NONE;
 use super::{Factor, Failed, Fem};
-use crate::model::ContactReport;
+use crate::interaction::ContactReport;
 
 /// CG stops at `‖r‖ ≤ CG_TOLERANCE · ‖b‖`. On the liver swinging under gravity (Table 6.2)
 /// this keeps the trajectory within 1.2e-8 m of the one solved exactly by refactorisation

@@ -7,7 +7,7 @@ use super::element::{add, cross, dot, norm, scale, sub};
 use super::system::NONE;
 use super::{Factor, Fem};
 use crate::contact::{closest_on_surface, SurfaceHit};
-use crate::model::{ContactReport, ToolAnchor, ToolContact};
+use crate::interaction::{anchored_touch, ContactReport, ToolAnchor, ToolContact};
 
 impl Fem {
     /// Finds the tool's contact at the current positions (closest candidate triangle, as the
@@ -60,7 +60,7 @@ impl Fem {
     /// may only push (`outward`), a grab pulls too. The Phong normal below is not used: the
     /// direction is the god-object's, so the tissue receives what the hand feels.
     fn anchored_setup(&mut self, c: &ToolContact<'_>, a: ToolAnchor) -> Option<Pressed> {
-        let t = crate::model::anchored_touch(c, a, &self.x)?;
+        let t = anchored_touch(c, a, &self.x)?;
         let dofs = t.tri.map(|k| self.system.dof[k as usize]);
         // The tissue receives on_tissue = Σ −λ_a n_a with n_a = −e_a: λ = on_tissue.
         let p = Pressed {

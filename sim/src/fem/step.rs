@@ -6,7 +6,7 @@ use super::contact::Pressed;
 use super::element::{self, dot};
 use super::system::{Precision, NONE};
 use super::{CorotationalSolver, Factor, Failed, Fem, FemMode};
-use crate::model::{BlowUp, ContactReport, ContactSpring, ToolContact, RUNAWAY_SPEED};
+use crate::interaction::{BlowUp, ContactReport, ContactSpring, ToolContact, RUNAWAY_SPEED};
 
 impl Fem {
     /// Advances by `dt` under `gravity` (m/s²), the nodal loads `external` (N, one per node;

@@ -6,10 +6,10 @@ use thiserror::Error;
 use crate::gc::{
     box_cage, grid_box_cage, subdivided_box_cage, Cage, CageError, GcBinding, GreenCoordinates,
 };
-use crate::mesh::{extents, smallest_extent, TetMesh};
-use crate::model::{
-    touch, BlowUp, ContactReport, ContactSpring, Model, ToolContact, Touch, RUNAWAY_SPEED,
+use crate::interaction::{
+    touch, BlowUp, ContactReport, ContactSpring, ToolContact, Touch, RUNAWAY_SPEED,
 };
+use crate::mesh::{extents, smallest_extent, TetMesh};
 use crate::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 use crate::vec3::{add, dot, norm, scale, sub};
 
@@ -514,108 +514,6 @@ impl GcModel {
         };
         model.evaluate();
         Ok(model)
-    }
-
-    /// Builds the GC model of `mesh` from its precise model (`Model::MassSpring` or
-    /// `Model::Fem`): masses, held nodes, damping and rest stiffness come from it.
-    pub fn from_precise(
-        mesh: &TetMesh,
-        params: GcParameters,
-        precise: &Model,
-    ) -> Result<GcModel, GcModelError> {
-        GcModel::from_model(mesh, params, precise, None)
-    }
-
-    /// [`GcModel::new`] with the operators of `precise`, and `prestress` if given.
-    fn from_model(
-        mesh: &TetMesh,
-        params: GcParameters,
-        precise: &Model,
-        prestress: Option<Prestress<'_>>,
-    ) -> Result<GcModel, GcModelError> {
-        let damping = precise.damping().ok_or_else(|| {
-            GcModelError::Parameter("a cage needs a precise model to stand for".into())
-        })?;
-        let held: Vec<bool> = (0..mesh.nodes.len()).map(|i| precise.is_held(i)).collect();
-        let stiffness = |u: &[[f64; 3]]| precise.rest_stiffness_product(u).unwrap_or_default();
-        GcModel::new(
-            mesh,
-            params,
-            &PreciseOperators {
-                masses: precise.masses(),
-                held: &held,
-                damping,
-                stiffness: &stiffness,
-                prestress,
-            },
-        )
-    }
-
-    /// [`GcModel::from_precise`] for a body that lives under a constant `gravity` (a scene's):
-    /// a projected cage is linearised about the precise model's equilibrium under it, with the
-    /// *tangent* stiffness there, instead of about the rest shape. A soft, tall body sagging
-    /// under its own weight is far more compliant sideways than at rest (the corotational FEM
-    /// cylinder of Table 6.1 bends 2.3× farther under the same side load), which a cage built
-    /// on the rest stiffness cannot follow. The equilibrium becomes the cage's own under that
-    /// gravity; under a different gravity the cage is wrong by the difference, so use the
-    /// scene's. Only a corotational FEM body has this effect and a static solver to find the
-    /// equilibrium; for other bodies, zero gravity, or an equilibrium that cannot be found or
-    /// whose tangent is not positive definite, this is [`GcModel::from_precise`].
-    pub fn from_precise_under(
-        mesh: &TetMesh,
-        params: GcParameters,
-        precise: &Model,
-        gravity: [f64; 3],
-    ) -> Result<GcModel, GcModelError> {
-        let fem = match precise {
-            Model::Fem(f)
-                if f.parameters().mode == crate::fem::FemMode::Corotational
-                    && gravity != [0.0; 3]
-                    && params.dynamics == CageDynamics::Projected =>
-            {
-                f
-            }
-            _ => return GcModel::from_precise(mesh, params, precise),
-        };
-        let mut eq = fem.clone();
-        eq.reset();
-        if eq.solve_static(gravity, &[]).is_err() {
-            return GcModel::from_precise(mesh, params, precise);
-        }
-        let x_g = eq.positions().to_vec();
-        let n = x_g.len();
-        let u_g: Vec<[f64; 3]> = (0..n).map(|k| sub(x_g[k], mesh.nodes[k])).collect();
-        // Central differences of the elastic forces about the equilibrium. The step is 1e-7 of
-        // the body's size: far below the equilibrium's own displacements, far above the
-        // rounding of the forces.
-        let size = extents(&mesh.nodes).into_iter().fold(0.0, f64::max);
-        let h = 1e-7 * size;
-        let zero = vec![[0.0; 3]; n];
-        let probe = std::cell::RefCell::new(eq);
-        let tangent = |u: &[[f64; 3]]| {
-            let mut f = probe.borrow_mut();
-            let shifted = |sign: f64| -> Vec<[f64; 3]> {
-                (0..n).map(|k| add(x_g[k], scale(u[k], sign * h))).collect()
-            };
-            f.set_state(&shifted(1.0), &zero);
-            let plus = f.elastic_forces();
-            f.set_state(&shifted(-1.0), &zero);
-            let minus = f.elastic_forces();
-            plus.iter()
-                .zip(&minus)
-                .map(|(p, q)| scale(sub(*p, *q), -0.5 / h))
-                .collect()
-        };
-        GcModel::from_model(
-            mesh,
-            params,
-            precise,
-            Some(Prestress {
-                gravity,
-                displacement: &u_g,
-                tangent: &tangent,
-            }),
-        )
     }
 
     /// The parameters.

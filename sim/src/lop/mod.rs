@@ -82,6 +82,7 @@ mod gc_model;
 mod kernel;
 
 pub use controller::{Lop, LopPolicy, StartLevel, Switch, SwitchReason};
+pub(crate) use gc_model::Prestress;
 pub use gc_model::{
     build_cage, fitted_cells, CageDynamics, CageShape, Damping, GcModel, GcModelError,
     GcParameters, PreciseOperators, MAX_FITTED_VERTICES,
