@@ -76,6 +76,7 @@
 //! displacements, not positions, so 24 bits are far more than enough), both compiled for AVX2
 //! and FMA when the CPU has them. `lop-bench lop` measures it against the FEM step.
 
+mod cage_dynamics;
 mod compliance;
 mod controller;
 mod gc_model;
