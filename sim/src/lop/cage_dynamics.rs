@@ -325,11 +325,10 @@ pub(super) fn step_mass_spring(
     // Each load goes to the cage vertices by the node's φ weights (thesis §6.3.4.1).
     cage_loads.iter_mut().for_each(|f| *f = [0.0; 3]);
     if loads.has_loads {
-        let nv = cage_loads.len();
         let mut add_load = |k: usize, f: [f64; 3]| {
-            for i in 0..nv {
+            for (i, load) in cage_loads.iter_mut().enumerate() {
                 let w = binding.phi(k, i);
-                cage_loads[i] = add(cage_loads[i], scale(f, w));
+                *load = add(*load, scale(f, w));
             }
         };
         each_load(external, n, loads.touch, &mut add_load);
@@ -360,7 +359,7 @@ pub(super) fn mass_spring_cage(
     dt: f64,
 ) -> MassSpring {
     let nv = cage.vertices.len();
-    let volume = cage_volume(&cage);
+    let volume = cage_volume(cage);
     let node_mass = density * volume / nv as f64;
     // Every pair of cage vertices is a spring: a cage's triangle edges alone are a
     // shell that folds flat at no cost; the complete graph holds its volume.
