@@ -1,7 +1,8 @@
 //! `lop-sim`: the pure, deterministic physics of lop.
 //!
 //! Meshes and mesh I/O ([`mesh`]), the mass-spring model ([`msd`]), Green-coordinate cages
-//! ([`gc`]), tool-to-surface geometry ([`contact`]) and the scene that steps them ([`world`]).
+//! ([`gc`]), tool-to-surface geometry ([`contact`]), what passes between the world and a model's
+//! step ([`interaction`]) and the scene that steps them ([`world`]).
 //! No threads, no IPC, no clocks: the daemon adapts devices, shared memory and configuration to
 //! the types here, and the same inputs always give the same outputs, bit for bit.
 
@@ -15,6 +16,7 @@ pub mod fem;
 pub mod gc;
 pub mod haptic;
 pub mod heat;
+pub mod interaction;
 pub mod lop;
 pub mod mesh;
 pub mod model;

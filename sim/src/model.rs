@@ -9,154 +9,20 @@
 //! - allocation-free after the first steps;
 //! - on a blow-up (a non-finite value, or a node faster than [`RUNAWAY_SPEED`]) the model resets
 //!   to rest and returns the cause, so nothing non-finite ever leaves it.
+//!
+//! What a step takes and returns (tool contact, contact springs, reports, blow-ups) lives in
+//! [`crate::interaction`], which the models import; it is re-exported here.
 
-use crate::contact::{closest_on_surface, ToolSphere};
-use crate::lop::{Damping, GcModel};
+use crate::fem::FemMode;
+pub use crate::interaction::{
+    BlowUp, ContactReport, ContactSpring, ToolAnchor, ToolContact, RUNAWAY_SPEED,
+};
+use crate::lop::{
+    CageDynamics, Damping, GcModel, GcModelError, GcParameters, PreciseOperators, Prestress,
+};
+use crate::mesh::{extents, TetMesh};
 use crate::msd::MassSpring;
-use crate::vec3::{add, dot, norm, scale, sub};
-
-/// The tool's contact with a body during one step: the penalty spring is integrated inside the
-/// sub-steps (the tool position is a kinematic boundary condition), which keeps a stiff tool on
-/// light tissue stable.
-#[derive(Debug, Clone, Copy)]
-pub struct ToolContact<'a> {
-    /// The tool tip.
-    pub tool: ToolSphere,
-    /// The body's outward surface triangles.
-    pub surface: &'a [[u32; 3]],
-    /// Indices into `surface` that may be touched this step (found by the caller around the
-    /// closest triangle); only these are tested in each sub-step. Unused with an `anchor`.
-    pub candidates: &'a [u32],
-    /// Where the god-object holds the body, if it decides the contact (see [`ToolAnchor`]);
-    /// `None`: the sphere presses on the closest candidate triangle.
-    pub anchor: Option<ToolAnchor>,
-}
-
-/// The god-object's hold on a body for one step (the haptic loop's contact, thesis §5.2.1).
-///
-/// The god-object (the proxy of the tool tip, resting on the surface or holding it) sits at
-/// `p + offset`, `p` the material point `bary` of `triangle`. The hand feels the law's force
-/// along the gap `g = p + offset − c` (`c` the device/tool centre); the tissue receives exactly
-/// the opposite at `p`, with `p` moving during the step — so the coupling is implicit in the
-/// models (stable for a stiff tool on light tissue) and action equals reaction.
-/// - Pressing (`grab: false`): only while the device is behind the proxy (`g · offset > 0`).
-/// - Grabbing (`grab: true`): in every direction, pulling too.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ToolAnchor {
-    /// Index into the body's surface triangles.
-    pub triangle: u32,
-    /// Barycentric weights of the material point.
-    pub bary: [f64; 3],
-    /// The god-object minus the material point, m.
-    pub offset: [f64; 3],
-    /// Holding the tissue (picking).
-    pub grab: bool,
-}
-
-impl ToolAnchor {
-    /// The anchor of a god-object at `proxy` on the material point `bary` of `triangle` of a
-    /// surface at positions `x` (the offset from the point's current position). `None` if the
-    /// triangle or weights are invalid.
-    pub fn from_proxy(
-        surface: &[[u32; 3]],
-        x: &[[f64; 3]],
-        triangle: u32,
-        bary: [f64; 3],
-        proxy: [f64; 3],
-        grab: bool,
-    ) -> Option<ToolAnchor> {
-        let tri = surface.get(triangle as usize)?;
-        if tri.iter().any(|&k| k as usize >= x.len())
-            || !bary.iter().chain(proxy.iter()).all(|v| v.is_finite())
-        {
-            return None;
-        }
-        let [p0, p1, p2] = tri.map(|k| x[k as usize]);
-        let p = add(
-            add(scale(p0, bary[0]), scale(p1, bary[1])),
-            scale(p2, bary[2]),
-        );
-        Some(ToolAnchor {
-            triangle,
-            bary,
-            offset: sub(proxy, p),
-            grab,
-        })
-    }
-}
-
-/// A unilateral penalty spring acting on one body during one step: organ-to-organ collision
-/// (built by [`crate::collide::Collisions::add_springs`]).
-///
-/// It pushes the material point `p = Σ weights[k] · x[nodes[k]]` along the unit `normal` with
-/// force `stiffness · (target − normal · p)` while that is positive. A penetrating vertex uses
-/// one node (`nodes = [i, i, i]`, `weights = [1, 0, 0]`); the point of the other body's
-/// surface it is in uses the three nodes of its triangle. The spring is active if it pushes at
-/// the start of the step, and is then integrated implicitly over the step with that active set
-/// (its stiffness enters the model's system matrix), so it holds stiff contacts on light tissue
-/// without the `m/Δt²` limit of an explicit or position-based response.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ContactSpring {
-    /// Nodes carrying the point.
-    pub nodes: [u32; 3],
-    /// Their weights (sum 1).
-    pub weights: [f64; 3],
-    /// Unit direction of the push.
-    pub normal: [f64; 3],
-    /// The spring pushes while `normal · p < target`, m.
-    pub target: f64,
-    /// N/m.
-    pub stiffness: f64,
-}
-
-impl ContactSpring {
-    /// The spring as a touch on positions `x`, if it pushes there (and its data is sound).
-    pub(crate) fn touch(&self, x: &[[f64; 3]]) -> Option<Touch> {
-        if self.nodes.iter().any(|&k| k as usize >= x.len()) {
-            return None;
-        }
-        let mut p = [0.0; 3];
-        for k in 0..3 {
-            p = add(p, scale(x[self.nodes[k] as usize], self.weights[k]));
-        }
-        let gap = self.target - dot(self.normal, p);
-        let f = self.stiffness * gap;
-        if !(gap > 0.0) || !f.is_finite() || !self.normal.iter().all(|c| c.is_finite()) {
-            return None;
-        }
-        Some(Touch {
-            tri: self.nodes,
-            weights: self.weights,
-            normal: self.normal,
-            depth: gap,
-            on_tissue: scale(self.normal, f),
-            stiffness: self.stiffness,
-            isotropic: false,
-        })
-    }
-}
-
-/// What the tool did to a body over a step.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct ContactReport {
-    /// Force the tissue received at the end of the step, N (the hand feels the opposite).
-    pub force_on_tissue: [f64; 3],
-    /// Penetration depth at the end of the step, m.
-    pub depth: f64,
-}
-
-/// Why a step was rejected and the body reset.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum BlowUp {
-    /// A position or velocity became NaN or infinite.
-    NonFinite,
-    /// A node moved faster than the runaway limit.
-    Runaway,
-}
-
-/// Nodal speed above which a body is considered to have blown up, m/s. Tissue under a hand-held
-/// tool moves at well under 1 m/s; 50 m/s only happens when integration diverges.
-pub const RUNAWAY_SPEED: f64 = 50.0;
+use crate::vec3::{add, scale, sub};
 
 /// Which model a body runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -291,103 +157,108 @@ impl Model {
     }
 }
 
-/// The tool touching the body: where, how deep, how hard.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Touch {
-    /// Nodes of the touched triangle.
-    pub tri: [u32; 3],
-    /// Barycentric weights of the contact point on it.
-    pub weights: [f64; 3],
-    /// Unit outward normal.
-    pub normal: [f64; 3],
-    /// Penetration, m (> 0).
-    pub depth: f64,
-    /// Force the tissue receives, N.
-    pub on_tissue: [f64; 3],
-    /// `dF/dd` of the force law at this depth, N/m.
-    pub stiffness: f64,
-    /// The stiffness acts in every direction (the god-object's spring: `F = −k g` is linear in
-    /// the point for the linear law, so its exact Jacobian is `k I`), not only along `normal`.
-    pub isotropic: bool,
-}
-
-impl Touch {
-    /// The push along the normal in the form of a [`ContactSpring`]'s touch, for a solver that
-    /// resolves springs implicitly: `normal` the direction of the force on the tissue, `depth`
-    /// the gap `F / k'` (so that `k'·(gap − change)` is the linearised force law), `stiffness`
-    /// `k'`. `None` for an isotropic (grab) touch, a zero force or no stiffness.
-    pub(crate) fn as_spring(&self) -> Option<Touch> {
-        let f = norm(self.on_tissue);
-        if self.isotropic || !(f > 0.0 && f.is_finite()) || !(self.stiffness > 0.0) {
-            return None;
-        }
-        Some(Touch {
-            normal: scale(self.on_tissue, 1.0 / f),
-            depth: f / self.stiffness,
-            ..*self
-        })
+// The cage's constructors from a precise `Model` live here, beside the enum, so that the cage
+// (`crate::lop`) never imports `Model`: it is built from the operators a model hands it.
+impl GcModel {
+    /// Builds the GC model of `mesh` from its precise model (`Model::MassSpring` or
+    /// `Model::Fem`): masses, held nodes, damping and rest stiffness come from it.
+    pub fn from_precise(
+        mesh: &TetMesh,
+        params: GcParameters,
+        precise: &Model,
+    ) -> Result<GcModel, GcModelError> {
+        GcModel::from_model(mesh, params, precise, None)
     }
-}
 
-/// The tool's contact on positions `x`: the closest candidate triangle, if the tool penetrates
-/// it. Allocation-free.
-pub(crate) fn touch(c: &ToolContact<'_>, x: &[[f64; 3]]) -> Option<Touch> {
-    if let Some(a) = c.anchor {
-        return anchored_touch(c, a, x);
+    /// [`GcModel::new`] with the operators of `precise`, and `prestress` if given.
+    fn from_model(
+        mesh: &TetMesh,
+        params: GcParameters,
+        precise: &Model,
+        prestress: Option<Prestress<'_>>,
+    ) -> Result<GcModel, GcModelError> {
+        let damping = precise.damping().ok_or_else(|| {
+            GcModelError::Parameter("a cage needs a precise model to stand for".into())
+        })?;
+        let held: Vec<bool> = (0..mesh.nodes.len()).map(|i| precise.is_held(i)).collect();
+        let stiffness = |u: &[[f64; 3]]| precise.rest_stiffness_product(u).unwrap_or_default();
+        GcModel::new(
+            mesh,
+            params,
+            &PreciseOperators {
+                masses: precise.masses(),
+                held: &held,
+                damping,
+                stiffness: &stiffness,
+                prestress,
+            },
+        )
     }
-    let mut best: Option<(usize, crate::contact::SurfaceHit)> = None;
-    for &t in c.candidates {
-        let Some(tri) = c.surface.get(t as usize) else {
-            continue;
-        };
-        if let Some(hit) = closest_on_surface(x, std::slice::from_ref(tri), c.tool.center) {
-            if best.is_none_or(|(_, b)| hit.distance < b.distance) {
-                best = Some((t as usize, hit));
+
+    /// [`GcModel::from_precise`] for a body that lives under a constant `gravity` (a scene's):
+    /// a projected cage is linearised about the precise model's equilibrium under it, with the
+    /// *tangent* stiffness there, instead of about the rest shape. A soft, tall body sagging
+    /// under its own weight is far more compliant sideways than at rest (the corotational FEM
+    /// cylinder of Table 6.1 bends 2.3× farther under the same side load), which a cage built
+    /// on the rest stiffness cannot follow. The equilibrium becomes the cage's own under that
+    /// gravity; under a different gravity the cage is wrong by the difference, so use the
+    /// scene's. Only a corotational FEM body has this effect and a static solver to find the
+    /// equilibrium; for other bodies, zero gravity, or an equilibrium that cannot be found or
+    /// whose tangent is not positive definite, this is [`GcModel::from_precise`].
+    pub fn from_precise_under(
+        mesh: &TetMesh,
+        params: GcParameters,
+        precise: &Model,
+        gravity: [f64; 3],
+    ) -> Result<GcModel, GcModelError> {
+        let fem = match precise {
+            Model::Fem(f)
+                if f.parameters().mode == FemMode::Corotational
+                    && gravity != [0.0; 3]
+                    && params.dynamics == CageDynamics::Projected =>
+            {
+                f
             }
+            _ => return GcModel::from_precise(mesh, params, precise),
+        };
+        let mut eq = fem.clone();
+        eq.reset();
+        if eq.solve_static(gravity, &[]).is_err() {
+            return GcModel::from_precise(mesh, params, precise);
         }
+        let x_g = eq.positions().to_vec();
+        let n = x_g.len();
+        let u_g: Vec<[f64; 3]> = (0..n).map(|k| sub(x_g[k], mesh.nodes[k])).collect();
+        // Central differences of the elastic forces about the equilibrium. The step is 1e-7 of
+        // the body's size: far below the equilibrium's own displacements, far above the
+        // rounding of the forces.
+        let size = extents(&mesh.nodes).into_iter().fold(0.0, f64::max);
+        let h = 1e-7 * size;
+        let zero = vec![[0.0; 3]; n];
+        let probe = std::cell::RefCell::new(eq);
+        let tangent = |u: &[[f64; 3]]| {
+            let mut f = probe.borrow_mut();
+            let shifted = |sign: f64| -> Vec<[f64; 3]> {
+                (0..n).map(|k| add(x_g[k], scale(u[k], sign * h))).collect()
+            };
+            f.set_state(&shifted(1.0), &zero);
+            let plus = f.elastic_forces();
+            f.set_state(&shifted(-1.0), &zero);
+            let minus = f.elastic_forces();
+            plus.iter()
+                .zip(&minus)
+                .map(|(p, q)| scale(sub(*p, *q), -0.5 / h))
+                .collect()
+        };
+        GcModel::from_model(
+            mesh,
+            params,
+            precise,
+            Some(Prestress {
+                gravity,
+                displacement: &u_g,
+                tangent: &tangent,
+            }),
+        )
     }
-    let (t, hit) = best?;
-    let depth = c.tool.depth(&hit);
-    if !(depth > 0.0) {
-        return None;
-    }
-    Some(Touch {
-        tri: c.surface[t],
-        weights: hit.barycentric,
-        normal: hit.normal,
-        depth,
-        on_tissue: scale(c.tool.force_on_tool(&hit), -1.0),
-        stiffness: c.tool.max_stiffness(depth),
-        isotropic: false,
-    })
-}
-
-/// The tool's contact on positions `x` at the god-object's anchor (see [`ToolAnchor`]).
-pub(crate) fn anchored_touch(c: &ToolContact<'_>, a: ToolAnchor, x: &[[f64; 3]]) -> Option<Touch> {
-    let tri = *c.surface.get(a.triangle as usize)?;
-    if tri.iter().any(|&k| k as usize >= x.len()) || !a.bary.iter().all(|w| w.is_finite()) {
-        return None;
-    }
-    let [p0, p1, p2] = tri.map(|k| x[k as usize]);
-    let w = a.bary;
-    let p = add(add(scale(p0, w[0]), scale(p1, w[1])), scale(p2, w[2]));
-    let g = sub(add(p, a.offset), c.tool.center);
-    let depth = norm(g);
-    if !(depth > 1e-12) || (!a.grab && !(dot(g, a.offset) > 0.0)) {
-        return None;
-    }
-    let normal = scale(g, 1.0 / depth);
-    let f = c.tool.force_magnitude(depth);
-    if !(depth > 0.0) || !(f > 0.0) || !f.is_finite() {
-        return None;
-    }
-    Some(Touch {
-        tri,
-        weights: w,
-        normal,
-        depth,
-        on_tissue: scale(normal, -f),
-        stiffness: c.tool.max_stiffness(depth),
-        isotropic: true,
-    })
 }

@@ -11,7 +11,7 @@
 //! The arithmetic is the scalar code's, operation for operation and in the same order
 //! (additions, multiplications, divisions and square roots only, no fused multiply-add, which
 //! would round differently), and the results are scattered in element order: the forces,
-//! rotations and products are bit-for-bit those of [`super::element_forces`] and
+//! rotations and products are bit-for-bit those of [`super::forces::element_forces`] and
 //! [`super::element::apply_stiffness`], which the tests check. The rotation search follows
 //! [`super::rotation::closest_rotation`] lane by lane (a lane stops when it has converged,
 //! the others go on); the rare lane that needs the SVD fallback gets it afterwards, alone.
@@ -667,7 +667,8 @@ mod avx {
 #[cfg(test)]
 mod tests {
     use super::super::element::{apply_stiffness, lame};
-    use super::super::{element_forces, FemMode};
+    use super::super::forces::element_forces;
+    use super::super::FemMode;
     use super::*;
 
     /// A small irregular mesh: random points in a unit cube, tetrahedra from a lattice of

@@ -1,4 +1,8 @@
 //! A body run as a Green-coordinates cage: the cheap level of precision.
+//!
+//! This file builds the cage, binds the body to it, fits it to a shape and maps loads and
+//! shapes between the body's nodes and the cage; the cage's own dynamics, one per
+//! [`CageDynamics`] variant, are in `cage_dynamics.rs`.
 
 use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
 use thiserror::Error;
@@ -6,16 +10,14 @@ use thiserror::Error;
 use crate::gc::{
     box_cage, grid_box_cage, subdivided_box_cage, Cage, CageError, GcBinding, GreenCoordinates,
 };
+use crate::interaction::{touch, BlowUp, ContactReport, ContactSpring, ToolContact, RUNAWAY_SPEED};
 use crate::mesh::{extents, smallest_extent, TetMesh};
-use crate::model::{
-    touch, BlowUp, ContactReport, ContactSpring, Model, ToolContact, Touch, RUNAWAY_SPEED,
-};
-use crate::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 use crate::vec3::{add, dot, norm, scale, sub};
 
-use super::compliance::matched_stiffness;
-use super::kernel::{gemv_acc, Kernel};
-use crate::solve::dense::spd_solve_in_place;
+use super::cage_dynamics::{
+    mass_spring_cage, step_mass_spring, CageBasis, Dynamics, Reduced, StepLoads,
+};
+use super::kernel::Kernel;
 
 /// The cage's shape.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -124,57 +126,6 @@ pub enum GcModelError {
          positive definite); use a coarser cage"
     )]
     Singular,
-}
-
-/// Cage dynamics state.
-#[derive(Debug, Clone)]
-enum Dynamics {
-    Projected(Box<Reduced>),
-    MassSpring(Box<MassSpring>),
-}
-
-/// The reduced (Galerkin) model in cage-vertex displacements `q` (3V).
-///
-/// Implicit scheme of eq. 4.20 on `M_r q̈ + D_r q̇ + K_r q = f_r`, in increment form like the FEM
-/// (`K̃ d = f_r − K_r q + (M_r/Δt − D_r/2) q̇`), with everything that does not change folded
-/// into dense matrices at set-up: `d = A⁻¹f_r − P q + Q q̇`.
-#[derive(Debug, Clone)]
-struct Reduced {
-    /// `A⁻¹ = K̃⁻¹`, column-major 3V × 3V.
-    a_inv: Vec<f64>,
-    /// `[−A⁻¹K_r | A⁻¹(M_r/Δt − D_r/2)]`, column-major 3V × 6V: the step's response to the
-    /// state.
-    response: Vec<f64>,
-    /// `A⁻¹ Gᵀ M 1_a` for gravity along axis `a`, column-major 3V × 3.
-    gravity: Vec<f64>,
-    /// `[q; q̇]`.
-    state: Vec<f64>,
-    /// Static correction `A⁻¹(K_r q* − f_g)` added to every increment after a hand-over, so
-    /// that the shape `q*` the cage took over under gravity `g` is its equilibrium (it would
-    /// otherwise drift to its own, slightly different one). `None` until the first step after
-    /// a hand-over computes it; zero from rest.
-    correction: Vec<f64>,
-    /// The correction from rest: zero, or the prestressed equilibrium's (see
-    /// [`GcModel::from_precise_under`]).
-    rest_correction: Vec<f64>,
-    correction_due: bool,
-    /// The step's increment `d`, scratch.
-    d: Vec<f64>,
-    /// `A = K̃_r`, column-major 3V × 3V, for steps with contact springs.
-    a: Vec<f64>,
-    /// Scratch for contact springs: `A + Σ k c cᵀ` and its Cholesky factor (in place), one
-    /// spring's `c = Gᵀ (w ⊗ n)`, and the right-hand side.
-    sys: Vec<f64>,
-    c: Vec<f64>,
-    rhs: Vec<f64>,
-    /// The tool's `c`, kept to report the force it left.
-    c_tool: Vec<f64>,
-}
-
-impl Reduced {
-    fn q(&self) -> &[f64] {
-        &self.state[..self.d.len()]
-    }
 }
 
 /// A body run as a Green-coordinates cage.
@@ -342,145 +293,28 @@ impl GcModel {
         let fit = Cholesky::new(m_r.clone()).ok_or(GcModelError::Singular)?;
 
         let dt = params.dt;
+        let basis = CageBasis {
+            mesh,
+            held: &held,
+            jacobian: &jacobian,
+            mg: &mg,
+            m_r: &m_r,
+            fit: &fit,
+        };
         let dynamics = match params.dynamics {
-            CageDynamics::Projected | CageDynamics::Galerkin => {
-                // K G, column by column, through the precise model.
-                let mut kg = DMatrix::zeros(3 * n, m);
-                let mut u = vec![[0.0; 3]; n];
-                for c in 0..m {
-                    let col = jacobian.column(c);
-                    for k in 0..n {
-                        u[k] = [col[3 * k], col[3 * k + 1], col[3 * k + 2]];
-                    }
-                    let f = (ops.stiffness)(&u);
-                    let mut out = kg.column_mut(c);
-                    for k in 0..n {
-                        if held[k] {
-                            continue;
-                        }
-                        for b in 0..3 {
-                            out[3 * k + b] = f[k][b];
-                        }
-                    }
-                }
-                let mut k_r = jacobian.transpose() * kg;
-                k_r = (&k_r + k_r.transpose()) * 0.5;
-                // The static correction a cage starting from rest carries: zero about the rest
-                // shape; about a prestressed equilibrium `q_g`, `A⁻¹(K_r q_g − Gᵀ M g)`, which
-                // makes `q_g` the cage's equilibrium under that gravity.
-                let mut rest_load: Option<DVector<f64>> = None;
-                if params.dynamics == CageDynamics::Projected {
-                    let mut matched = None;
-                    if let Some(pre) = &ops.prestress {
-                        matched = matched_stiffness(mesh, &held, pre.tangent, &mg, &m_r, 1e-6)?;
-                        if let Some(k_t) = &matched {
-                            // q_g: the mass-weighted fit of the equilibrium.
-                            let mut mu = DVector::zeros(3 * n);
-                            for k in (0..n).filter(|&k| !held[k]) {
-                                for b in 0..3 {
-                                    mu[3 * k + b] = ops.masses[k] * pre.displacement[k][b];
-                                }
-                            }
-                            let q_g = fit.solve(&(jacobian.transpose() * mu));
-                            let mut f_g = DVector::zeros(m);
-                            for c in 0..m {
-                                let col = mg.column(c);
-                                f_g[c] = (0..n)
-                                    .map(|k| {
-                                        (0..3).map(|a| col[3 * k + a] * pre.gravity[a]).sum::<f64>()
-                                    })
-                                    .sum::<f64>();
-                            }
-                            rest_load = Some(k_t * q_g - f_g);
-                        }
-                    }
-                    if matched.is_none() {
-                        matched = matched_stiffness(mesh, &held, ops.stiffness, &mg, &m_r, 1e-9)?;
-                    }
-                    if let Some(matched) = matched {
-                        k_r = matched;
-                    }
-                }
-                let d_r = match ops.damping {
-                    Damping::MassProportional(alpha) => &m_r * alpha,
-                    Damping::PerNode(gamma) => jacobian.transpose() * &jacobian * gamma,
-                };
-                let a = &m_r / (dt * dt) + &d_r / (2.0 * dt) + &k_r;
-                let a_dense = a.as_slice().to_vec();
-                let a_inv = Cholesky::new(a).ok_or(GcModelError::Singular)?.inverse();
-                let p = &a_inv * &k_r;
-                let q_mat = &a_inv * (&m_r / dt - &d_r * 0.5);
-                let mut response = (-p).as_slice().to_vec();
-                response.extend_from_slice(q_mat.as_slice());
-                // Gᵀ M 1_a: the generalised gravity load per unit acceleration along axis a.
-                let mut g1 = DMatrix::zeros(m, 3);
-                for a in 0..3 {
-                    for c in 0..m {
-                        let col = mg.column(c);
-                        g1[(c, a)] = (0..n).map(|k| col[3 * k + a]).sum::<f64>();
-                    }
-                }
-                let gravity = &a_inv * g1;
-                let rest_correction = match rest_load {
-                    Some(b) => (&a_inv * b).as_slice().to_vec(),
-                    None => vec![0.0; m],
-                };
-                Dynamics::Projected(Box::new(Reduced {
-                    a_inv: a_inv.as_slice().to_vec(),
-                    response,
-                    gravity: gravity.as_slice().to_vec(),
-                    state: vec![0.0; 2 * m],
-                    correction: rest_correction.clone(),
-                    rest_correction,
-                    correction_due: false,
-                    d: vec![0.0; m],
-                    a: a_dense,
-                    sys: vec![0.0; m * m],
-                    c: vec![0.0; m],
-                    rhs: vec![0.0; m],
-                    c_tool: vec![0.0; m],
-                }))
+            CageDynamics::Projected => {
+                Dynamics::Projected(Box::new(Reduced::projected(&basis, ops, dt)?))
+            }
+            CageDynamics::Galerkin => {
+                Dynamics::Projected(Box::new(Reduced::galerkin(&basis, ops, dt)?))
             }
             CageDynamics::MassSpring {
                 stiffness,
                 density,
                 damping,
-            } => {
-                let volume = cage_volume(&cage);
-                let node_mass = density * volume / nv as f64;
-                // Every pair of cage vertices is a spring: a cage's triangle edges alone are a
-                // shell that folds flat at no cost; the complete graph holds its volume.
-                let mut springs = Vec::new();
-                for a in 0..nv as u32 {
-                    for b in a + 1..nv as u32 {
-                        springs.push([a, b]);
-                    }
-                }
-                // A cage vertex is fixed when it carries the largest weight of some fixed node.
-                let mut fixed = Vec::new();
-                for &f in &mesh.fixed {
-                    let k = f as usize;
-                    let best = (0..nv)
-                        .max_by(|&i, &j| binding.phi(k, i).total_cmp(&binding.phi(k, j)))
-                        .unwrap_or(0) as u32;
-                    fixed.push(best);
-                }
-                fixed.sort_unstable();
-                fixed.dedup();
-                let msd = MassSpring::from_springs(
-                    cage.vertices.clone(),
-                    &springs,
-                    &fixed,
-                    MsdParameters {
-                        stiffness,
-                        mass: NodeMass::PerNode(node_mass),
-                        damping,
-                        dt,
-                        integrator: Integrator::ImplicitEuler,
-                    },
-                );
-                Dynamics::MassSpring(Box::new(msd))
-            }
+            } => Dynamics::MassSpring(Box::new(mass_spring_cage(
+                mesh, &cage, &binding, stiffness, density, damping, dt,
+            ))),
         };
 
         let kernel = Kernel::new(&binding, &held);
@@ -515,108 +349,6 @@ impl GcModel {
         };
         model.evaluate();
         Ok(model)
-    }
-
-    /// Builds the GC model of `mesh` from its precise model (`Model::MassSpring` or
-    /// `Model::Fem`): masses, held nodes, damping and rest stiffness come from it.
-    pub fn from_precise(
-        mesh: &TetMesh,
-        params: GcParameters,
-        precise: &Model,
-    ) -> Result<GcModel, GcModelError> {
-        GcModel::from_model(mesh, params, precise, None)
-    }
-
-    /// [`GcModel::new`] with the operators of `precise`, and `prestress` if given.
-    fn from_model(
-        mesh: &TetMesh,
-        params: GcParameters,
-        precise: &Model,
-        prestress: Option<Prestress<'_>>,
-    ) -> Result<GcModel, GcModelError> {
-        let damping = precise.damping().ok_or_else(|| {
-            GcModelError::Parameter("a cage needs a precise model to stand for".into())
-        })?;
-        let held: Vec<bool> = (0..mesh.nodes.len()).map(|i| precise.is_held(i)).collect();
-        let stiffness = |u: &[[f64; 3]]| precise.rest_stiffness_product(u).unwrap_or_default();
-        GcModel::new(
-            mesh,
-            params,
-            &PreciseOperators {
-                masses: precise.masses(),
-                held: &held,
-                damping,
-                stiffness: &stiffness,
-                prestress,
-            },
-        )
-    }
-
-    /// [`GcModel::from_precise`] for a body that lives under a constant `gravity` (a scene's):
-    /// a projected cage is linearised about the precise model's equilibrium under it, with the
-    /// *tangent* stiffness there, instead of about the rest shape. A soft, tall body sagging
-    /// under its own weight is far more compliant sideways than at rest (the corotational FEM
-    /// cylinder of Table 6.1 bends 2.3× farther under the same side load), which a cage built
-    /// on the rest stiffness cannot follow. The equilibrium becomes the cage's own under that
-    /// gravity; under a different gravity the cage is wrong by the difference, so use the
-    /// scene's. Only a corotational FEM body has this effect and a static solver to find the
-    /// equilibrium; for other bodies, zero gravity, or an equilibrium that cannot be found or
-    /// whose tangent is not positive definite, this is [`GcModel::from_precise`].
-    pub fn from_precise_under(
-        mesh: &TetMesh,
-        params: GcParameters,
-        precise: &Model,
-        gravity: [f64; 3],
-    ) -> Result<GcModel, GcModelError> {
-        let fem = match precise {
-            Model::Fem(f)
-                if f.parameters().mode == crate::fem::FemMode::Corotational
-                    && gravity != [0.0; 3]
-                    && params.dynamics == CageDynamics::Projected =>
-            {
-                f
-            }
-            _ => return GcModel::from_precise(mesh, params, precise),
-        };
-        let mut eq = fem.clone();
-        eq.reset();
-        if eq.solve_static(gravity, &[]).is_err() {
-            return GcModel::from_precise(mesh, params, precise);
-        }
-        let x_g = eq.positions().to_vec();
-        let n = x_g.len();
-        let u_g: Vec<[f64; 3]> = (0..n).map(|k| sub(x_g[k], mesh.nodes[k])).collect();
-        // Central differences of the elastic forces about the equilibrium. The step is 1e-7 of
-        // the body's size: far below the equilibrium's own displacements, far above the
-        // rounding of the forces.
-        let size = extents(&mesh.nodes).into_iter().fold(0.0, f64::max);
-        let h = 1e-7 * size;
-        let zero = vec![[0.0; 3]; n];
-        let probe = std::cell::RefCell::new(eq);
-        let tangent = |u: &[[f64; 3]]| {
-            let mut f = probe.borrow_mut();
-            let shifted = |sign: f64| -> Vec<[f64; 3]> {
-                (0..n).map(|k| add(x_g[k], scale(u[k], sign * h))).collect()
-            };
-            f.set_state(&shifted(1.0), &zero);
-            let plus = f.elastic_forces();
-            f.set_state(&shifted(-1.0), &zero);
-            let minus = f.elastic_forces();
-            plus.iter()
-                .zip(&minus)
-                .map(|(p, q)| scale(sub(*p, *q), -0.5 / h))
-                .collect()
-        };
-        GcModel::from_model(
-            mesh,
-            params,
-            precise,
-            Some(Prestress {
-                gravity,
-                displacement: &u_g,
-                tangent: &tangent,
-            }),
-        )
     }
 
     /// The parameters.
@@ -793,99 +525,26 @@ impl GcModel {
         // level; a touched body normally switches to its precise model first).
         let touch = contact.and_then(|c| touch(c, &self.x));
         let has_loads = touch.is_some() || external.iter().any(|f| *f != [0.0; 3]);
-        let n = self.rest.len();
         let mut report = touch.map_or_else(ContactReport::default, |t| ContactReport {
             force_on_tissue: t.on_tissue,
             depth: t.depth,
         });
+        let loads = StepLoads {
+            gravity,
+            external,
+            touch: touch.as_ref(),
+            springs,
+            has_loads,
+        };
         match &mut self.dynamics {
             Dynamics::Projected(r) => {
-                // The tool's push along its normal joins the implicit solve (linearised like a
-                // contact spring: `F + k'·(depth change)`), as in the precise models: a cage
-                // as soft as its body would ring or blow up under an explicit 300 N/m tool.
-                let implicit_tool = touch.as_ref().and_then(Touch::as_spring);
-                let explicit_touch = if implicit_tool.is_some() {
-                    None
-                } else {
-                    touch.as_ref()
-                };
-                // f_r = Gᵀ f over the loaded nodes only (gravity is folded in at set-up).
-                if has_loads {
-                    self.load_r.fill(0.0);
-                    let jt = &self.jacobian_t;
-                    let mut add_load = |k: usize, f: [f64; 3]| {
-                        for (b, fb) in f.iter().enumerate() {
-                            if *fb != 0.0 {
-                                self.load_r.axpy(*fb, &jt.column(3 * k + b), 1.0);
-                            }
-                        }
-                    };
-                    each_load(external, n, explicit_touch, &mut add_load);
-                }
-                r.d.fill(0.0);
-                if has_loads {
-                    gemv_acc(&r.a_inv, self.load_r.as_slice(), &mut r.d);
-                }
-                if r.correction_due {
-                    // A⁻¹(K_r q* − f_g) = −(response_q · q*) − A⁻¹ f_g.
-                    let m = r.d.len();
-                    r.correction.fill(0.0);
-                    gemv_acc(&r.response[..m * m], &r.state[..m], &mut r.correction);
-                    gemv_acc(&r.gravity, &gravity, &mut r.correction);
-                    r.correction.iter_mut().for_each(|c| *c = -*c);
-                    r.correction_due = false;
-                }
-                gemv_acc(&r.gravity, &gravity, &mut r.d);
-                gemv_acc(&r.response, &r.state, &mut r.d);
-                r.d.iter_mut().zip(&r.correction).for_each(|(d, c)| *d += c);
-                if implicit_tool.is_some() || springs.iter().any(|sp| sp.touch(&self.x).is_some()) {
-                    let gap = resolve_springs(
-                        r,
-                        &self.jacobian_t,
-                        &self.x,
-                        springs,
-                        implicit_tool.as_ref(),
-                    );
-                    if let (Some(t), Some(gap), Some(orig)) = (&implicit_tool, gap, &touch) {
-                        // The force the step applied and the depth it left.
-                        let g = gap.max(0.0);
-                        report = ContactReport {
-                            force_on_tissue: scale(t.normal, t.stiffness * g),
-                            depth: (orig.depth - (t.depth - gap)).max(0.0),
-                        };
-                    }
-                }
-                let m = r.d.len();
-                let (q, qd) = r.state.split_at_mut(m);
-                for ((q, qd), d) in q.iter_mut().zip(qd).zip(&r.d) {
-                    *q += d;
-                    *qd = d / dt;
+                let applied = r.step(&loads, dt, &self.x, &self.jacobian_t, &mut self.load_r);
+                if let Some(applied) = applied {
+                    report = applied;
                 }
             }
             Dynamics::MassSpring(msd) => {
-                // Each load goes to the cage vertices by the node's φ weights (thesis §6.3.4.1).
-                self.cage_loads.iter_mut().for_each(|f| *f = [0.0; 3]);
-                if has_loads {
-                    let nv = self.cage_loads.len();
-                    let mut add_load = |k: usize, f: [f64; 3]| {
-                        for i in 0..nv {
-                            let w = self.binding.phi(k, i);
-                            self.cage_loads[i] = add(self.cage_loads[i], scale(f, w));
-                        }
-                    };
-                    each_load(external, n, touch.as_ref(), &mut add_load);
-                }
-                for sp in springs {
-                    if let Some(t) = sp.touch(&self.x) {
-                        for (j, &node) in t.tri.iter().enumerate() {
-                            let f = scale(t.on_tissue, t.weights[j]);
-                            for (i, load) in self.cage_loads.iter_mut().enumerate() {
-                                *load = add(*load, scale(f, self.binding.phi(node as usize, i)));
-                            }
-                        }
-                    }
-                }
-                msd.step(gravity, &self.cage_loads, None)?;
+                step_mass_spring(msd, &loads, &self.binding, &self.x, &mut self.cage_loads)?;
             }
         }
         self.sync_cage();
@@ -954,94 +613,4 @@ impl GcModel {
         }
         self.kernel.apply(&self.w, &mut self.disp);
     }
-}
-
-/// Adds the contact springs (and the tool, in the same spring form) to the reduced step: with
-/// `d₀` (in `r.d`) the increment without them, the increment with them solves
-/// `(A + Σ k c cᵀ) d = A d₀ + Σ c k g`, `g` each spring's gap at the start of the step and
-/// `c = Gᵀ (w ⊗ n)`; i.e. `d = d₀ + Δ` with `(A + Σ k c cᵀ) Δ = Σ c k (g − cᵀ d₀)`.
-/// Allocation-free; leaves `d₀` if the matrix cannot be factorised (non-finite input). Returns
-/// the tool's gap at the end of the step (`g − cᵀ d`), if it was given and the solve ran.
-fn resolve_springs(
-    r: &mut Reduced,
-    jacobian_t: &DMatrix<f64>,
-    x: &[[f64; 3]],
-    springs: &[ContactSpring],
-    tool: Option<&Touch>,
-) -> Option<f64> {
-    let m = r.d.len();
-    r.sys.copy_from_slice(&r.a);
-    r.rhs.fill(0.0);
-    let touches = tool
-        .copied()
-        .into_iter()
-        .chain(springs.iter().filter_map(|sp| sp.touch(x)));
-    for (i, t) in touches.enumerate() {
-        r.c.fill(0.0);
-        for (p, &node) in t.tri.iter().enumerate() {
-            if t.weights[p] == 0.0 {
-                continue;
-            }
-            for b in 0..3 {
-                let s = t.weights[p] * t.normal[b];
-                if s != 0.0 {
-                    let col = jacobian_t.column(3 * node as usize + b);
-                    r.c.iter_mut()
-                        .zip(col.iter())
-                        .for_each(|(c, g)| *c += s * g);
-                }
-            }
-        }
-        if i == 0 && tool.is_some() {
-            r.c_tool.copy_from_slice(&r.c);
-        }
-        let gap = t.depth - r.c.iter().zip(&r.d).map(|(c, d)| c * d).sum::<f64>();
-        for j in 0..m {
-            r.rhs[j] += t.stiffness * gap * r.c[j];
-            let kc = t.stiffness * r.c[j];
-            if kc != 0.0 {
-                for i in 0..m {
-                    r.sys[j * m + i] += kc * r.c[i];
-                }
-            }
-        }
-    }
-    if !spd_solve_in_place(&mut r.sys, m, &mut r.rhs) {
-        return None;
-    }
-    r.d.iter_mut()
-        .zip(&r.rhs)
-        .for_each(|(d, delta)| *d += delta);
-    tool.map(|t| t.depth - r.c_tool.iter().zip(&r.d).map(|(c, d)| c * d).sum::<f64>())
-}
-
-/// Calls `add` with every non-zero nodal load: the first `n` of `external`, then the tool's
-/// force spread on the touched triangle's nodes by its barycentric weights.
-fn each_load(
-    external: &[[f64; 3]],
-    n: usize,
-    touch: Option<&Touch>,
-    add: &mut impl FnMut(usize, [f64; 3]),
-) {
-    for (k, f) in external.iter().enumerate().take(n) {
-        if *f != [0.0; 3] {
-            add(k, *f);
-        }
-    }
-    if let Some(t) = touch {
-        for (j, &node) in t.tri.iter().enumerate() {
-            add(node as usize, scale(t.on_tissue, t.weights[j]));
-        }
-    }
-}
-
-/// Volume enclosed by an outward cage (divergence theorem).
-fn cage_volume(c: &Cage) -> f64 {
-    c.triangles
-        .iter()
-        .map(|t| {
-            let (a, b, d) = (c.vertices[t[0]], c.vertices[t[1]], c.vertices[t[2]]);
-            dot(a, crate::vec3::cross(b, d)) / 6.0
-        })
-        .sum()
 }

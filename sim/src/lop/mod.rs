@@ -76,12 +76,14 @@
 //! displacements, not positions, so 24 bits are far more than enough), both compiled for AVX2
 //! and FMA when the CPU has them. `lop-bench lop` measures it against the FEM step.
 
+mod cage_dynamics;
 mod compliance;
 mod controller;
 mod gc_model;
 mod kernel;
 
 pub use controller::{Lop, LopPolicy, StartLevel, Switch, SwitchReason};
+pub(crate) use gc_model::Prestress;
 pub use gc_model::{
     build_cage, fitted_cells, CageDynamics, CageShape, Damping, GcModel, GcModelError,
     GcParameters, PreciseOperators, MAX_FITTED_VERTICES,

@@ -2,8 +2,8 @@
 //! loads (position-only), and the tool's penalty contact.
 
 use crate::contact::{add, dot, norm, scale, sub};
-pub(super) use crate::model::{touch, Touch};
-use crate::model::{ContactSpring, ToolContact};
+pub(super) use crate::interaction::{touch, Touch};
+use crate::interaction::{ContactSpring, ToolContact};
 
 /// A spring between nodes `a < b`.
 #[derive(Debug, Clone, Copy)]

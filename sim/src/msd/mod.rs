@@ -123,8 +123,8 @@ mod forces;
 mod implicit;
 
 use crate::contact::{add, dot, norm, scale, sub};
+use crate::interaction::{BlowUp, ContactReport, ContactSpring, ToolContact, RUNAWAY_SPEED};
 use crate::mesh::TetMesh;
-use crate::model::{BlowUp, ContactReport, ContactSpring, ToolContact, RUNAWAY_SPEED};
 
 use forces::{Network, Spring};
 use implicit::ImplicitSolver;

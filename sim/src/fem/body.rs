@@ -1,0 +1,300 @@
+//! Building a [`Fem`] (elements, lumped masses, held nodes, the sparse system and the scratch)
+//! and reading or replacing its state.
+
+use super::batch::Batches;
+use super::element::{dot, lame, norm, sub, Element};
+use super::params::validate;
+use super::rotation::{self, QUAT_IDENTITY};
+use super::system::{NodeOrdering, System, NONE};
+use super::{
+    CorotationalSolver, Factor, Fem, FemError, FemMode, FemParameters, Scratch, SolverCounters,
+    INVERSE_SLOTS,
+};
+use crate::mesh::TetMesh;
+
+impl Fem {
+    /// Builds the body on `mesh` (rest shape = the mesh's nodes; fixed = `mesh.fixed`),
+    /// analyses the sparsity pattern and factorises the system matrix at rest.
+    ///
+    /// # Errors
+    /// [`FemError::InvalidParameter`] for a non-finite or out-of-range parameter,
+    /// [`FemError::DegenerateElement`] for a flat or inverted tetrahedron,
+    /// [`FemError::Solver`] if the sparse structures cannot be built.
+    pub fn new(mesh: &TetMesh, params: FemParameters) -> Result<Fem, FemError> {
+        Fem::with_factorization(mesh, params, None)
+    }
+
+    /// [`Fem::new`] with the fill-reducing ordering forced instead of the smaller-fill one of
+    /// AMD and nested dissection: for benchmarks and tests.
+    #[doc(hidden)]
+    pub fn with_ordering(
+        mesh: &TetMesh,
+        params: FemParameters,
+        ordering: NodeOrdering,
+    ) -> Result<Fem, FemError> {
+        Fem::build(mesh, params, None, ordering)
+    }
+
+    /// [`Fem::new`] with the factorisation forced supernodal (`Some(true)`) or simplicial
+    /// (`Some(false)`) instead of faer's choice: for benchmarks.
+    #[doc(hidden)]
+    pub fn with_factorization(
+        mesh: &TetMesh,
+        params: FemParameters,
+        supernodal: Option<bool>,
+    ) -> Result<Fem, FemError> {
+        Fem::build(mesh, params, supernodal, NodeOrdering::Auto)
+    }
+
+    fn build(
+        mesh: &TetMesh,
+        params: FemParameters,
+        supernodal: Option<bool>,
+        ordering: NodeOrdering,
+    ) -> Result<Fem, FemError> {
+        validate(&params)?;
+        let (lambda, mu) = lame(params.young, params.poisson);
+        let n = mesh.nodes.len();
+        let mut elements = Vec::with_capacity(mesh.tets.len());
+        for (i, t) in mesh.tets.iter().enumerate() {
+            let corners = t.map(|k| mesh.nodes[k as usize]);
+            let e = Element::new(*t, corners).ok_or_else(|| FemError::DegenerateElement {
+                element: i,
+                nodes: *t,
+                volume: mesh.tet_volume(i),
+            })?;
+            elements.push(e);
+        }
+        let mut mass = vec![0.0; n];
+        for e in &elements {
+            for &k in &e.nodes {
+                mass[k as usize] += params.density * e.volume / 4.0;
+            }
+        }
+        let mut held: Vec<bool> = mass.iter().map(|&m| !(m > 0.0)).collect();
+        for &f in &mesh.fixed {
+            held[f as usize] = true;
+        }
+        let system = System::new(&mesh.nodes, &elements, &held, supernodal, ordering)
+            .map_err(|e| FemError::Solver(format!("{e:?}")))?;
+        let n_dof = system.n_dof;
+        let mut node_face_ptr = vec![0usize; n + 1];
+        for tri in &mesh.surface {
+            for &k in tri {
+                node_face_ptr[k as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            node_face_ptr[i + 1] += node_face_ptr[i];
+        }
+        let mut node_faces = vec![0u32; node_face_ptr[n]];
+        let mut fill = node_face_ptr.clone();
+        for (f, tri) in mesh.surface.iter().enumerate() {
+            for &k in tri {
+                node_faces[fill[k as usize]] = f as u32;
+                fill[k as usize] += 1;
+            }
+        }
+        let s = Box::new(Scratch {
+            batch: Batches::new(&elements, &system.dof, lambda, mu),
+            node_rot: vec![QUAT_IDENTITY; n],
+            node_rot_lag: vec![QUAT_IDENTITY; n],
+            node_sum: vec![[0.0; 4]; n],
+            node_turn: vec![rotation::IDENTITY; n_dof / 3],
+            force: vec![[0.0; 3]; n],
+            rhs: vec![0.0; n_dof],
+            contact_dir: [vec![0.0; n_dof], vec![0.0; n_dof], vec![0.0; n_dof]],
+            contact_pc: [vec![0.0; n_dof], vec![0.0; n_dof], vec![0.0; n_dof]],
+            v_before: vec![[0.0; 3]; n],
+            v_before2: vec![[0.0; 3]; n],
+            sol: vec![0.0; n_dof],
+            cg_r: vec![0.0; n_dof],
+            cg_z: vec![0.0; n_dof],
+            cg_p: vec![0.0; n_dof],
+            cg_q: vec![0.0; n_dof],
+            inv_cols: if params.mode == FemMode::Linear {
+                vec![0.0; 3 * INVERSE_SLOTS * n_dof]
+            } else {
+                Vec::new()
+            },
+            inv_key: if params.mode == FemMode::Linear {
+                vec![NONE; INVERSE_SLOTS]
+            } else {
+                Vec::new()
+            },
+            inv_used: vec![0; INVERSE_SLOTS],
+            inv_clock: 0,
+        });
+        let mut fem = Fem {
+            params,
+            surface: mesh.surface.clone(),
+            node_face_ptr,
+            node_faces,
+            lambda,
+            mu,
+            elements,
+            mass,
+            held,
+            rest: mesh.nodes.clone(),
+            u: vec![[0.0; 3]; n],
+            x: mesh.nodes.clone(),
+            v: vec![[0.0; 3]; n],
+            system: Box::new(system),
+            factor: Factor::Stale,
+            solver: CorotationalSolver::LaggedFactorPcg,
+            last_iterations: 0,
+            baseline_iterations: None,
+            extra_iterations: 0,
+            one_iteration_runs: 0,
+            counters: SolverCounters::default(),
+            s,
+        };
+        fem.factor_dynamic(false)
+            .map_err(|_| FemError::Solver("system matrix at rest is not SPD".into()))?;
+        Ok(fem)
+    }
+
+    /// Node positions, m.
+    pub fn positions(&self) -> &[[f64; 3]] {
+        &self.x
+    }
+
+    /// Node velocities, m/s.
+    pub fn velocities(&self) -> &[[f64; 3]] {
+        &self.v
+    }
+
+    /// Lumped nodal masses, kg.
+    pub fn masses(&self) -> &[f64] {
+        &self.mass
+    }
+
+    /// The body's time step, s.
+    pub fn dt(&self) -> f64 {
+        self.params.dt
+    }
+
+    /// The parameters the body was built with.
+    pub fn parameters(&self) -> &FemParameters {
+        &self.params
+    }
+
+    /// Sub-steps per step: always 1 (the scheme is implicit).
+    pub fn substeps(&self) -> usize {
+        1
+    }
+
+    /// Free degrees of freedom (3 per node that is neither fixed nor unused).
+    pub fn dofs(&self) -> usize {
+        self.system.n_dof
+    }
+
+    /// Conjugate-gradient iterations of the last corotational step (0 when it was solved
+    /// directly, and always 0 in linear mode): for logs and benchmarks.
+    pub fn last_iterations(&self) -> usize {
+        self.last_iterations
+    }
+
+    /// Stored non-zeros of the system matrix (one triangle) and of its Cholesky factor, and
+    /// whether faer factorises it supernodally: for logs and benchmarks.
+    pub fn solver_info(&self) -> (usize, usize, bool) {
+        let (a, l) = self.system.nnz();
+        (a, l, self.system.is_supernodal())
+    }
+
+    /// The fill-reducing ordering of the system (AMD or nested dissection): for benchmarks.
+    #[doc(hidden)]
+    pub fn ordering(&self) -> NodeOrdering {
+        self.system.ordering()
+    }
+
+    /// Factorises `K̃` at rest again, in the precision the body's solver uses (single for the
+    /// corotational preconditioner, double otherwise): for benchmarks of the factorisation.
+    /// Allocation-free after the first call.
+    #[doc(hidden)]
+    pub fn refactorize_at_rest(&mut self) -> bool {
+        self.factor_dynamic(false).is_ok()
+    }
+
+    /// Solves `K̃ x = rhs` in place (one DOF vector, [`Fem::dofs`] long) with the body's
+    /// current factor: for benchmarks of the triangular solves.
+    ///
+    /// # Panics
+    /// If `rhs` does not have one entry per DOF.
+    #[doc(hidden)]
+    pub fn solve_with_factor(&mut self, rhs: &mut [f64]) {
+        assert_eq!(rhs.len(), self.system.n_dof, "one entry per DOF");
+        self.system.solve_in_place(rhs);
+    }
+
+    /// Steps, CG iterations and factorisations since the body was built: for benchmarks.
+    #[doc(hidden)]
+    pub fn solver_counters(&self) -> SolverCounters {
+        SolverCounters {
+            factorizations: self.system.factorizations(),
+            ..self.counters
+        }
+    }
+
+    /// Chooses how corotational steps are solved: for benchmarks.
+    #[doc(hidden)]
+    pub fn set_corotational_solver(&mut self, solver: CorotationalSolver) {
+        self.solver = solver;
+    }
+
+    /// Kinetic energy, J.
+    pub fn kinetic_energy(&self) -> f64 {
+        self.v
+            .iter()
+            .zip(&self.mass)
+            .map(|(v, m)| 0.5 * m * dot(*v, *v))
+            .sum()
+    }
+
+    /// Largest nodal speed, m/s.
+    pub fn max_speed(&self) -> f64 {
+        self.v.iter().map(|v| norm(*v)).fold(0.0, f64::max)
+    }
+
+    /// Back to the rest shape, at rest.
+    pub fn reset(&mut self) {
+        self.x.copy_from_slice(&self.rest);
+        self.u.iter_mut().for_each(|u| *u = [0.0; 3]);
+        self.v.iter_mut().for_each(|v| *v = [0.0; 3]);
+        self.s.v_before.iter_mut().for_each(|v| *v = [0.0; 3]);
+        self.s.v_before2.iter_mut().for_each(|v| *v = [0.0; 3]);
+        self.one_iteration_runs = 0;
+        self.s.batch.reset_rotations();
+        self.s.node_rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
+    }
+
+    /// Replaces the state (for levels-of-precision switching, or to prescribe boundary
+    /// displacements before [`Fem::solve_static`]). Fixed nodes take the given positions and
+    /// are held there, at zero velocity. The rotation search restarts cold, so what follows
+    /// depends on `x` and `v` only (and, for the corotational solver's speed, not its result,
+    /// on which factor it holds).
+    ///
+    /// # Panics
+    /// If `x` or `v` does not have one entry per node.
+    pub fn set_state(&mut self, x: &[[f64; 3]], v: &[[f64; 3]]) {
+        assert_eq!(x.len(), self.x.len(), "set_state: one position per node");
+        assert_eq!(v.len(), self.v.len(), "set_state: one velocity per node");
+        self.x.copy_from_slice(x);
+        for ((u, x), r) in self.u.iter_mut().zip(x).zip(&self.rest) {
+            *u = sub(*x, *r);
+        }
+        for (i, vi) in self.v.iter_mut().enumerate() {
+            *vi = if self.held[i] { [0.0; 3] } else { v[i] };
+        }
+        self.s.v_before.copy_from_slice(&self.v);
+        self.s.v_before2.copy_from_slice(&self.v);
+        self.one_iteration_runs = 0;
+        self.s.batch.reset_rotations();
+        self.s.node_rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
+    }
+
+    /// Whether node `i` is held (fixed by the mesh, or used by no tetrahedron).
+    pub fn is_held(&self, i: usize) -> bool {
+        self.held[i]
+    }
+}
