@@ -1,7 +1,7 @@
 //! The simulated scene: bodies, each with its mesh and its current model, stepped on its own
 //! time step; organ-to-organ collision; the heat model.
 //!
-//! One round of the world ([`World::round`], in [`round`]) is the only way the deformation
+//! One round of the world ([`World::round`], in `round.rs`) is the only way the deformation
 //! process, `lopd simulate` and the benchmarks advance a scene: tool input → organ collision
 //! detection → the bodies that are due, each on its own `dt`, with the catch-up policy → heat →
 //! a report of timed stages. `World` owns no clock: the caller says how far to advance and

@@ -135,7 +135,7 @@ impl RoundReport {
 }
 
 impl World {
-    /// Runs one round (see the [module](self)) and returns its report; `clock` gives
+    /// Runs one round (the stages of the module docs) and returns its report; `clock` gives
     /// monotonic nanoseconds for the stage timings (pass `|| 0` where time does not matter).
     /// Allocation-free after the first rounds, except when the heat model fails.
     pub fn round(&mut self, round: &Round<'_>, mut clock: impl FnMut() -> u64) -> &RoundReport {
