@@ -16,12 +16,13 @@ use std::path::PathBuf;
 use lop_sim::collide::{CollisionBody, CollisionParams, Collisions, Penetration};
 use lop_sim::mesh::{read_mesh, TetMesh};
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
+use lop_test_support::alloc::{self, Counting};
+use lop_test_support::vec3::sub;
 
-/// Counts the allocations of the current thread while tracking is on (other tests' threads
-/// cannot disturb the count), as in `msd_alloc.rs`.
-#[path = "common/alloc.rs"]
-mod alloc;
-use alloc::allocations;
+// Counts the allocations of the current thread while tracking is on (other tests' threads
+// cannot disturb the count), as in `msd_alloc.rs`.
+#[global_allocator]
+static A: Counting = Counting::armed_threads();
 
 /// A box `[lo, hi]` split into `n³` cells of six tetrahedra each (Kuhn subdivision along the
 /// cell diagonal, conforming across cells). Node `(i, j, k)` has index `(k (n+1) + j)(n+1) + i`
@@ -67,10 +68,6 @@ fn box_mesh(lo: [f64; 3], hi: [f64; 3], n: u32) -> TetMesh {
         }
     }
     TetMesh::from_parts(nodes, tets, vec![], PathBuf::from("box")).expect("box mesh")
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
 fn shipped(name: &str) -> TetMesh {
@@ -590,10 +587,11 @@ fn detection_and_loads_allocate_nothing() {
         let meshes: Vec<&TetMesh> = organs.iter().collect();
         let bodies = bodies(&meshes);
         let mut slices: Vec<&mut [[f64; 3]]> = loads.iter_mut().map(|l| l.as_mut_slice()).collect();
-        let n = allocations(|| {
+        let n = alloc::this_thread(|| {
             c.detect(&bodies);
             c.add_penalty_loads(&params, &mut slices);
-        });
+        })
+        .allocations;
         assert_eq!(n, 0, "round {round}: {n} allocations");
         assert!(c.stats().penetrations > 0, "round {round}: no contacts");
         if round == 0 {

@@ -8,6 +8,7 @@ use lop_sim::mesh::{
     read_gmsh, read_mesh, read_tetgen, read_vtk, write_bnd, write_tetgen, write_tetgen_numbered,
     write_vtk, TetMesh,
 };
+use lop_test_support::vec3::{cross, dot, sub};
 
 // ---------------------------------------------------------------------------------------------
 // helpers
@@ -50,22 +51,6 @@ fn vol6(p: &[[f64; 3]], t: [u32; 4]) -> f64 {
     let v = sub(c, a);
     let w = sub(d, a);
     dot(u, cross(v, w))
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// Swaps two corners of every negatively oriented tetrahedron.
