@@ -2,13 +2,12 @@
 //! without the tool, including the corotational solver's refactorisations and the contact's
 //! extra solves. Counted by a global allocator (this test binary only).
 
-use std::path::PathBuf;
-
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::{CorotationalSolver, Fem, FemMode, FemParameters};
 use lop_sim::mesh::read_mesh;
 use lop_sim::model::ToolContact;
 use lop_test_support::alloc::{self, Counting};
+use lop_test_support::fixtures::mesh_path;
 
 // Every thread's allocations count: the test binary holds this one test only.
 #[global_allocator]
@@ -16,8 +15,7 @@ static A: Counting = Counting::every_thread();
 
 #[test]
 fn step_is_allocation_free() {
-    let mesh = read_mesh(&PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes/liver"))
-        .unwrap();
+    let mesh = read_mesh(&mesh_path("liver")).unwrap();
     let top = mesh
         .surface_nodes()
         .into_iter()

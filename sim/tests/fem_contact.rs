@@ -10,17 +10,15 @@
 //! - fixed nodes never move;
 //! - withdrawing the tool releases the tissue: no sticky (pulling) contact force.
 
-use std::path::PathBuf;
-
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::{Fem, FemMode, FemParameters};
 use lop_sim::mesh::{read_mesh, TetMesh};
 use lop_sim::model::{ContactReport, ToolContact};
+use lop_test_support::fixtures::mesh_path;
 use lop_test_support::vec3::norm;
 
 fn liver() -> TetMesh {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes/liver");
-    read_mesh(&p).expect("shipped liver mesh")
+    read_mesh(&mesh_path("liver")).expect("shipped liver mesh")
 }
 
 /// Table 6.2.

@@ -6,6 +6,7 @@ use lop_sim::contact::{closest_on_surface, ForceLaw};
 use lop_sim::haptic::{hand_force, sweep_sphere_triangle, GodObject, SurfaceSet};
 use lop_sim::mesh::read_mesh;
 use lop_test_support::alloc::{self, Counting};
+use lop_test_support::fixtures::mesh_path;
 use lop_test_support::vec3::norm;
 
 #[global_allocator]
@@ -130,11 +131,7 @@ fn set_of(x: &[[f64; 3]], t: &[[u32; 3]]) -> SurfaceSet {
 
 #[test]
 fn closest_point_matches_brute_force_on_the_liver() {
-    let mesh = read_mesh(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../assets/meshes/liver"
-    )))
-    .unwrap();
+    let mesh = read_mesh(&mesh_path("liver")).unwrap();
     let mut set = set_of(&mesh.nodes, &mesh.surface);
     let (lo, hi) = lop_sim::mesh::bounds(&mesh.nodes);
     // A deterministic cloud around and inside the liver, visited in a wandering order so the
@@ -398,11 +395,7 @@ fn a_tick_allocates_nothing() {
 
 #[test]
 fn small_motions_skip_the_refit_and_stay_exact() {
-    let mesh = read_mesh(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../assets/meshes/liver"
-    )))
-    .unwrap();
+    let mesh = read_mesh(&mesh_path("liver")).unwrap();
     let mut set = set_of(&mesh.nodes, &mesh.surface);
     let (lo, hi) = lop_sim::mesh::bounds(&mesh.nodes);
     let mid = [0, 1, 2].map(|k| (lo[k] + hi[k]) / 2.0);

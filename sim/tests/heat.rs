@@ -7,23 +7,16 @@
 //! and the x-modes of a bar are exact discrete eigenvectors. The shipped beam and liver are
 //! unstructured TetGen meshes.
 
-use std::path::PathBuf;
+mod common;
 
+use common::shipped_mesh as shipped;
 use lop_sim::fem::box_mesh;
 use lop_sim::heat::{HeatBody, HeatError, HeatParameters, HeatWorld, Link};
-use lop_sim::mesh::{read_mesh, TetMesh};
-
+use lop_sim::mesh::TetMesh;
 use lop_test_support::alloc::{self, Counting};
 
 #[global_allocator]
 static A: Counting = Counting::armed_threads();
-
-fn shipped(name: &str) -> TetMesh {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../assets/meshes")
-        .join(name);
-    read_mesh(&p).unwrap_or_else(|e| panic!("shipped mesh {name}: {e}"))
-}
 
 fn insulated(dt: f64) -> HeatParameters {
     HeatParameters {

@@ -8,6 +8,7 @@ use lop_sim::mesh::{
     read_gmsh, read_mesh, read_tetgen, read_vtk, write_bnd, write_tetgen, write_tetgen_numbered,
     write_vtk, TetMesh,
 };
+use lop_test_support::fixtures::meshes_dir;
 use lop_test_support::vec3::{cross, dot, sub};
 
 // ---------------------------------------------------------------------------------------------
@@ -635,10 +636,9 @@ fn all_formats_agree() {
 /// `.face` file (TetGen's own boundary) has as many triangles as the extracted surface.
 #[test]
 fn shipped_assets_are_valid() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes");
-    let Ok(entries) = fs::read_dir(&dir) else {
-        return; // no assets in this checkout
-    };
+    let dir = meshes_dir();
+    // The assets are part of the repository: a missing directory is a failure, not a skip.
+    let entries = fs::read_dir(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
     let mut bases: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|e| e == "node"))

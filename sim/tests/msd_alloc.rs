@@ -4,14 +4,13 @@
 //! A counting global allocator (this test binary only) counts the allocations made by the
 //! current thread while tracking is on, so other tests' threads cannot disturb the count.
 
-use std::path::PathBuf;
-
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::mesh::read_mesh;
 use lop_sim::model::ToolContact;
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 
 use lop_test_support::alloc::{self, Counting};
+use lop_test_support::fixtures::mesh_path;
 
 #[global_allocator]
 static A: Counting = Counting::armed_threads();
@@ -20,8 +19,7 @@ static A: Counting = Counting::armed_threads();
 fn step_is_allocation_free_after_the_first_step() {
     // The counter counts.
     assert!(alloc::this_thread(|| drop(std::hint::black_box(vec![0u8; 16]))).allocations >= 1);
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes/cylinder");
-    let mesh = read_mesh(&path).expect("shipped cylinder mesh");
+    let mesh = read_mesh(&mesh_path("cylinder")).expect("shipped cylinder mesh");
     // Press on the top face: every triangle touching the node closest to the tool.
     let tool = ToolSphere {
         center: [0.0, 0.121, 0.0],
