@@ -19,6 +19,7 @@ use std::path::Path;
 use lop_drivers::openhaptics::OpenHapticsDevice;
 use lop_drivers::{DeviceError, DeviceOpenError, HapticDevice, Pacing, ServoControl, ServoEnd};
 use lop_test_support::alloc::{self, Counting};
+use lop_test_support::fixtures::temp_dir;
 use lop_test_support::vec3::norm;
 use standin::{logs_in, read_log, standin_library, StandinEvent};
 
@@ -90,8 +91,7 @@ fn assert_safe_exit(log: &[StandinEvent]) {
 
 #[test]
 fn openhaptics_driver_against_the_standin() {
-    let dir = std::env::temp_dir().join(format!("lop-oh-standin-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = temp_dir("lop-oh-standin");
 
     // 1. A run with a force error at tick 500 and a communication error at tick 1500.
     setup(&dir, "500:0x0201,1500:0x0302");
