@@ -120,6 +120,7 @@ fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
     }
     let secs = window.elapsed().as_secs_f64();
     let (ticks, loop_secs, rate) = loop_rate(&tel_first, &tel_last);
+    eprintln!("haptic loop: {ticks} ticks over {loop_secs:.3} s of its clock ({rate:.0} Hz)");
     assert!(
         loop_secs > 4.0,
         "telemetry covered only {loop_secs:.2} s of the {secs:.1} s window\n{}",
