@@ -15,6 +15,7 @@ mod models;
 mod pipeline;
 mod plot;
 mod table;
+mod timings;
 
 #[derive(Parser)]
 #[command(name = "lop-bench", version, about = "lop benchmarks")]
@@ -37,6 +38,8 @@ enum Command {
     /// Tool interaction, the thesis' §6.3.4: haptic tick compute (god-object + force), collision
     /// detection per step, heat step per body (table, CSV, SVG).
     Interaction(interaction::InteractionArgs),
+    /// Micro-timings, printed: collision detection on the organs, the GC cage deformation.
+    Timings(timings::TimingsArgs),
 }
 
 fn main() -> ExitCode {
@@ -47,6 +50,7 @@ fn main() -> ExitCode {
         Command::Models(a) => models::run(a),
         Command::Lop(a) => lop::run(a),
         Command::Interaction(a) => interaction::run(a),
+        Command::Timings(a) => timings::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

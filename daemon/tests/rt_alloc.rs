@@ -6,13 +6,17 @@
 
 mod common;
 
-use common::{allocations, counted, DeformSide};
+use common::DeformSide;
 use lop_config::{load_scene, resolve_scene, resolve_script, DaemonConfig};
 use lop_daemon::haptic::{rings, HapticLoop, HapticSettings};
 use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::HapticDevice;
 use lop_ipc::*;
 use lop_scene as scene;
+use lop_test_support::alloc::{self, allocations, counted, Counting};
+
+#[global_allocator]
+static A: Counting = Counting::armed_threads();
 
 #[test]
 fn haptic_tick_allocates_nothing_over_10k_ticks() {
@@ -49,7 +53,7 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
         waited += 1;
     }
     assert!(hl.contact_ready(), "no contact index after 10 s");
-    common::reset();
+    alloc::reset();
 
     let mut contact_ticks = 0;
     let max_step = DaemonConfig::default().haptic.max_force_step_n;
@@ -91,5 +95,5 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
 
     // The counter does see allocations (the test can fail).
     counted(|| std::hint::black_box(vec![1u8; 16]));
-    assert!(common::allocations() > 0);
+    assert!(alloc::allocations() > 0);
 }

@@ -15,7 +15,7 @@ mod common;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use common::{set_counting, DeformSide};
+use common::DeformSide;
 use lop_config::{load_scene, resolve_scene, resolve_script, DaemonConfig};
 use lop_daemon::haptic::{rings, HapticSettings};
 use lop_daemon::servo::ServoTask;
@@ -24,6 +24,10 @@ use lop_drivers::openhaptics::OpenHapticsDevice;
 use lop_drivers::{HapticDevice, ServoControl, ServoEnd};
 use lop_ipc::*;
 use lop_scene as scene;
+use lop_test_support::alloc::{self, Counting};
+
+#[global_allocator]
+static A: Counting = Counting::armed_threads();
 
 const COUNT_FROM: u64 = 200;
 const COUNT_UNTIL: u64 = 5200;
@@ -37,11 +41,11 @@ unsafe impl Send for SendTask<'_> {}
 impl SendTask<'_> {
     fn call(&mut self, d: &mut dyn HapticDevice, c: lop_drivers::ServoClock) -> ServoControl {
         if c.tick == COUNT_FROM {
-            common::reset();
-            set_counting(true);
+            alloc::reset();
+            alloc::arm();
         }
         if c.tick == COUNT_UNTIL {
-            set_counting(false);
+            alloc::disarm();
             STOP.store(true, Ordering::Relaxed);
         }
         self.0.on_tick(d, c)
@@ -134,7 +138,7 @@ fn servo_path_allocates_nothing_after_the_first_callback() {
     device.stop();
     let records = writer.finish().unwrap();
     let (run, summary) = run;
-    let allocations = common::allocations();
+    let allocations = alloc::allocations();
     assert_eq!(run.end, ServoEnd::Requested);
     assert!(summary.ticks >= COUNT_UNTIL - 1, "{summary:?}");
     assert!(records >= COUNT_UNTIL - 1, "{records} records");
@@ -147,7 +151,7 @@ fn servo_path_allocates_nothing_after_the_first_callback() {
         "heap allocations on the servo thread after the first callback"
     );
     // The counter does see allocations (the test can fail).
-    common::counted(|| std::hint::black_box(vec![1u8; 16]));
-    assert!(common::allocations() > 0);
+    alloc::counted(|| std::hint::black_box(vec![1u8; 16]));
+    assert!(alloc::allocations() > 0);
     let _ = std::fs::remove_dir_all(&dir);
 }

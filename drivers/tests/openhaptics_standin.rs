@@ -14,40 +14,17 @@
 #[path = "../standin-hd/testing.rs"]
 mod standin;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use lop_drivers::openhaptics::OpenHapticsDevice;
 use lop_drivers::{DeviceError, DeviceOpenError, HapticDevice, Pacing, ServoControl, ServoEnd};
+use lop_test_support::alloc::{self, Counting};
+use lop_test_support::fixtures::temp_dir;
+use lop_test_support::vec3::norm;
 use standin::{logs_in, read_log, standin_library, StandinEvent};
 
-struct Counting;
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-// SAFETY: forwards to the system allocator; counting has no effect on the allocation.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static A: Counting = Counting::armed_threads();
 
 /// y of the trajectory at servo tick `k`: from 40 mm down to 0 mm over 2 s, then held.
 fn traj_y(k: u64) -> f64 {
@@ -84,10 +61,6 @@ fn session_log(dir: &Path) -> Vec<StandinEvent> {
     read_log(&files[0])
 }
 
-fn norm(f: [f64; 3]) -> f64 {
-    (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
-}
-
 /// Zero force last: the last frame, and at every release step.
 fn assert_safe_exit(log: &[StandinEvent]) {
     let last_frame = log
@@ -118,8 +91,7 @@ fn assert_safe_exit(log: &[StandinEvent]) {
 
 #[test]
 fn openhaptics_driver_against_the_standin() {
-    let dir = std::env::temp_dir().join(format!("lop-oh-standin-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = temp_dir("lop-oh-standin");
 
     // 1. A run with a force error at tick 500 and a communication error at tick 1500.
     setup(&dir, "500:0x0201,1500:0x0302");
@@ -147,8 +119,8 @@ fn openhaptics_driver_against_the_standin() {
     let run = device
         .run_clocked(&mut |dev, clock| {
             if clock.tick == 100 {
-                ALLOCATIONS.store(0, Ordering::Relaxed);
-                COUNTING.with(|c| c.set(true));
+                alloc::reset();
+                alloc::arm();
             }
             let y = match dev.read(clock.tick as f64 * 1e-3) {
                 Ok(s) => {
@@ -184,8 +156,8 @@ fn openhaptics_driver_against_the_standin() {
             ServoControl::Continue
         })
         .expect("servo run");
-    COUNTING.with(|c| c.set(false));
-    let allocations = ALLOCATIONS.load(Ordering::Relaxed);
+    alloc::disarm();
+    let allocations = alloc::allocations();
     assert_eq!(
         run.end,
         ServoEnd::Device(DeviceError::Communication),

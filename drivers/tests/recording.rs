@@ -9,6 +9,7 @@ use lop_drivers::replay::{
     RECORD_BYTES,
 };
 use lop_drivers::{DeviceError, DeviceLimits, DeviceSample, HapticDevice};
+use lop_test_support::fixtures::temp_dir;
 
 fn limits() -> DeviceLimits {
     lop_drivers::mock::MockDevice::omni_limits()
@@ -55,8 +56,7 @@ fn write(path: &Path, ticks: impl Iterator<Item = u64>) -> Vec<RecordedSample> {
 
 #[test]
 fn round_trip_is_bit_exact_and_replay_is_deterministic() {
-    let dir = std::env::temp_dir().join(format!("lop-recording-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = temp_dir("lop-recording");
     let path = dir.join("a.lrec");
     // Ticks 0..2000 with 100..110 lost (a full ring while recording).
     let written = write(&path, (0..2000).filter(|k| !(100..110).contains(k)));
@@ -116,8 +116,7 @@ fn round_trip_is_bit_exact_and_replay_is_deterministic() {
 
 #[test]
 fn damaged_recordings_are_located_errors() {
-    let dir = std::env::temp_dir().join(format!("lop-recording-bad-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = temp_dir("lop-recording-bad");
     let good = dir.join("good.lrec");
     write(&good, 0..10);
     let bytes = std::fs::read(&good).unwrap();

@@ -13,15 +13,19 @@
 
 use std::path::PathBuf;
 
-use lop_sim::collide::{CollisionBody, CollisionParams, Collisions, Penetration};
-use lop_sim::mesh::{read_mesh, TetMesh};
-use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
+mod common;
 
-/// Counts the allocations of the current thread while tracking is on (other tests' threads
-/// cannot disturb the count), as in `msd_alloc.rs`.
-#[path = "common/alloc.rs"]
-mod alloc;
-use alloc::allocations;
+use common::shipped_mesh as shipped;
+use lop_sim::collide::{CollisionBody, CollisionParams, Collisions, Penetration};
+use lop_sim::mesh::TetMesh;
+use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
+use lop_test_support::alloc::{self, Counting};
+use lop_test_support::vec3::sub;
+
+// Counts the allocations of the current thread while tracking is on (other tests' threads
+// cannot disturb the count), as in `msd_alloc.rs`.
+#[global_allocator]
+static A: Counting = Counting::armed_threads();
 
 /// A box `[lo, hi]` split into `n³` cells of six tetrahedra each (Kuhn subdivision along the
 /// cell diagonal, conforming across cells). Node `(i, j, k)` has index `(k (n+1) + j)(n+1) + i`
@@ -67,17 +71,6 @@ fn box_mesh(lo: [f64; 3], hi: [f64; 3], n: u32) -> TetMesh {
         }
     }
     TetMesh::from_parts(nodes, tets, vec![], PathBuf::from("box")).expect("box mesh")
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn shipped(name: &str) -> TetMesh {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../assets/meshes")
-        .join(name);
-    read_mesh(&p).unwrap_or_else(|e| panic!("shipped mesh {name}: {e}"))
 }
 
 fn bodies<'a>(meshes: &'a [&'a TetMesh]) -> Vec<CollisionBody<'a>> {
@@ -590,10 +583,11 @@ fn detection_and_loads_allocate_nothing() {
         let meshes: Vec<&TetMesh> = organs.iter().collect();
         let bodies = bodies(&meshes);
         let mut slices: Vec<&mut [[f64; 3]]> = loads.iter_mut().map(|l| l.as_mut_slice()).collect();
-        let n = allocations(|| {
+        let n = alloc::this_thread(|| {
             c.detect(&bodies);
             c.add_penalty_loads(&params, &mut slices);
-        });
+        })
+        .allocations;
         assert_eq!(n, 0, "round {round}: {n} allocations");
         assert!(c.stats().penetrations > 0, "round {round}: no contacts");
         if round == 0 {
@@ -611,41 +605,4 @@ fn detection_and_loads_allocate_nothing() {
         c.stats().tree_builds > 0,
         "the crumpled spleen's tree was not rebuilt"
     );
-}
-
-/// Rough cost on the organs scene (they touch with ~1 mm gaps, so a 2 mm skin makes contacts):
-/// `cargo test --release -p lop-sim --test collide -- --ignored --nocapture`.
-#[test]
-#[ignore = "timing, run by hand in release"]
-fn organs_timing() {
-    let organs = ["liver", "spleen", "stomach", "pancreas"].map(shipped);
-    let meshes: Vec<&TetMesh> = organs.iter().collect();
-    let mut c = collisions(&meshes);
-    let mut loads: Vec<Vec<[f64; 3]>> = organs
-        .iter()
-        .map(|m| vec![[0.0; 3]; m.nodes.len()])
-        .collect();
-    for (skin, limit) in [(0.0, f64::INFINITY), (0.002, f64::INFINITY), (0.002, 0.005)] {
-        c.set_skin(skin);
-        c.set_depth_limit(limit);
-        let mut times = Vec::new();
-        for _ in 0..2000 {
-            let t0 = std::time::Instant::now();
-            c.detect(&bodies(&meshes));
-            let mut slices: Vec<&mut [[f64; 3]]> =
-                loads.iter_mut().map(|l| l.as_mut_slice()).collect();
-            c.add_penalty_loads(&CollisionParams { stiffness: 10.0 }, &mut slices);
-            times.push(t0.elapsed().as_secs_f64() * 1e6);
-        }
-        times.sort_by(f64::total_cmp);
-        println!(
-            "skin {:.0} mm, depth limit {:.0} mm: {:?}; detect + loads median {:.1} µs, p99 {:.1} µs, max {:.1} µs",
-            skin * 1e3,
-            limit * 1e3,
-            c.stats(),
-            times[times.len() / 2],
-            times[times.len() * 99 / 100],
-            times[times.len() - 1]
-        );
-    }
 }

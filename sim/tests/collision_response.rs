@@ -7,8 +7,6 @@
 //! collision both bend and the surfaces stay within a fraction of a millimetre, and the second
 //! cylinder's top moves away by millimetres.
 
-#[path = "common/alloc.rs"]
-mod alloc;
 mod common;
 
 use common::{cylinder, cylinder_fem_params};
@@ -19,6 +17,10 @@ use lop_sim::mesh::TetMesh;
 use lop_sim::model::{Model, ModelKind};
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 use lop_sim::world::World;
+use lop_test_support::alloc::{self, Counting};
+
+#[global_allocator]
+static A: Counting = Counting::armed_threads();
 
 /// Centre distance of the two cylinders, m: a 2 mm gap.
 const SPACING: f64 = 0.062;
@@ -214,7 +216,7 @@ fn colliding_steps_allocate_nothing() {
             .filter(|&i| w.bodies[0].mesh.nodes[i][1] > 0.115)
             .collect();
         let load = load(a) / top.len() as f64;
-        let n = alloc::allocations(|| {
+        let n = alloc::this_thread(|| {
             for _ in 0..20 {
                 w.clear_loads();
                 for &i in &top {
@@ -226,7 +228,8 @@ fn colliding_steps_allocate_nothing() {
                     w.step_body(i, None).unwrap();
                 }
             }
-        });
+        })
+        .allocations;
         assert_eq!(n, 0, "{a:?} → {b:?}: {n} allocations in 20 colliding steps");
     }
 }

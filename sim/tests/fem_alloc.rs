@@ -2,40 +2,20 @@
 //! without the tool, including the corotational solver's refactorisations and the contact's
 //! extra solves. Counted by a global allocator (this test binary only).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::path::PathBuf;
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::{CorotationalSolver, Fem, FemMode, FemParameters};
 use lop_sim::mesh::read_mesh;
 use lop_sim::model::ToolContact;
+use lop_test_support::alloc::{self, Counting};
+use lop_test_support::fixtures::mesh_path;
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
+// Every thread's allocations count: the test binary holds this one test only.
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static A: Counting = Counting::every_thread();
 
 #[test]
 fn step_is_allocation_free() {
-    let mesh = read_mesh(&PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes/liver"))
-        .unwrap();
+    let mesh = read_mesh(&mesh_path("liver")).unwrap();
     let top = mesh
         .surface_nodes()
         .into_iter()
@@ -61,7 +41,7 @@ fn step_is_allocation_free() {
         fem.set_corotational_solver(solver);
         let g = [0.0, -9.81, 0.0];
         fem.step(g, &loads, None).unwrap();
-        let before = ALLOCATIONS.load(Ordering::Relaxed);
+        let before = alloc::allocations();
         let mut touched = 0;
         let mut refactors = 0;
         for s in 0..120 {
@@ -83,7 +63,7 @@ fn step_is_allocation_free() {
             touched += (report.depth > 0.0) as usize;
             refactors += (fem.last_iterations() > 4) as usize;
         }
-        let after = ALLOCATIONS.load(Ordering::Relaxed);
+        let after = alloc::allocations();
         assert!(
             touched > 10,
             "{mode:?}: the tool touched in {touched} steps"

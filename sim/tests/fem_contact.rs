@@ -10,16 +10,15 @@
 //! - fixed nodes never move;
 //! - withdrawing the tool releases the tissue: no sticky (pulling) contact force.
 
-use std::path::PathBuf;
-
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::{Fem, FemMode, FemParameters};
 use lop_sim::mesh::{read_mesh, TetMesh};
 use lop_sim::model::{ContactReport, ToolContact};
+use lop_test_support::fixtures::mesh_path;
+use lop_test_support::vec3::norm;
 
 fn liver() -> TetMesh {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes/liver");
-    read_mesh(&p).expect("shipped liver mesh")
+    read_mesh(&mesh_path("liver")).expect("shipped liver mesh")
 }
 
 /// Table 6.2.
@@ -60,10 +59,6 @@ fn press_point(mesh: &TetMesh) -> ([f64; 3], [f64; 3]) {
     }
     let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
     (mesh.nodes[top as usize], n.map(|c| c / l))
-}
-
-fn norm(v: [f64; 3]) -> f64 {
-    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
 /// Presses for `steps`; returns the per-step largest speed and the last report.

@@ -10,36 +10,11 @@
 use std::f64::consts::PI;
 
 use lop_sim::gc::{box_cage, subdivided_box_cage, Cage, CageError, GreenCoordinates};
+use lop_test_support::vec3::{add, cross, dist, dot, norm, scale, sub};
 
 // ---------------------------------------------------------------------------------------------
 // Helpers
 // ---------------------------------------------------------------------------------------------
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    norm(sub(a, b))
-}
 
 /// Deterministic uniform numbers in [0, 1) (64-bit LCG, top 53 bits).
 struct Rng(u64);
@@ -946,56 +921,4 @@ fn box_cages_count_validate_and_enclose_with_padding() {
         err(&subdivided_box_cage(&points, pad, 0)),
         CageError::TooFewVertices { count: 0 }
     ));
-}
-
-// ---------------------------------------------------------------------------------------------
-// Timing (not a test of correctness; run in release, see below)
-// ---------------------------------------------------------------------------------------------
-
-/// `cargo test --release -p lop-sim --test gc -- --ignored --nocapture`: times `deform_into`
-/// for the 555 nodes of the shipped liver mesh with the box cage and the n = 2 subdivided box.
-#[test]
-#[ignore = "timing; run in release with --ignored --nocapture"]
-fn time_deform_into() {
-    use std::time::Instant;
-    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes/liver");
-    let mesh = lop_sim::mesh::read_mesh(&path).expect("shipped liver mesh");
-    let nodes = &mesh.nodes;
-    for n in [1, 2, 3] {
-        let cage = subdivided_box_cage(nodes, 0.01, n);
-        let gc = gc_of(&cage);
-        let t = Instant::now();
-        let binding = gc.bind(nodes).unwrap();
-        let bind_time = t.elapsed();
-        let r = rotation([0.2, 1.0, 0.3], 0.1);
-        let moved: Vec<[f64; 3]> = cage.vertices.iter().map(|&v| apply(r, v)).collect();
-        let mut sn = vec![[0.0; 3]; gc.triangle_count()];
-        let mut out = vec![[0.0; 3]; nodes.len()];
-        let reps = 20_000;
-        let mut best = f64::INFINITY;
-        let mut best_sn = f64::INFINITY;
-        for _ in 0..10 {
-            let t = Instant::now();
-            for _ in 0..reps {
-                binding.deform_into(std::hint::black_box(&moved), &sn, &mut out);
-                std::hint::black_box(&mut out);
-            }
-            best = best.min(t.elapsed().as_secs_f64() / reps as f64);
-            let t = Instant::now();
-            for _ in 0..reps {
-                gc.scaled_normals(std::hint::black_box(&moved), &mut sn);
-                std::hint::black_box(&mut sn);
-            }
-            best_sn = best_sn.min(t.elapsed().as_secs_f64() / reps as f64);
-        }
-        println!(
-            "{} points, cage {} vertices + {} triangles: deform_into {:.2} µs, scaled_normals {:.3} µs, bind {:.2} ms",
-            nodes.len(),
-            gc.vertex_count(),
-            gc.triangle_count(),
-            best * 1e6,
-            best_sn * 1e6,
-            bind_time.as_secs_f64() * 1e3
-        );
-    }
 }

@@ -2,12 +2,15 @@
 //! god-object on flat and curved surfaces, no pop-through at speed, picking, broken samples, and
 //! no allocation per tick.
 
-#[path = "common/alloc.rs"]
-mod alloc;
-
 use lop_sim::contact::{closest_on_surface, ForceLaw};
 use lop_sim::haptic::{hand_force, sweep_sphere_triangle, GodObject, SurfaceSet};
 use lop_sim::mesh::read_mesh;
+use lop_test_support::alloc::{self, Counting};
+use lop_test_support::fixtures::mesh_path;
+use lop_test_support::vec3::norm;
+
+#[global_allocator]
+static A: Counting = Counting::armed_threads();
 
 /// Closed box surface `[lo, hi]`, `n` segments per edge on every face, outward wound.
 fn box_surface(lo: [f64; 3], hi: [f64; 3], n: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
@@ -126,17 +129,9 @@ fn set_of(x: &[[f64; 3]], t: &[[u32; 3]]) -> SurfaceSet {
     s
 }
 
-fn norm(a: [f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
-}
-
 #[test]
 fn closest_point_matches_brute_force_on_the_liver() {
-    let mesh = read_mesh(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../assets/meshes/liver"
-    )))
-    .unwrap();
+    let mesh = read_mesh(&mesh_path("liver")).unwrap();
     let mut set = set_of(&mesh.nodes, &mesh.surface);
     let (lo, hi) = lop_sim::mesh::bounds(&mesh.nodes);
     // A deterministic cloud around and inside the liver, visited in a wandering order so the
@@ -384,7 +379,7 @@ fn a_tick_allocates_nothing() {
     for k in 0..200 {
         god.update(&mut set, path(k), k % 50 > 40);
     }
-    let n = alloc::allocations(|| {
+    let n = alloc::this_thread(|| {
         for k in 200..2200 {
             if k % 10 == 0 {
                 set.set_positions(|i| x[i].map(|c| c * (1.0 + 1e-4 * (k % 7) as f64)));
@@ -393,17 +388,14 @@ fn a_tick_allocates_nothing() {
             let s = god.update(&mut set, path(k), k % 50 > 40);
             std::hint::black_box(hand_force(&s, ForceLaw::Linear, 300.0, 1.0, [0.0; 3]));
         }
-    });
+    })
+    .allocations;
     assert_eq!(n, 0);
 }
 
 #[test]
 fn small_motions_skip_the_refit_and_stay_exact() {
-    let mesh = read_mesh(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../assets/meshes/liver"
-    )))
-    .unwrap();
+    let mesh = read_mesh(&mesh_path("liver")).unwrap();
     let mut set = set_of(&mesh.nodes, &mesh.surface);
     let (lo, hi) = lop_sim::mesh::bounds(&mesh.nodes);
     let mid = [0, 1, 2].map(|k| (lo[k] + hi[k]) / 2.0);

@@ -7,22 +7,16 @@
 //! and the x-modes of a bar are exact discrete eigenvectors. The shipped beam and liver are
 //! unstructured TetGen meshes.
 
-use std::path::PathBuf;
+mod common;
 
+use common::shipped_mesh as shipped;
 use lop_sim::fem::box_mesh;
 use lop_sim::heat::{HeatBody, HeatError, HeatParameters, HeatWorld, Link};
-use lop_sim::mesh::{read_mesh, TetMesh};
+use lop_sim::mesh::TetMesh;
+use lop_test_support::alloc::{self, Counting};
 
-#[path = "common/alloc.rs"]
-mod alloc;
-use alloc::allocations;
-
-fn shipped(name: &str) -> TetMesh {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../assets/meshes")
-        .join(name);
-    read_mesh(&p).unwrap_or_else(|e| panic!("shipped mesh {name}: {e}"))
-}
+#[global_allocator]
+static A: Counting = Counting::armed_threads();
 
 fn insulated(dt: f64) -> HeatParameters {
     HeatParameters {
@@ -414,7 +408,7 @@ fn burns_mark_exactly_the_nodes_that_crossed_coagulation() {
 /// allocates nothing.
 #[test]
 fn step_is_allocation_free() {
-    assert!(allocations(|| drop(std::hint::black_box(vec![0u8; 16]))) >= 1);
+    assert!(alloc::this_thread(|| drop(std::hint::black_box(vec![0u8; 16]))).allocations >= 1);
     let mut world = touching_boxes(
         [0.02, 0.01, 0.01],
         [4, 2, 2],
@@ -427,7 +421,7 @@ fn step_is_allocation_free() {
     world.step().unwrap();
     liver.step().unwrap();
     let t0 = [0u32, 1, 5];
-    let n = allocations(|| {
+    let n = alloc::this_thread(|| {
         for _ in 0..3 {
             world.set_links(&links).unwrap();
             world
@@ -439,7 +433,8 @@ fn step_is_allocation_free() {
             liver.heat_node(0, 20.0).unwrap();
             liver.step().unwrap();
         }
-    });
+    })
+    .allocations;
     assert_eq!(n, 0, "allocated {n} times in 3 steps");
 }
 

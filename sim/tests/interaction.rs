@@ -10,6 +10,7 @@ use lop_sim::haptic::{hand_force, WorldProbe};
 use lop_sim::model::Model;
 use lop_sim::msd::{Integrator, MsdParameters, NodeMass};
 use lop_sim::world::World;
+use lop_test_support::vec3::norm;
 
 const R: f64 = 0.003;
 const K: f64 = 300.0;
@@ -46,10 +47,6 @@ fn msd_world() -> World {
         },
     );
     w
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
 /// Presses the top cap (y = 0.12) 4 mm in and holds; returns (hand force, force on tissue).

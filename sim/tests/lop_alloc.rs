@@ -1,17 +1,18 @@
 //! A cage step allocates nothing after warm-up: gravity, nodal loads and the tool (a body
 //! pinned to its cage), with either cage dynamics; nor does a controller that does not switch.
 
-#[path = "common/alloc.rs"]
-mod alloc;
 mod common;
 
-use alloc::allocations;
 use common::{cylinder, cylinder_fem_params};
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::Fem;
 use lop_sim::lop::{CageDynamics, CageShape, GcModel, GcParameters, Lop, LopPolicy};
 use lop_sim::model::{Model, ModelKind};
 use lop_sim::world::World;
+use lop_test_support::alloc::{self, Counting};
+
+#[global_allocator]
+static A: Counting = Counting::armed_threads();
 
 fn precise(mesh: &lop_sim::mesh::TetMesh) -> Model {
     Model::Fem(Fem::new(mesh, cylinder_fem_params()).unwrap())
@@ -53,12 +54,13 @@ fn cage_steps_are_allocation_free() {
             world.step_body(i, Some(&tool)).unwrap();
         }
         let mut touched = 0;
-        let n = allocations(|| {
+        let n = alloc::this_thread(|| {
             for _ in 0..500 {
                 world.step_body(i, Some(&tool)).unwrap();
                 touched += (world.bodies[i].last_contact.depth > 0.0) as usize;
             }
-        });
+        })
+        .allocations;
         assert!(
             touched >= 10,
             "{dynamics:?}: in contact in only {touched} steps"
@@ -90,11 +92,12 @@ fn an_untouched_controlled_body_is_allocation_free() {
     for _ in 0..5 {
         world.step_body(i, Some(&far)).unwrap();
     }
-    let n = allocations(|| {
+    let n = alloc::this_thread(|| {
         for _ in 0..500 {
             world.step_body(i, Some(&far)).unwrap();
         }
-    });
+    })
+    .allocations;
     assert_eq!(world.bodies[i].model.kind(), ModelKind::Gc);
     assert_eq!(n, 0, "{n} allocations in 500 steps");
 }

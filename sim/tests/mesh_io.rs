@@ -8,6 +8,8 @@ use lop_sim::mesh::{
     read_gmsh, read_mesh, read_tetgen, read_vtk, write_bnd, write_tetgen, write_tetgen_numbered,
     write_vtk, TetMesh,
 };
+use lop_test_support::fixtures::meshes_dir;
+use lop_test_support::vec3::{cross, dot, sub};
 
 // ---------------------------------------------------------------------------------------------
 // helpers
@@ -50,22 +52,6 @@ fn vol6(p: &[[f64; 3]], t: [u32; 4]) -> f64 {
     let v = sub(c, a);
     let w = sub(d, a);
     dot(u, cross(v, w))
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// Swaps two corners of every negatively oriented tetrahedron.
@@ -650,10 +636,9 @@ fn all_formats_agree() {
 /// `.face` file (TetGen's own boundary) has as many triangles as the extracted surface.
 #[test]
 fn shipped_assets_are_valid() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes");
-    let Ok(entries) = fs::read_dir(&dir) else {
-        return; // no assets in this checkout
-    };
+    let dir = meshes_dir();
+    // The assets are part of the repository: a missing directory is a failure, not a skip.
+    let entries = fs::read_dir(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
     let mut bases: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|e| e == "node"))

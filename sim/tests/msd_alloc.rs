@@ -4,23 +4,22 @@
 //! A counting global allocator (this test binary only) counts the allocations made by the
 //! current thread while tracking is on, so other tests' threads cannot disturb the count.
 
-use std::path::PathBuf;
-
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::mesh::read_mesh;
 use lop_sim::model::ToolContact;
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 
-#[path = "common/alloc.rs"]
-mod alloc;
-use alloc::allocations;
+use lop_test_support::alloc::{self, Counting};
+use lop_test_support::fixtures::mesh_path;
+
+#[global_allocator]
+static A: Counting = Counting::armed_threads();
 
 #[test]
 fn step_is_allocation_free_after_the_first_step() {
     // The counter counts.
-    assert!(allocations(|| drop(std::hint::black_box(vec![0u8; 16]))) >= 1);
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes/cylinder");
-    let mesh = read_mesh(&path).expect("shipped cylinder mesh");
+    assert!(alloc::this_thread(|| drop(std::hint::black_box(vec![0u8; 16]))).allocations >= 1);
+    let mesh = read_mesh(&mesh_path("cylinder")).expect("shipped cylinder mesh");
     // Press on the top face: every triangle touching the node closest to the tool.
     let tool = ToolSphere {
         center: [0.0, 0.121, 0.0],
@@ -46,12 +45,13 @@ fn step_is_allocation_free_after_the_first_step() {
         };
         let mut ms = MassSpring::new(&mesh, params);
         ms.step([0.0, -9.81, 0.0], &loads, Some(&contact)).unwrap();
-        let n = allocations(|| {
+        let n = alloc::this_thread(|| {
             for _ in 0..3 {
                 let r = ms.step([0.0, -9.81, 0.0], &loads, Some(&contact)).unwrap();
                 assert!(r.depth > 0.0);
             }
-        });
+        })
+        .allocations;
         assert_eq!(n, 0, "{integrator:?} allocated {n} times in 3 steps");
     }
 }

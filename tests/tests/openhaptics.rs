@@ -22,6 +22,7 @@ use std::time::{Duration, Instant};
 use lop_drivers::replay::Recording;
 use lop_drivers::DeviceError;
 use lop_system_tests::{unique_prefix, Daemon};
+use lop_test_support::vec3::norm;
 use standin::{logs_in, read_log, standin_library, StandinEvent};
 
 /// Device x (mm) of the stylus at servo tick `k`: rest beside cylinder_a (6 mm off its outer
@@ -34,10 +35,6 @@ fn x_at(k: u64) -> f64 {
         u * u * (3.0 - 2.0 * u)
     };
     -70.0 + 15.0 * smooth((t - 4.0) / 0.7) - 15.0 * smooth((t - 8.0) / 0.7)
-}
-
-fn norm(f: [f64; 3]) -> f64 {
-    (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
 }
 
 fn assert_safe_exit(log: &[StandinEvent], session: &str) {

@@ -3,17 +3,48 @@
 //!
 //! Invariants guarded:
 //! - the client receives the topology and frames whose positions move under the mock poke;
-//! - tool states arrive at about 1 kHz (counted over a window, with a wide tolerance: CI
-//!   machines are small and noisy, so no tight timing is asserted);
-//! - a killed deformation process is restarted by the supervisor while haptic ticks continue,
-//!   and a new topology and frames follow;
+//! - the haptic loop ticks at about 1 kHz, counted by the loop itself: its telemetry's tick
+//!   counter over its telemetry's own clock, across a window (so neither a slow test process
+//!   nor a lost tool state can make the count wrong; the tolerance is still wide, CI machines
+//!   are small and noisy);
+//! - a killed deformation process is restarted by the supervisor while haptic ticks continue
+//!   (counted the same way), and a new topology and frames follow;
 //! - SIGINT (Ctrl-C) stops everything with exit code 0, the last force the device received is
 //!   zero, and no service under the prefix is left.
 
 use std::time::{Duration, Instant};
 
 use lop_client::{Attachment, ToolState, TOOL_FLAG_CONTACT};
+use lop_ipc::{HapticTelemetry, CONTRACT_VERSION};
 use lop_system_tests::{find_processes, sibling_binary, unique_prefix, Daemon};
+
+/// The newest haptic telemetry sample, waiting up to `limit` for one.
+fn wait_telemetry(client: &mut Attachment, limit: Duration, daemon: &Daemon) -> HapticTelemetry {
+    let t0 = Instant::now();
+    loop {
+        if let Some(t) = client.telemetry() {
+            assert_eq!(t.contract_version, CONTRACT_VERSION);
+            return t;
+        }
+        assert!(
+            t0.elapsed() < limit,
+            "no haptic telemetry within {limit:?}\n{}",
+            daemon.log_text()
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// The haptic loop's tick rate between two of its telemetry samples, by its own count and clock:
+/// (ticks, seconds, ticks per second).
+fn loop_rate(first: &HapticTelemetry, last: &HapticTelemetry) -> (u64, f64, f64) {
+    let ticks = last
+        .ticks
+        .checked_sub(first.ticks)
+        .expect("the haptic loop's tick count went back: the haptic process restarted");
+    let secs = last.stamp_ns.saturating_sub(first.stamp_ns) as f64 * 1e-9;
+    (ticks, secs, ticks as f64 / secs)
+}
 
 fn max_displacement(a: &lop_client::Frame, b: &lop_client::Frame) -> f32 {
     a.nodes
@@ -63,7 +94,7 @@ fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
     assert_eq!(names, ["liver", "spleen", "stomach", "pancreas"]);
     assert!(topology.triangles.len() > 2000 && topology.tets.len() > 3500);
 
-    // Frames move under the poke; tool states arrive at about 1 kHz.
+    // Frames move under the poke; the haptic loop ticks at about 1 kHz by its own count.
     let first = client
         .next_frame(Duration::from_secs(10))
         .expect("first frame");
@@ -71,6 +102,8 @@ fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
     let mut tools: Vec<ToolState> = Vec::new();
     client.tool_states(&mut tools);
     tools.clear();
+    let tel_first = wait_telemetry(&mut client, Duration::from_secs(10), &daemon);
+    let mut tel_last = tel_first;
     let window = Instant::now();
     let mut moved = 0.0f32;
     let mut frames = 0;
@@ -80,13 +113,22 @@ fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
             frames += 1;
         }
         client.tool_states(&mut tools);
+        if let Some(t) = client.telemetry() {
+            tel_last = t;
+        }
         std::thread::sleep(Duration::from_millis(5));
     }
     let secs = window.elapsed().as_secs_f64();
-    let rate = tools.len() as f64 / secs;
+    let (ticks, loop_secs, rate) = loop_rate(&tel_first, &tel_last);
+    eprintln!("haptic loop: {ticks} ticks over {loop_secs:.3} s of its clock ({rate:.0} Hz)");
+    assert!(
+        loop_secs > 4.0,
+        "telemetry covered only {loop_secs:.2} s of the {secs:.1} s window\n{}",
+        daemon.log_text()
+    );
     assert!(
         (700.0..1300.0).contains(&rate),
-        "tool states at {rate:.0}/s over {secs:.1} s\n{}",
+        "haptic loop at {rate:.0} Hz ({ticks} ticks over {loop_secs:.2} s of its own clock)\n{}",
         daemon.log_text()
     );
     assert!(frames > 100, "only {frames} frames in {secs:.1} s");
@@ -140,11 +182,16 @@ fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
     unsafe { libc::kill(deform[0], libc::SIGKILL) };
     let old_topology = topology.header.topology_id;
     tools.clear();
+    let tel_before = wait_telemetry(&mut client, Duration::from_secs(5), &daemon);
+    let mut tel_after = tel_before;
     let t0 = Instant::now();
     let mut new_topology = None;
     let mut frames_after = 0;
     while t0.elapsed() < Duration::from_secs(20) && frames_after < 20 {
         client.tool_states(&mut tools);
+        if let Some(t) = client.telemetry() {
+            tel_after = t;
+        }
         if let Ok(Some(t)) = client.poll_topology() {
             if t.header.topology_id != old_topology {
                 new_topology = Some(t.header.topology_id);
@@ -160,10 +207,24 @@ fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
         "deformation not restarted within 20 s\n{}",
         daemon.log_text()
     );
-    let ticks = tools.len() as f64 / t0.elapsed().as_secs_f64();
+    // Telemetry comes about 4 times a second: wait for one sample after the restart.
+    let waited = Instant::now();
+    while tel_after.stamp_ns == tel_before.stamp_ns && waited.elapsed() < Duration::from_secs(5) {
+        if let Some(t) = client.telemetry() {
+            tel_after = t;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let (ticks, loop_secs, rate) = loop_rate(&tel_before, &tel_after);
     assert!(
-        ticks > 500.0,
-        "haptic ticks stalled while deform restarted: {ticks:.0}/s"
+        loop_secs > 0.0,
+        "no haptic telemetry while deform restarted\n{}",
+        daemon.log_text()
+    );
+    assert!(
+        rate > 500.0,
+        "haptic ticks stalled while deform restarted: {rate:.0} Hz ({ticks} ticks over \
+         {loop_secs:.2} s of the loop's clock)"
     );
     assert!(tools.windows(2).all(|w| w[1].sequence > w[0].sequence));
     let restarted = find_processes(&["deform", "--prefix", &prefix]);

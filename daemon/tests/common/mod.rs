@@ -1,68 +1,12 @@
-//! Shared by the real-time allocation tests: a counting global allocator and the deformation
-//! process's side of the IPC (the organs' topology once, a frame of rest positions on demand).
+//! Shared by the real-time allocation tests: the deformation process's side of the IPC (the
+//! organs' topology once, a frame of rest positions on demand). The counting allocator is
+//! `lop_test_support::alloc`.
 #![allow(dead_code)] // each test binary uses what it needs
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use iceoryx2::prelude::*;
 use lop_ipc::services::{self, FramePublisher, Role, TopologyPublisher};
 use lop_ipc::*;
 use lop_scene::LoadedScene;
-
-struct Counting;
-
-/// Allocations counted since the last [`reset`].
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-
-// SAFETY: forwards to the system allocator; counting has no effect on the allocation.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if COUNTING.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
-
-/// Starts or stops counting this thread's allocations.
-pub fn set_counting(on: bool) {
-    COUNTING.with(|c| c.set(on));
-}
-
-/// Runs `f` with this thread's allocations counted.
-pub fn counted<R>(f: impl FnOnce() -> R) -> R {
-    set_counting(true);
-    let r = f();
-    set_counting(false);
-    r
-}
-
-/// Zeroes the count.
-pub fn reset() {
-    ALLOCATIONS.store(0, Ordering::Relaxed);
-}
-
-/// Allocations counted since the last [`reset`].
-pub fn allocations() -> u64 {
-    ALLOCATIONS.load(Ordering::Relaxed)
-}
 
 /// The topology id the fake deformation side publishes.
 pub const TOPOLOGY_ID: u64 = 42;

@@ -1,17 +1,13 @@
 //! Fixtures shared by the mass-spring integration tests.
 #![allow(dead_code)] // each test file uses a subset
 
-use std::path::PathBuf;
-
 use lop_sim::fem::{FemMode, FemParameters};
 use lop_sim::mesh::{read_mesh, TetMesh};
+use lop_test_support::fixtures::mesh_path;
 
 /// A mesh from `assets/meshes`.
 pub fn shipped_mesh(name: &str) -> TetMesh {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../assets/meshes")
-        .join(name);
-    read_mesh(&p).unwrap_or_else(|e| panic!("shipped mesh {name}: {e}"))
+    read_mesh(&mesh_path(name)).unwrap_or_else(|e| panic!("shipped mesh {name}: {e}"))
 }
 
 /// The shipped §6.1 cylinder (base fixed).

@@ -1,0 +1,188 @@
+//! Mesh readers: mutated files of every format (TetGen, Gmsh 2.2 and 4.1, VTK) never panic a
+//! reader.
+
+mod mesh_text;
+
+use std::fs;
+
+use lop_sim::mesh::{read_mesh, TetMesh};
+use mesh_text::*;
+
+// ---------------------------------------------------------------------------------------------
+// fuzz-ish: mutated inputs never panic
+
+/// xorshift64*: deterministic, dependency-free.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+const TOKENS: [&str; 16] = [
+    "",
+    "0",
+    "-1",
+    "1",
+    "8",
+    "9",
+    "4",
+    "10",
+    "nan",
+    "-inf",
+    "1e999",
+    "x",
+    "$EndNodes",
+    "99999999999999999999",
+    "1.5",
+    "\u{feff}",
+];
+
+fn mutate(rng: &mut Rng, text: &[u8]) -> Vec<u8> {
+    let mut out = text.to_vec();
+    for _ in 0..1 + rng.below(2) * rng.below(3) {
+        match rng.below(6) {
+            0 => {
+                let at = rng.below(out.len() + 1);
+                out.truncate(at);
+            }
+            1 => {
+                // Replace a whitespace-separated token.
+                let s = String::from_utf8_lossy(&out).into_owned();
+                let tokens: Vec<&str> = s.split_inclusive(char::is_whitespace).collect();
+                if tokens.is_empty() {
+                    continue;
+                }
+                let k = rng.below(tokens.len());
+                let with = TOKENS[rng.below(TOKENS.len())];
+                let mut joined = String::new();
+                for (i, t) in tokens.iter().enumerate() {
+                    if i == k {
+                        joined.push_str(with);
+                        joined.push_str(&t[t.trim_end().len()..]);
+                    } else {
+                        joined.push_str(t);
+                    }
+                }
+                out = joined.into_bytes();
+            }
+            2 => {
+                // Delete or duplicate a line.
+                let s = String::from_utf8_lossy(&out).into_owned();
+                let mut lines: Vec<&str> = s.lines().collect();
+                if lines.is_empty() {
+                    continue;
+                }
+                let k = rng.below(lines.len());
+                if rng.below(2) == 0 {
+                    lines.remove(k);
+                } else {
+                    lines.insert(k, lines[k]);
+                }
+                out = (lines.join("\n") + "\n").into_bytes();
+            }
+            3 => {
+                if !out.is_empty() {
+                    let k = rng.below(out.len());
+                    out[k] = b" 0123456789.-e\n#$x"[rng.below(18)];
+                }
+            }
+            4 => {
+                let k = rng.below(out.len() + 1);
+                out.insert(k, (rng.next() & 0xff) as u8);
+            }
+            _ => {
+                // Swap two digits somewhere: changes indices and counts plausibly.
+                let digits: Vec<usize> = (0..out.len())
+                    .filter(|&i| out[i].is_ascii_digit())
+                    .collect();
+                if digits.len() >= 2 {
+                    let a = digits[rng.below(digits.len())];
+                    let b = digits[rng.below(digits.len())];
+                    out.swap(a, b);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Checks what a successful read promises.
+fn check_ok(mesh: &TetMesh) {
+    let n = mesh.nodes.len() as u32;
+    assert!(!mesh.tets.is_empty());
+    for (i, t) in mesh.tets.iter().enumerate() {
+        assert!(t.iter().all(|&v| v < n));
+        assert!(mesh.tet_volume(i) > 0.0);
+    }
+    assert!(mesh.surface.iter().flatten().all(|&v| v < n));
+    assert!(mesh.fixed.windows(2).all(|w| w[0] < w[1]));
+    assert!(mesh.fixed.iter().all(|&v| v < n));
+    assert!(mesh.nodes.iter().flatten().all(|v| v.is_finite()));
+    let info = mesh.info();
+    assert!(info.volume > 0.0 && info.quality_min > 0.0 && info.quality_mean <= 1.0 + 1e-12);
+}
+
+#[test]
+fn mutated_files_never_panic() {
+    let dir = scratch("fuzz");
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    let mut outcomes = [0usize; 2];
+    for round in 0..600 {
+        let which = round % 5;
+        let result = match which {
+            0 | 1 => {
+                let (node, ele) = if which == 0 {
+                    (mutate(&mut rng, NODE1.as_bytes()), ELE1.as_bytes().to_vec())
+                } else {
+                    (NODE1.as_bytes().to_vec(), mutate(&mut rng, ELE1.as_bytes()))
+                };
+                fs::write(dir.join("f.node"), node).unwrap();
+                fs::write(dir.join("f.ele"), ele).unwrap();
+                let bnd = mutate(&mut rng, b"2\n1\n8\n");
+                fs::write(dir.join("f.bnd"), bnd).unwrap();
+                read_mesh(&dir.join("f"))
+            }
+            2 => {
+                let path = write(&dir, "f.msh", mutate(&mut rng, MSH22.as_bytes()));
+                read_mesh(&path)
+            }
+            3 => {
+                let path = write(&dir, "g.msh", mutate(&mut rng, MSH41.as_bytes()));
+                read_mesh(&path)
+            }
+            _ => {
+                let path = write(&dir, "f.vtk", mutate(&mut rng, VTK.as_bytes()));
+                read_mesh(&path)
+            }
+        };
+        match result {
+            Ok(mesh) => {
+                check_ok(&mesh);
+                outcomes[0] += 1;
+            }
+            Err(err) => {
+                let msg = err.to_string();
+                if std::env::var_os("LOP_MESH_FUZZ_LOG").is_some() {
+                    eprintln!("{msg}");
+                }
+                assert!(
+                    msg.contains(dir.to_str().unwrap()),
+                    "message does not name the file: {msg}"
+                );
+                outcomes[1] += 1;
+            }
+        }
+    }
+    // The mutations must exercise both paths.
+    println!("ok: {}, errors: {}", outcomes[0], outcomes[1]);
+    assert!(outcomes[0] >= 20 && outcomes[1] >= 300, "{outcomes:?}");
+}

@@ -1,0 +1,82 @@
+//! Paths to the workspace's shipped files, fresh temporary directories, small meshes.
+
+use std::path::PathBuf;
+
+/// The workspace's root directory.
+pub fn workspace_root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("test-support sits in the workspace root")
+        .to_path_buf()
+}
+
+/// A shipped mesh's base path (`assets/meshes/NAME`, without extension).
+pub fn mesh_path(name: &str) -> PathBuf {
+    workspace_root().join("assets/meshes").join(name)
+}
+
+/// The directory of the shipped meshes.
+pub fn meshes_dir() -> PathBuf {
+    workspace_root().join("assets/meshes")
+}
+
+/// A shipped scene (`config/scenes/NAME.toml`).
+pub fn scene_path(name: &str) -> PathBuf {
+    workspace_root()
+        .join("config/scenes")
+        .join(name)
+        .with_extension("toml")
+}
+
+/// An empty directory `TMP/TAG-PID` (removed first if a previous run left it behind). The
+/// process id keeps parallel runs of the same test binary apart.
+pub fn temp_dir(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir)
+        .unwrap_or_else(|e| panic!("cannot create {}: {e}", dir.display()));
+    dir
+}
+
+/// Corners of the cube `[0, size]³`; corner `i` is at `(i & 1, i >> 1 & 1, i >> 2 & 1) · size`.
+pub fn cube_corners(size: f64) -> Vec<[f64; 3]> {
+    (0..8)
+        .map(|i| {
+            [
+                (i & 1) as f64 * size,
+                ((i >> 1) & 1) as f64 * size,
+                ((i >> 2) & 1) as f64 * size,
+            ]
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shipped_paths_exist() {
+        assert!(mesh_path("liver").with_extension("node").is_file());
+        assert!(meshes_dir().is_dir());
+        assert!(scene_path("organs").is_file());
+    }
+
+    #[test]
+    fn temp_dir_is_fresh() {
+        let d = temp_dir("lop-test-support-fixtures");
+        std::fs::write(d.join("x"), "x").unwrap();
+        let d = temp_dir("lop-test-support-fixtures");
+        assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn cube_corners_are_the_unit_cube_scaled() {
+        let c = cube_corners(2.0);
+        assert_eq!(c.len(), 8);
+        assert_eq!(c[0], [0.0; 3]);
+        assert_eq!(c[5], [2.0, 0.0, 2.0]);
+        assert_eq!(c[7], [2.0; 3]);
+    }
+}

@@ -1,0 +1,13 @@
+//! Helpers shared by the workspace's tests (a dev-dependency only; never part of a product
+//! binary):
+//!
+//! - [`alloc`]: a counting global allocator for the "allocates nothing" tests;
+//! - [`fixtures`]: paths to the shipped assets and scenes, fresh temporary directories, the unit
+//!   cube's corners;
+//! - [`vec3`]: the small `[f64; 3]` arithmetic the tests check geometry with.
+//!
+//! It depends on no workspace crate, so any crate's tests can use it without a cycle.
+
+pub mod alloc;
+pub mod fixtures;
+pub mod vec3;
