@@ -3,17 +3,19 @@
 //! cage over the FEM step it stands in for. Everything runs in this process on `lop-sim`
 //! directly (no daemon, no IPC); scenes come from `config/scenes/*.toml` and are modified in
 //! memory per configuration (`model` pin, `importance`, `[lop] start`) before
-//! `lop_scene::load`, so every run sees the bodies exactly as `lopd` would.
+//! `lop_scene::load`, so every run sees the bodies exactly as `lopd` would (the heat model is
+//! detached: the thesis times the deformation alone).
 //!
 //! # Part 1 — efficiency (thesis Figs. 6.4–6.9): time per iteration per body
-//! The world is stepped as the daemon steps it: simulated time advances in ticks of the
-//! smallest `dt` of any model in the scene, and at each tick every body takes the steps that are
-//! due (`World::body_due`, `World::step_body`), the tool (when a mock script drives it) placed
-//! from the script at the body's time through the scene's workspace map. Each `step_body` call
-//! is timed with `std::time::Instant` (no warm-up: the thesis' plots start at iteration 1), so a
-//! step includes the tool's proximity test and, on a switch, the hand-over. The tool acts on the
-//! bodies as `World::coupling`'s default, `Coupling::Nearest` (the sphere pushes the surface
-//! nearest to it), in every trial.
+//! The world is stepped as the daemon steps it, by its one round (`World::round`): simulated
+//! time advances in ticks of the smallest `dt` of any model in the scene, and each tick is a
+//! round in which every body takes the steps that are due, the tool (when a mock script drives
+//! it) placed from the script at the round's start through the scene's workspace map, with each
+//! body's tool law (`lop_scene::ToolLaws`, clamped to the mock's Omni). Each body step is timed
+//! by the round's report with `std::time::Instant` (no warm-up: the thesis' plots start at
+//! iteration 1), so a step includes the tool's proximity test and, on a switch, the hand-over.
+//! The tool acts on the bodies as `Coupling::Nearest` (the sphere pushes the surface nearest to
+//! it), in every trial.
 //!
 //! Organ-to-organ collision (the scenes' `[collision]`, on by default) is switched off
 //! (`World::disable_collisions`) in every trial but the third: the thesis runs those without it
@@ -35,7 +37,7 @@
 //!   10 mm depth limit), `config/scripts/cylinders-push.toml` played the same way for 6 s: the
 //!   tip approaches cylinder A from −x at 3/4 of its height, pushes 12 mm in along +x (1.5 →
 //!   2.5 s), holds 1 s, withdraws by 4.6 s, so A bends into B across the 2 mm gap. As
-//!   `lopd deform` does, `World::detect_collisions` runs once per tick in which a body is due,
+//!   `lopd deform` does, the round detects organ contacts once per tick in which a body is due,
 //!   before the due bodies step. **Attribution:** the detection is timed on its own and
 //!   reported per round (median over all rounds, over the rounds in contact and apart, mean,
 //!   p99, max, and its share of the run's computing time), *not* added into the bodies' step
