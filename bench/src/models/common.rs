@@ -1,0 +1,370 @@
+//! Helpers shared by the parts of `lop-bench models`: the benchmarked models and their
+//! parameters, building one, timing its steps, and the plain-text tables.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{anyhow, bail, Result};
+use lop_config::{FemParams, MassSpec, MsdParams};
+use lop_sim::fem::{Fem, FemMode, FemParameters};
+use lop_sim::mesh::TetMesh;
+use lop_sim::model::{ContactReport, Model, ToolContact};
+use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass, SubstepPolicy};
+use serde::Serialize;
+
+use crate::pipeline;
+
+/// The workspace root (meshes and scenes are found relative to it).
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+// ---------------------------------------------------------------------------------------------
+// Models and parameters.
+
+/// One of the seven benchmarked models.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Bench {
+    Msd(Integrator),
+    Fem(FemMode),
+}
+
+impl Bench {
+    /// Every model, MSD integrators in the thesis' order, then FEM.
+    pub const ALL: [Bench; 7] = [
+        Bench::Msd(Integrator::ExplicitEuler),
+        Bench::Msd(Integrator::SymplecticEuler),
+        Bench::Msd(Integrator::Verlet),
+        Bench::Msd(Integrator::Rk4),
+        Bench::Msd(Integrator::ImplicitEuler),
+        Bench::Fem(FemMode::Linear),
+        Bench::Fem(FemMode::Corotational),
+    ];
+
+    /// Stable machine name.
+    pub fn key(self) -> String {
+        match self {
+            Bench::Msd(i) => format!("msd-{}", integrator_key(i)),
+            Bench::Fem(FemMode::Linear) => "fem-linear".into(),
+            Bench::Fem(FemMode::Corotational) => "fem-corotational".into(),
+        }
+    }
+
+    /// Table label.
+    pub fn label(self) -> String {
+        match self {
+            Bench::Msd(i) => format!("MSD {}", integrator_label(i)),
+            Bench::Fem(FemMode::Linear) => "FEM linear".into(),
+            Bench::Fem(FemMode::Corotational) => "FEM corotational".into(),
+        }
+    }
+}
+
+/// Stable machine name of an integrator (the scene files' spelling).
+pub fn integrator_key(i: Integrator) -> &'static str {
+    match i {
+        Integrator::ExplicitEuler => "explicit-euler",
+        Integrator::SymplecticEuler => "symplectic-euler",
+        Integrator::Verlet => "verlet",
+        Integrator::Rk4 => "rk4",
+        Integrator::ImplicitEuler => "implicit-euler",
+    }
+}
+
+/// Human name of an integrator.
+pub fn integrator_label(i: Integrator) -> &'static str {
+    match i {
+        Integrator::ExplicitEuler => "explicit Euler",
+        Integrator::SymplecticEuler => "symplectic Euler",
+        Integrator::Verlet => "Verlet",
+        Integrator::Rk4 => "RK4",
+        Integrator::ImplicitEuler => "implicit Euler",
+    }
+}
+
+/// Scene `[body.msd]` → model parameters.
+pub fn msd_params(p: &MsdParams) -> MsdParameters {
+    MsdParameters {
+        stiffness: p.stiffness,
+        mass: match p.mass {
+            MassSpec::Density(d) => NodeMass::Density(d),
+            MassSpec::NodeMass(m) => NodeMass::PerNode(m),
+        },
+        damping: p.damping,
+        dt: p.dt,
+        integrator: match p.integrator {
+            lop_config::Integrator::ExplicitEuler => Integrator::ExplicitEuler,
+            lop_config::Integrator::SymplecticEuler => Integrator::SymplecticEuler,
+            lop_config::Integrator::Verlet => Integrator::Verlet,
+            lop_config::Integrator::Rk4 => Integrator::Rk4,
+            lop_config::Integrator::ImplicitEuler => Integrator::ImplicitEuler,
+        },
+    }
+}
+
+/// Scene `[body.fem]` → model parameters.
+pub fn fem_params(p: &FemParams) -> FemParameters {
+    FemParameters {
+        young: p.young,
+        poisson: p.poisson,
+        density: p.density,
+        damping: p.damping,
+        dt: p.dt,
+        mode: match p.mode {
+            lop_config::FemMode::Linear => FemMode::Linear,
+            lop_config::FemMode::Corotational => FemMode::Corotational,
+        },
+    }
+}
+
+/// An MSD body taking exactly one integrator step per `step`: implicit Euler at `p.dt`, an
+/// explicit integrator at `p.dt / (its automatic sub-step count)`. Returns the body and that
+/// sub-step count (1 for implicit Euler).
+fn msd_one_step(mesh: &TetMesh, mut p: MsdParameters) -> (MassSpring, usize) {
+    let substeps = if p.integrator.is_explicit() {
+        MassSpring::new(mesh, p).substeps()
+    } else {
+        1
+    };
+    p.dt /= substeps as f64;
+    let body = MassSpring::new(mesh, p).with_substep_policy(SubstepPolicy::Fixed(1));
+    (body, substeps)
+}
+
+/// Builds the model for one row; returns it, the `dt` of one step and the automatic sub-step
+/// count the scene's `dt` would need (1 unless explicit MSD).
+pub(super) fn build(
+    bench: Bench,
+    mesh: &TetMesh,
+    msd: MsdParameters,
+    fem: FemParameters,
+) -> Result<(Model, f64, usize)> {
+    Ok(match bench {
+        Bench::Msd(i) => {
+            let (body, substeps) = msd_one_step(
+                mesh,
+                MsdParameters {
+                    integrator: i,
+                    ..msd
+                },
+            );
+            let dt = body.dt();
+            (Model::MassSpring(body), dt, substeps)
+        }
+        Bench::Fem(mode) => {
+            let body = Fem::new(mesh, FemParameters { mode, ..fem })
+                .map_err(|e| anyhow!("FEM on {}: {e}", mesh.source.display()))?;
+            let dt = body.dt();
+            (Model::Fem(body), dt, 1)
+        }
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+// Timing.
+
+/// How long to time one row.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Budget {
+    /// Untimed steps first.
+    pub(super) warmup: usize,
+    /// At least this many timed steps...
+    pub(super) min_steps: usize,
+    /// ...and at most this many...
+    pub(super) max_steps: usize,
+    /// ...stopping once this much wall time has passed (after `min_steps`).
+    pub(super) seconds: f64,
+}
+
+/// Per-step times of one row.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct Timing {
+    /// Timed steps.
+    pub steps: usize,
+    /// Median, µs.
+    pub median_us: f64,
+    /// 99th percentile (nearest rank), µs.
+    pub p99_us: f64,
+    /// Mean, µs.
+    pub mean_us: f64,
+    /// Largest, µs.
+    pub max_us: f64,
+    /// Steps (warm-up included) that blew up and reset the body.
+    pub blow_ups: usize,
+    /// FEM: conjugate-gradient iterations per timed step (0 in linear mode).
+    pub cg_per_step: Option<f64>,
+    /// FEM: numeric factorisations during the timed steps.
+    pub factorizations: Option<u64>,
+}
+
+/// Median, p99 (nearest rank), mean and max of `ns`, in µs.
+pub fn summarize(ns: &mut [u64]) -> (f64, f64, f64, f64) {
+    if ns.is_empty() {
+        return (0.0, 0.0, 0.0, 0.0);
+    }
+    ns.sort_unstable();
+    let rank = |q: f64| {
+        let k = (q * ns.len() as f64).ceil() as usize;
+        ns[k.clamp(1, ns.len()) - 1] as f64 / 1000.0
+    };
+    let mean = ns.iter().map(|&v| v as f64).sum::<f64>() / ns.len() as f64 / 1000.0;
+    (
+        rank(0.5),
+        rank(0.99),
+        mean,
+        ns[ns.len() - 1] as f64 / 1000.0,
+    )
+}
+
+/// Steps `model` per `budget`, timing each `step` call; returns the timing and the last
+/// successful step's contact report.
+pub(super) fn time_model(
+    model: &mut Model,
+    gravity: [f64; 3],
+    contact: Option<&ToolContact<'_>>,
+    budget: Budget,
+) -> Result<(Timing, ContactReport)> {
+    let external = vec![[0.0; 3]; model.positions().len()];
+    let mut blow_ups = 0;
+    let mut last = ContactReport::default();
+    for _ in 0..budget.warmup {
+        match model.step(gravity, &external, contact) {
+            Ok(r) => last = r,
+            Err(_) => blow_ups += 1,
+        }
+    }
+    let counters = |m: &Model| match m {
+        Model::Fem(f) => Some(f.solver_counters()),
+        _ => None,
+    };
+    let before = counters(model);
+    let mut ns: Vec<u64> = Vec::with_capacity(budget.max_steps);
+    let start = Instant::now();
+    while ns.len() < budget.max_steps
+        && (ns.len() < budget.min_steps || start.elapsed().as_secs_f64() < budget.seconds)
+    {
+        let t = Instant::now();
+        let r = model.step(gravity, &external, contact);
+        ns.push(t.elapsed().as_nanos() as u64);
+        match r {
+            Ok(r) => last = r,
+            Err(_) => blow_ups += 1,
+        }
+        if pipeline::interrupted() {
+            bail!("interrupted");
+        }
+    }
+    let delta = before.zip(counters(model)).map(|(b, a)| {
+        (
+            (a.cg_iterations - b.cg_iterations) as f64 / ns.len() as f64,
+            a.factorizations - b.factorizations,
+        )
+    });
+    let (median_us, p99_us, mean_us, max_us) = summarize(&mut ns);
+    Ok((
+        Timing {
+            steps: ns.len(),
+            median_us,
+            p99_us,
+            mean_us,
+            max_us,
+            blow_ups,
+            cg_per_step: delta.map(|d| d.0),
+            factorizations: delta.map(|d| d.1),
+        },
+        last,
+    ))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tables.
+
+/// Column alignment.
+#[derive(Clone, Copy)]
+pub enum Align {
+    Left,
+    Right,
+}
+
+/// An aligned text table: a header line, then one line per row, columns two spaces apart.
+pub fn table(headers: &[(&str, Align)], rows: &[Vec<String>]) -> String {
+    let mut w: Vec<usize> = headers.iter().map(|h| h.0.chars().count()).collect();
+    for r in rows {
+        for (k, c) in r.iter().enumerate() {
+            if k < w.len() {
+                w[k] = w[k].max(c.chars().count());
+            }
+        }
+    }
+    let line = |cells: Vec<&str>| {
+        let mut s = String::new();
+        for (k, c) in cells.iter().enumerate() {
+            let pad = w[k].saturating_sub(c.chars().count());
+            if k > 0 {
+                s.push_str("  ");
+            }
+            match headers[k].1 {
+                Align::Left => {
+                    s.push_str(c);
+                    if k + 1 < cells.len() {
+                        s.push_str(&" ".repeat(pad));
+                    }
+                }
+                Align::Right => {
+                    s.push_str(&" ".repeat(pad));
+                    s.push_str(c);
+                }
+            }
+        }
+        let mut s = s.trim_end().to_string();
+        s.push('\n');
+        s
+    };
+    let mut out = line(headers.iter().map(|h| h.0).collect());
+    for r in rows {
+        out += &line(r.iter().map(|c| c.as_str()).collect());
+    }
+    out
+}
+
+/// A time in µs with 3 significant digits or so.
+pub fn us(v: f64) -> String {
+    if v >= 1000.0 {
+        format!("{v:.0}")
+    } else if v >= 100.0 {
+        format!("{v:.1}")
+    } else {
+        format!("{v:.2}")
+    }
+}
+
+/// A time step, s.
+pub(super) fn dt_text(dt: f64) -> String {
+    if dt >= 1e-3 {
+        format!("{dt:.4}")
+    } else {
+        format!("{dt:.2e}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percentiles_by_nearest_rank() {
+        let mut ns: Vec<u64> = (1..=100).map(|v| v * 1000).collect();
+        let (med, p99, mean, max) = summarize(&mut ns);
+        assert_eq!((med, p99, max), (50.0, 99.0, 100.0));
+        assert!((mean - 50.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn table_aligns_columns() {
+        let t = table(
+            &[("a", Align::Left), ("bb", Align::Right)],
+            &[vec!["xyz".into(), "1".into()]],
+        );
+        assert_eq!(t, "a    bb\nxyz   1\n");
+    }
+}

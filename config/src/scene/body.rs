@@ -1,0 +1,250 @@
+//! Body spec types of a validated scene: [`BodySpec`] and its model parameter tables
+//! (`[body.fem]`, `[body.msd]`, `[body.gc]`, `[body.heat]`) with their enums.
+
+use std::path::PathBuf;
+
+use serde::Deserialize;
+
+use crate::workspace::{mat_vec, rotation_xyz_deg};
+
+/// How much a body matters: decides its precise model when touched (thesis §4.4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Importance {
+    /// Switches to FEM when touched.
+    Important,
+    /// Switches to mass-spring when touched.
+    #[default]
+    Normal,
+}
+
+/// Pins a body to one model instead of letting the LoP controller choose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ModelPin {
+    /// The LoP controller decides: GC at rest, FEM or MSD (by importance) when touched.
+    #[default]
+    Auto,
+    /// Always Green coordinates.
+    Gc,
+    /// Always mass-spring-damper.
+    Msd,
+    /// Always FEM.
+    Fem,
+}
+
+/// Time integrator of the mass-spring model (thesis ch. 3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Integrator {
+    /// Forward Euler: cheapest, least stable.
+    ExplicitEuler,
+    /// Semi-implicit (symplectic) Euler: velocity first, then position.
+    #[default]
+    SymplecticEuler,
+    /// Velocity Verlet (the same positions as Störmer–Verlet).
+    Verlet,
+    /// Classic fourth-order Runge-Kutta.
+    Rk4,
+    /// Backward Euler: unconditionally stable, numerically damped.
+    ImplicitEuler,
+}
+
+/// FEM formulation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FemMode {
+    /// Linear elasticity, as in the thesis; inflates under large rotations.
+    Linear,
+    /// Corotational (stiffness warping): rotation-invariant.
+    #[default]
+    Corotational,
+}
+
+/// One deformable body.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodySpec {
+    /// Unique in the scene, non-empty.
+    pub name: String,
+    /// Mesh path, resolved against the scene file's directory: a TetGen base path (`.node`,
+    /// `.ele`, optional `.face` and `.bnd` beside it) or a mesh file.
+    pub mesh: PathBuf,
+    /// Which precise model the body gets when touched.
+    pub importance: Importance,
+    /// Model pin; `Auto` lets the LoP controller decide.
+    pub model: ModelPin,
+    /// Translation (m), applied after scale and rotation.
+    pub translate: [f64; 3],
+    /// Rotation, XYZ Euler degrees (see [`crate::rotation_xyz_deg`]).
+    pub rotate_deg: [f64; 3],
+    /// Uniform scale (> 0), applied first.
+    pub scale: f64,
+    /// Extra fixed nodes (0-based mesh node indices), in addition to the mesh's `.bnd` file.
+    pub fixed_nodes: Vec<u32>,
+    /// sRGB colour in 0..=1 for viewers.
+    pub color: [f32; 3],
+    /// Tool stiffness against this body (units of `[tool] force_law`), or `None` for the
+    /// tool's own `stiffness`.
+    pub tool_stiffness: Option<f64>,
+    /// FEM parameters (present if important or pinned to FEM).
+    pub fem: Option<FemParams>,
+    /// Mass-spring parameters (present unless pinned to FEM).
+    pub msd: Option<MsdParams>,
+    /// Green-coordinates cage parameters (present if pinned to GC).
+    pub gc: Option<GcParams>,
+    /// Thermal parameters, `[body.heat]` (every body has them; defaults: liver-like tissue).
+    pub heat: HeatParams,
+}
+
+impl BodySpec {
+    /// Places a mesh node into the scene: `R(rotate_deg) · (scale · p) + translate`.
+    pub fn transform_point(&self, p: [f64; 3]) -> [f64; 3] {
+        let r = mat_vec(
+            &rotation_xyz_deg(self.rotate_deg),
+            [p[0] * self.scale, p[1] * self.scale, p[2] * self.scale],
+        );
+        [
+            r[0] + self.translate[0],
+            r[1] + self.translate[1],
+            r[2] + self.translate[2],
+        ]
+    }
+}
+
+/// Linear-tetrahedron FEM parameters (thesis §4.2).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FemParams {
+    /// Young's modulus, Pa (> 0).
+    pub young: f64,
+    /// Poisson's ratio, 0 <= ν < 0.5.
+    pub poisson: f64,
+    /// Density, kg/m³ (> 0).
+    pub density: f64,
+    /// Mass-proportional damping α, 1/s (>= 0): `D = α M`.
+    pub damping: f64,
+    /// Time step, s (0 < dt <= 1).
+    pub dt: f64,
+    /// Formulation.
+    pub mode: FemMode,
+}
+
+/// How node masses of a mass-spring body are given.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MassSpec {
+    /// Density, kg/m³: node masses lumped from tetrahedron volumes.
+    Density(f64),
+    /// The same mass for every node, kg.
+    NodeMass(f64),
+}
+
+/// Mass-spring-damper parameters (thesis §4.1, eq. 4.2).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MsdParams {
+    /// Spring stiffness, N/m (> 0).
+    pub stiffness: f64,
+    /// Node masses.
+    pub mass: MassSpec,
+    /// γ of eq. 4.2, N·s/m per node (>= 0).
+    pub damping: f64,
+    /// Time step, s (0 < dt <= 1).
+    pub dt: f64,
+    /// Time integrator.
+    pub integrator: Integrator,
+}
+
+/// Shape of a body's Green-coordinates cage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CageKind {
+    /// The padded bounding box cut into roughly cubic cells (each axis gets
+    /// `round(extent / smallest extent)` segments): a long body can bend along its length.
+    #[default]
+    Fitted,
+    /// The thesis' cage: the padded bounding box, 8 vertices and 12 triangles.
+    Box,
+    /// The padded bounding box with every edge cut into `subdivisions` segments.
+    SubdividedBox,
+}
+
+/// What moves a body's cage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GcDynamics {
+    /// The body's precise model (FEM if important, else mass-spring) projected onto the cage,
+    /// with the stiffness matched to its compliance: nothing to tune.
+    #[default]
+    Projected,
+    /// The plain Galerkin projection (`GᵀKG`): stiffer than the body, kept for comparison.
+    Galerkin,
+    /// The thesis' mass-spring cage with the hand-tuned `stiffness`, `density` and `damping`.
+    MassSpring,
+}
+
+/// Green-coordinates cage parameters (thesis §4.3, Tables 6.1 and 6.2).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GcParams {
+    /// Cage shape.
+    pub cage: CageKind,
+    /// Segments per box edge for [`CageKind::SubdividedBox`] (1..=8).
+    pub subdivisions: u32,
+    /// Gap between the body's bounding box and the cage, m (> 0); `None`: 5 % of the body's
+    /// smallest extent.
+    pub padding: Option<f64>,
+    /// What moves the cage.
+    pub dynamics: GcDynamics,
+    /// Mass-spring cage: spring stiffness, N/m (> 0). Required for `mass-spring`.
+    pub stiffness: Option<f64>,
+    /// Mass-spring cage: density, kg/m³ (> 0). Required for `mass-spring`.
+    pub density: Option<f64>,
+    /// Mass-spring cage: damping, N·s/m per cage vertex (>= 0). Required for `mass-spring`.
+    pub damping: Option<f64>,
+    /// Time step, s (0 < dt <= 1); `None`: the body's precise model's.
+    pub dt: Option<f64>,
+}
+
+impl Default for GcParams {
+    fn default() -> Self {
+        GcParams {
+            cage: CageKind::Fitted,
+            subdivisions: 2,
+            padding: None,
+            dynamics: GcDynamics::Projected,
+            stiffness: None,
+            density: None,
+            damping: None,
+            dt: None,
+        }
+    }
+}
+
+/// Thermal parameters of one body, `[body.heat]`. The defaults are liver-like soft tissue
+/// (typical literature values, e.g. the IT'IS Foundation tissue database).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeatParams {
+    /// Thermal conductivity, W/m/K (> 0).
+    pub conductivity: f64,
+    /// Specific heat capacity, J/kg/K (> 0).
+    pub specific_heat: f64,
+    /// Density for the heat capacity, kg/m³ (> 0); independent of the deformation models'
+    /// densities, which are tuned for dynamics.
+    pub density: f64,
+    /// Initial (body) temperature, °C.
+    pub initial: f64,
+    /// Coagulation temperature, °C (> `initial`): hotter tissue is burned.
+    pub coagulation: f64,
+    /// Stiffness factor of burned tissue (> 0); 1 = burns do not change stiffness.
+    pub burn_stiffening: f64,
+}
+
+impl Default for HeatParams {
+    fn default() -> Self {
+        HeatParams {
+            conductivity: 0.52,
+            specific_heat: 3540.0,
+            density: 1060.0,
+            initial: 37.0,
+            coagulation: 60.0,
+            burn_stiffening: 1.0,
+        }
+    }
+}

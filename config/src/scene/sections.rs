@@ -1,0 +1,160 @@
+//! Scene-level section types of a validated scene: `[tool]`, `[rates]`, `[device]`, `[lop]`,
+//! `[heat]` and `[collision]`, with their defaults.
+
+use std::path::PathBuf;
+
+use serde::Deserialize;
+
+/// Force law of the tool contact.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ForceLaw {
+    /// Thesis eq. 5.2: `F = k d² N`; `stiffness` in N/m².
+    Quadratic,
+    /// A spring: `F = k d N`; `stiffness` in N/m.
+    #[default]
+    Linear,
+}
+
+/// Which level of precision bodies start at.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StartLevel {
+    /// The cage (thesis §4.4).
+    #[default]
+    Gc,
+    /// The precise model, handing over to the cage once settled.
+    Precise,
+}
+
+/// Organ-to-organ collision (thesis §6.3.4.1), `[collision]`: see `lop_sim::collide`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CollisionSpec {
+    /// Whether bodies push each other.
+    pub enabled: bool,
+    /// Stiffness of each contact spring, N/m (> 0).
+    pub stiffness: f64,
+    /// Contact starts this far before the surfaces meet, m (>= 0).
+    pub skin: f64,
+    /// Vertices deeper than this inside another body are ignored, m (> 0).
+    pub depth_limit: f64,
+}
+
+impl Default for CollisionSpec {
+    fn default() -> Self {
+        CollisionSpec {
+            enabled: true,
+            stiffness: 20.0,
+            skin: 0.0005,
+            depth_limit: 0.01,
+        }
+    }
+}
+
+/// Scene-level heat settings (thesis §5.3), `[heat]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeatSpec {
+    /// Air temperature, °C.
+    pub air_temperature: f64,
+    /// Convective coefficient from tissue surfaces to the air, W/m²/K (>= 0; 0 insulates).
+    pub air_coefficient: f64,
+    /// Contact conductance between touching organs, W/m²/K (>= 0; 0: no heat crosses).
+    pub contact_conductance: f64,
+    /// Heat time step, s (0 < dt <= 1); `None`: one heat step per deformation step.
+    pub dt: Option<f64>,
+}
+
+impl Default for HeatSpec {
+    fn default() -> Self {
+        HeatSpec {
+            air_temperature: 22.0,
+            air_coefficient: 10.0,
+            contact_conductance: 500.0,
+            dt: None,
+        }
+    }
+}
+
+/// Levels-of-precision switching (thesis §4.4, fig. 4.4), `[lop]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LopSpec {
+    /// A precise body counts as settled below this largest nodal speed, m/s (> 0) …
+    pub rest_speed: f64,
+    /// … held this long without contact before it hands over to its cage, s (>= 0).
+    pub hold: f64,
+    /// The shape the cage cannot represent fades out over this long after a hand-over, s (>= 0).
+    pub blend: f64,
+    /// Level every `auto` body starts at.
+    pub start: StartLevel,
+}
+
+impl Default for LopSpec {
+    fn default() -> Self {
+        LopSpec {
+            rest_speed: 2e-3,
+            hold: 0.3,
+            blend: 0.2,
+            start: StartLevel::Gc,
+        }
+    }
+}
+
+/// The tool: a sphere driven by the device, rendered as a god-object.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToolSpec {
+    /// Tip radius, m (> 0).
+    pub radius: f64,
+    /// Force law.
+    pub force_law: ForceLaw,
+    /// N/m for the linear law, N/m² for the quadratic law (> 0).
+    pub stiffness: f64,
+    /// Damping on the penetration speed, N·s/m (>= 0).
+    pub damping: f64,
+    /// Force clamp for this scene, N (> 0).
+    pub max_force: f64,
+    /// Cautery heating power, W (>= 0).
+    pub heat_power: f64,
+}
+
+impl Default for ToolSpec {
+    fn default() -> Self {
+        ToolSpec {
+            radius: 0.003,
+            force_law: ForceLaw::Linear,
+            stiffness: 300.0,
+            damping: 0.0,
+            max_force: 3.0,
+            heat_power: 20.0,
+        }
+    }
+}
+
+/// Loop rates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rates {
+    /// Haptic loop rate, Hz (100..=10000).
+    pub haptic_hz: f64,
+    /// Upper bound on deformation steps per second (> 0).
+    pub deform_max_hz: f64,
+    /// Upper bound on published frames per second (> 0).
+    pub publish_hz: f64,
+}
+
+impl Default for Rates {
+    fn default() -> Self {
+        Rates {
+            haptic_hz: 1000.0,
+            deform_max_hz: 1000.0,
+            publish_hz: 250.0,
+        }
+    }
+}
+
+/// Per-scene device defaults.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DeviceDefaults {
+    /// Mock-device script used when the daemon runs with the mock device and no script is given;
+    /// resolved against the scene file's directory. Its existence is checked by the driver that
+    /// reads it, not here, so a scene stays loadable on a rig with a real device.
+    pub mock_script: Option<PathBuf>,
+}

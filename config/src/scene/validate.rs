@@ -1,0 +1,219 @@
+//! Validation of the scene-level sections (`[tool]`, `[workspace]`, `[rates]`, `[device]`,
+//! `[lop]`, `[heat]`, `[collision]`) and of names.
+
+use std::path::Path;
+
+use crate::check::Check;
+use crate::error::ConfigError;
+use crate::raw::{RawCollision, RawDevice, RawHeat, RawLop, RawRates, RawTool, RawWorkspace};
+use crate::source::KeyPath;
+use crate::workspace::WorkspaceMap;
+
+use super::{CollisionSpec, DeviceDefaults, ForceLaw, HeatSpec, LopSpec, Rates, ToolSpec};
+
+pub(super) fn validate_collision(
+    c: &Check<'_, '_>,
+    raw: RawCollision,
+) -> Result<CollisionSpec, ConfigError> {
+    let k = KeyPath::top("collision");
+    let d = CollisionSpec::default();
+    let skin = c.non_negative(
+        &k.key("skin"),
+        raw.skin.unwrap_or(d.skin),
+        "collision skin (m)",
+    )?;
+    let depth_limit = c.positive(
+        &k.key("depth_limit"),
+        raw.depth_limit.unwrap_or(d.depth_limit),
+        "collision depth limit (m)",
+    )?;
+    if skin > 0.01 {
+        return Err(c.invalid(
+            &k.key("skin"),
+            skin.to_string(),
+            "collision skin (m): at most 0.01 (10 mm); bodies would push each other from afar",
+        ));
+    }
+    Ok(CollisionSpec {
+        enabled: raw.enabled.unwrap_or(d.enabled),
+        stiffness: c.positive(
+            &k.key("stiffness"),
+            raw.stiffness.unwrap_or(d.stiffness),
+            "collision stiffness (N/m)",
+        )?,
+        skin,
+        depth_limit,
+    })
+}
+
+pub(super) fn validate_heat(c: &Check<'_, '_>, raw: RawHeat) -> Result<HeatSpec, ConfigError> {
+    let k = KeyPath::top("heat");
+    let d = HeatSpec::default();
+    Ok(HeatSpec {
+        air_temperature: c.temperature(
+            &k.key("air_temperature"),
+            raw.air_temperature.unwrap_or(d.air_temperature),
+            "air temperature",
+        )?,
+        air_coefficient: c.non_negative(
+            &k.key("air_coefficient"),
+            raw.air_coefficient.unwrap_or(d.air_coefficient),
+            "air heat-transfer coefficient (W/m²/K)",
+        )?,
+        contact_conductance: c.non_negative(
+            &k.key("contact_conductance"),
+            raw.contact_conductance.unwrap_or(d.contact_conductance),
+            "contact conductance (W/m²/K)",
+        )?,
+        dt: raw.dt.map(|v| c.time_step(&k.key("dt"), v)).transpose()?,
+    })
+}
+
+pub(super) fn validate_lop(c: &Check<'_, '_>, raw: RawLop) -> Result<LopSpec, ConfigError> {
+    let k = KeyPath::top("lop");
+    let d = LopSpec::default();
+    Ok(LopSpec {
+        rest_speed: c.positive(
+            &k.key("rest_speed"),
+            raw.rest_speed.unwrap_or(d.rest_speed),
+            "rest speed (m/s)",
+        )?,
+        hold: c.non_negative(&k.key("hold"), raw.hold.unwrap_or(d.hold), "hold time (s)")?,
+        blend: c.non_negative(
+            &k.key("blend"),
+            raw.blend.unwrap_or(d.blend),
+            "blend time (s)",
+        )?,
+        start: raw.start.unwrap_or(d.start),
+    })
+}
+
+/// Names: non-empty, not just whitespace, no control characters.
+pub(super) fn check_name(
+    c: &Check<'_, '_>,
+    key: &KeyPath,
+    name: &str,
+    what: &str,
+) -> Result<(), ConfigError> {
+    if name.trim().is_empty() {
+        return Err(c.invalid(
+            key,
+            format!("{name:?}"),
+            format!("{what} must not be empty"),
+        ));
+    }
+    if name.chars().any(char::is_control) {
+        return Err(c.invalid(
+            key,
+            format!("{name:?}"),
+            format!("{what} must not contain control characters"),
+        ));
+    }
+    Ok(())
+}
+
+pub(super) fn validate_tool(c: &Check<'_, '_>, raw: RawTool) -> Result<ToolSpec, ConfigError> {
+    let k = KeyPath::top("tool");
+    let d = ToolSpec::default();
+    let force_law = raw.force_law.unwrap_or(d.force_law);
+    let unit = match force_law {
+        ForceLaw::Linear => "tool stiffness (N/m, linear law)",
+        ForceLaw::Quadratic => "tool stiffness (N/m², quadratic law)",
+    };
+    Ok(ToolSpec {
+        radius: c.positive(
+            &k.key("radius"),
+            raw.radius.unwrap_or(d.radius),
+            "tool radius (m)",
+        )?,
+        force_law,
+        stiffness: c.positive(
+            &k.key("stiffness"),
+            raw.stiffness.unwrap_or(d.stiffness),
+            unit,
+        )?,
+        damping: c.non_negative(
+            &k.key("damping"),
+            raw.damping.unwrap_or(d.damping),
+            "tool damping (N·s/m)",
+        )?,
+        max_force: c.positive(
+            &k.key("max_force"),
+            raw.max_force.unwrap_or(d.max_force),
+            "tool max_force (N)",
+        )?,
+        heat_power: c.non_negative(
+            &k.key("heat_power"),
+            raw.heat_power.unwrap_or(d.heat_power),
+            "tool heat_power (W)",
+        )?,
+    })
+}
+
+pub(super) fn validate_workspace(
+    c: &Check<'_, '_>,
+    raw: RawWorkspace,
+) -> Result<WorkspaceMap, ConfigError> {
+    let k = KeyPath::top("workspace");
+    let d = WorkspaceMap::default();
+    Ok(WorkspaceMap {
+        scale: c.positive(
+            &k.key("scale"),
+            raw.scale.unwrap_or(d.scale),
+            "workspace scale (scene m per device m)",
+        )?,
+        rotate_deg: c.finite3(
+            &k.key("rotate_deg"),
+            raw.rotate_deg.unwrap_or(d.rotate_deg),
+            "workspace rotate_deg",
+        )?,
+        offset: c.finite3(
+            &k.key("offset"),
+            raw.offset.unwrap_or(d.offset),
+            "workspace offset (m)",
+        )?,
+    })
+}
+
+pub(super) fn validate_rates(c: &Check<'_, '_>, raw: RawRates) -> Result<Rates, ConfigError> {
+    let k = KeyPath::top("rates");
+    let d = Rates::default();
+    Ok(Rates {
+        haptic_hz: c.within(
+            &k.key("haptic_hz"),
+            raw.haptic_hz.unwrap_or(d.haptic_hz),
+            100.0,
+            10_000.0,
+            "haptic rate (Hz)",
+        )?,
+        deform_max_hz: c.positive(
+            &k.key("deform_max_hz"),
+            raw.deform_max_hz.unwrap_or(d.deform_max_hz),
+            "deform_max_hz (steps/s)",
+        )?,
+        publish_hz: c.positive(
+            &k.key("publish_hz"),
+            raw.publish_hz.unwrap_or(d.publish_hz),
+            "publish_hz (frames/s)",
+        )?,
+    })
+}
+
+pub(super) fn validate_device(
+    c: &Check<'_, '_>,
+    raw: RawDevice,
+    dir: &Path,
+) -> Result<DeviceDefaults, ConfigError> {
+    let mock_script = match raw.mock_script {
+        None => None,
+        Some(s) if s.trim().is_empty() => {
+            return Err(c.invalid(
+                &KeyPath::top("device").key("mock_script"),
+                "\"\"",
+                "mock_script must be a path (relative to the scene file) or be left out",
+            ));
+        }
+        Some(s) => Some(dir.join(s)),
+    };
+    Ok(DeviceDefaults { mock_script })
+}

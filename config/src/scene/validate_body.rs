@@ -1,0 +1,334 @@
+//! Validation of one `[[body]]` table and its parameter tables, and resolving its mesh path.
+
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+
+use crate::check::{fmt_f64, fmt_f64s, Check};
+use crate::error::ConfigError;
+use crate::raw::{RawBody, RawBodyHeat, RawFem, RawGc, RawMsd};
+use crate::source::{KeyPath, Source};
+
+use super::validate::check_name;
+use super::{
+    BodySpec, FemParams, GcDynamics, GcParams, HeatParams, Importance, MassSpec, ModelPin,
+    MsdParams,
+};
+
+/// Default viewer colours, by body index (sRGB).
+const PALETTE: [[f32; 3]; 6] = [
+    [0.55, 0.16, 0.13],
+    [0.36, 0.52, 0.78],
+    [0.42, 0.15, 0.35],
+    [0.93, 0.66, 0.60],
+    [0.90, 0.78, 0.52],
+    [0.40, 0.65, 0.40],
+];
+
+fn validate_body_heat(
+    c: &Check<'_, '_>,
+    k: &KeyPath,
+    raw: RawBodyHeat,
+) -> Result<HeatParams, ConfigError> {
+    let d = HeatParams::default();
+    let initial = c.temperature(
+        &k.key("initial"),
+        raw.initial.unwrap_or(d.initial),
+        "initial temperature",
+    )?;
+    let coagulation = c.temperature(
+        &k.key("coagulation"),
+        raw.coagulation.unwrap_or(d.coagulation),
+        "coagulation temperature",
+    )?;
+    // Both are finite here (checked above).
+    if coagulation <= initial {
+        return Err(c.invalid(
+            &k.key("coagulation"),
+            fmt_f64(coagulation),
+            format!(
+                "coagulation temperature must be above the initial temperature ({} °C), or \
+                 the whole body starts burned",
+                fmt_f64(initial)
+            ),
+        ));
+    }
+    Ok(HeatParams {
+        conductivity: c.positive(
+            &k.key("conductivity"),
+            raw.conductivity.unwrap_or(d.conductivity),
+            "thermal conductivity (W/m/K)",
+        )?,
+        specific_heat: c.positive(
+            &k.key("specific_heat"),
+            raw.specific_heat.unwrap_or(d.specific_heat),
+            "specific heat (J/kg/K)",
+        )?,
+        density: c.positive(
+            &k.key("density"),
+            raw.density.unwrap_or(d.density),
+            "density (kg/m³)",
+        )?,
+        initial,
+        coagulation,
+        burn_stiffening: c.positive(
+            &k.key("burn_stiffening"),
+            raw.burn_stiffening.unwrap_or(d.burn_stiffening),
+            "burn_stiffening (stiffness factor of burned tissue)",
+        )?,
+    })
+}
+
+pub(super) fn validate_body(
+    src: &Source<'_>,
+    key: &KeyPath,
+    index: usize,
+    rb: RawBody,
+    dir: &Path,
+) -> Result<BodySpec, ConfigError> {
+    let c = Check {
+        src,
+        body: Some(&rb.name),
+    };
+    check_name(&c, &key.key("name"), &rb.name, "body name")?;
+    let importance = rb.importance.unwrap_or_default();
+    let model = rb.model.unwrap_or_default();
+
+    // Which parameter tables the body's possible models need.
+    if rb.fem.is_none() {
+        if model == ModelPin::Fem {
+            return Err(c.invalid(
+                &key.key("fem"),
+                "(missing)",
+                "model = \"fem\" needs a [body.fem] table",
+            ));
+        }
+        if importance == Importance::Important {
+            return Err(c.invalid(
+                &key.key("fem"),
+                "(missing)",
+                "importance = \"important\" needs a [body.fem] table: important bodies switch \
+                 to FEM when touched",
+            ));
+        }
+    }
+    if rb.msd.is_none() && model != ModelPin::Fem {
+        return Err(c.invalid(
+            &key.key("msd"),
+            "(missing)",
+            "every body needs a [body.msd] table unless model = \"fem\": mass-spring is the \
+             fallback model of every body",
+        ));
+    }
+    let translate = c.finite3(
+        &key.key("translate"),
+        rb.translate.unwrap_or([0.0; 3]),
+        "translate (m)",
+    )?;
+    let rotate_deg = c.finite3(
+        &key.key("rotate_deg"),
+        rb.rotate_deg.unwrap_or([0.0; 3]),
+        "rotate_deg",
+    )?;
+    let scale = c.positive(&key.key("scale"), rb.scale.unwrap_or(1.0), "body scale")?;
+    let color = match rb.color {
+        None => PALETTE[index % PALETTE.len()],
+        Some(col) => {
+            if col.iter().all(|x| (0.0..=1.0).contains(x)) {
+                col
+            } else {
+                let as_f64 = col.map(f64::from);
+                return Err(c.invalid(
+                    &key.key("color"),
+                    fmt_f64s(&as_f64),
+                    "color must be three sRGB components in 0..=1",
+                ));
+            }
+        }
+    };
+    let tool_stiffness = rb
+        .tool_stiffness
+        .map(|k| {
+            c.positive(
+                &key.key("tool_stiffness"),
+                k,
+                "tool stiffness against the body",
+            )
+        })
+        .transpose()?;
+    let fem = rb
+        .fem
+        .map(|f| validate_fem(&c, &key.key("fem"), f))
+        .transpose()?;
+    let msd = rb
+        .msd
+        .map(|m| validate_msd(&c, &key.key("msd"), m))
+        .transpose()?;
+    let gc = rb
+        .gc
+        .map(|g| validate_gc(&c, &key.key("gc"), g))
+        .transpose()?;
+    let heat = validate_body_heat(&c, &key.key("heat"), rb.heat.unwrap_or_default())?;
+    let mesh = resolve_mesh(&c, &key.key("mesh"), &rb.mesh, dir)?;
+
+    Ok(BodySpec {
+        name: rb.name.clone(),
+        mesh,
+        importance,
+        model,
+        translate,
+        rotate_deg,
+        scale,
+        fixed_nodes: rb.fixed_nodes.unwrap_or_default(),
+        color,
+        tool_stiffness,
+        fem,
+        msd,
+        gc,
+        heat,
+    })
+}
+
+fn validate_fem(c: &Check<'_, '_>, k: &KeyPath, raw: RawFem) -> Result<FemParams, ConfigError> {
+    let poisson_key = k.key("poisson");
+    let poisson = raw.poisson;
+    if !(poisson.is_finite() && (0.0..0.5).contains(&poisson)) {
+        return Err(c.invalid(
+            &poisson_key,
+            fmt_f64(poisson),
+            "Poisson's ratio must be >= 0 and < 0.5 (0.5 is incompressible, which makes the \
+             Lamé λ = Eν/((1+ν)(1−2ν)) infinite)",
+        ));
+    }
+    Ok(FemParams {
+        young: c.positive(&k.key("young"), raw.young, "Young's modulus (Pa)")?,
+        poisson,
+        density: c.positive(&k.key("density"), raw.density, "density (kg/m³)")?,
+        damping: c.non_negative(
+            &k.key("damping"),
+            raw.damping,
+            "FEM damping α (1/s, D = αM)",
+        )?,
+        dt: c.time_step(&k.key("dt"), raw.dt)?,
+        mode: raw.mode.unwrap_or_default(),
+    })
+}
+
+fn validate_msd(c: &Check<'_, '_>, k: &KeyPath, raw: RawMsd) -> Result<MsdParams, ConfigError> {
+    let stiffness = c.positive(&k.key("stiffness"), raw.stiffness, "spring stiffness (N/m)")?;
+    let mass = match (raw.density, raw.node_mass) {
+        (Some(d), None) => {
+            MassSpec::Density(c.positive(&k.key("density"), d, "density (kg/m³)")?)
+        }
+        (None, Some(m)) => {
+            MassSpec::NodeMass(c.positive(&k.key("node_mass"), m, "node_mass (kg)")?)
+        }
+        (Some(d), Some(m)) => {
+            return Err(c.invalid(
+                k,
+                format!("{{ density = {}, node_mass = {} }}", fmt_f64(d), fmt_f64(m)),
+                "give exactly one of density (kg/m³) or node_mass (kg), not both",
+            ));
+        }
+        (None, None) => {
+            return Err(c.invalid(
+                k,
+                "(neither density nor node_mass)",
+                "give exactly one of density (kg/m³) or node_mass (kg)",
+            ));
+        }
+    };
+    Ok(MsdParams {
+        stiffness,
+        mass,
+        damping: c.non_negative(
+            &k.key("damping"),
+            raw.damping,
+            "MSD damping γ (N·s/m per node)",
+        )?,
+        dt: c.time_step(&k.key("dt"), raw.dt)?,
+        integrator: raw.integrator.unwrap_or_default(),
+    })
+}
+
+fn validate_gc(c: &Check<'_, '_>, k: &KeyPath, raw: RawGc) -> Result<GcParams, ConfigError> {
+    let dynamics = raw.dynamics.unwrap_or_default();
+    let subdivisions = match raw.subdivisions {
+        None => 2,
+        Some(n) if (1..=8).contains(&n) => n as u32,
+        Some(n) => {
+            return Err(c.invalid(
+                &k.key("subdivisions"),
+                n.to_string(),
+                "subdivisions must be 1..=8 segments per cage edge (8 gives 386 cage vertices)",
+            ))
+        }
+    };
+    let padding = raw
+        .padding
+        .map(|p| c.positive(&k.key("padding"), p, "cage padding (m)"))
+        .transpose()?;
+    let need = |key: &str, v: Option<f64>| -> Result<Option<f64>, ConfigError> {
+        match (dynamics, v) {
+            (GcDynamics::MassSpring, None) => Err(c.invalid(
+                &k.key(key),
+                "(missing)",
+                format!("dynamics = \"mass-spring\" needs the cage's {key}"),
+            )),
+            _ => Ok(v),
+        }
+    };
+    let stiffness = need("stiffness", raw.stiffness)?
+        .map(|v| c.positive(&k.key("stiffness"), v, "GC stiffness (N/m)"))
+        .transpose()?;
+    let density = need("density", raw.density)?
+        .map(|v| c.positive(&k.key("density"), v, "GC density (kg/m³)"))
+        .transpose()?;
+    let damping = need("damping", raw.damping)?
+        .map(|v| c.non_negative(&k.key("damping"), v, "GC damping (N·s/m)"))
+        .transpose()?;
+    let dt = raw.dt.map(|v| c.time_step(&k.key("dt"), v)).transpose()?;
+    Ok(GcParams {
+        cage: raw.cage.unwrap_or_default(),
+        subdivisions,
+        padding,
+        dynamics,
+        stiffness,
+        density,
+        damping,
+        dt,
+    })
+}
+
+/// Resolves `given` against `dir` and checks that it names a mesh: either an existing file or a
+/// TetGen base path whose `.node` file exists.
+fn resolve_mesh(
+    c: &Check<'_, '_>,
+    key: &KeyPath,
+    given: &str,
+    dir: &Path,
+) -> Result<PathBuf, ConfigError> {
+    if given.trim().is_empty() {
+        return Err(c.invalid(
+            key,
+            "\"\"",
+            "mesh must be a path (relative to the scene file)",
+        ));
+    }
+    let path = dir.join(given);
+    if path.is_file() {
+        return Ok(path);
+    }
+    let mut node = OsString::from(path.as_os_str());
+    node.push(".node");
+    let node = PathBuf::from(node);
+    if node.is_file() {
+        return Ok(path);
+    }
+    Err(ConfigError::MeshNotFound {
+        at: Box::new(c.src.locate(key)),
+        key: key.to_string(),
+        body: c.body.map(str::to_owned),
+        given: given.to_owned(),
+        tried: vec![path, node],
+    })
+}
