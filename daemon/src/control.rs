@@ -26,7 +26,7 @@ use lop_config::{BodySpec, ModelPin, Scene};
 use lop_ipc::control::*;
 use lop_ipc::services::Role;
 use lop_ipc::{BodyModel, ServiceNames, CONTRACT_VERSION};
-use lop_sim::lop::{Lop, LopPolicy};
+use lop_sim::lop::{LopPolicy, PrecisionController};
 use lop_sim::mesh::TetMesh;
 use lop_sim::model::Model;
 use lop_sim::world::World;
@@ -39,7 +39,7 @@ use lop_scene as scene;
 const REQUESTS_PER_POLL: usize = 4;
 
 type Request = ActiveRequest<ipc::Service, ControlRequest, (), ControlResponse, ()>;
-type Built = Result<(Model, Option<Lop>), String>;
+type Built = Result<(Model, Option<PrecisionController>), String>;
 
 /// A model rebuild running on a helper thread.
 struct Rebuild {
@@ -59,7 +59,7 @@ pub struct ControlServer {
     /// Each body's controller policy (per body: `lop.*` requests retune one body).
     policies: Vec<LopPolicy>,
     /// Each body's models as built, at rest: what a reset restores.
-    rest: Vec<(Model, Option<Lop>)>,
+    rest: Vec<(Model, Option<PrecisionController>)>,
     paused: bool,
     rebuild: Option<Rebuild>,
 }

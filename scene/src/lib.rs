@@ -11,7 +11,9 @@ use anyhow::{Context, Result};
 use lop_config::{BodySpec, MassSpec, ModelPin, Scene, ToolSpec};
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::{Fem, FemMode, FemParameters};
-use lop_sim::lop::{CageDynamics, CageShape, GcModel, GcParameters, Lop, LopPolicy, StartLevel};
+use lop_sim::lop::{
+    CageDynamics, CageModel, CageShape, GcParameters, LopPolicy, PrecisionController, StartLevel,
+};
 pub use lop_sim::mesh::smallest_extent;
 use lop_sim::mesh::{read_mesh, TetMesh};
 use lop_sim::model::Model;
@@ -258,24 +260,29 @@ pub fn lop_policy(scene: &Scene) -> LopPolicy {
 
 /// A body's models: the one to run now and, for `model = "auto"`, the levels-of-precision
 /// controller holding the other. Pinned bodies get no controller.
-pub fn body_models(scene: &Scene, spec: &BodySpec, mesh: &TetMesh) -> Result<(Model, Option<Lop>)> {
+pub fn body_models(
+    scene: &Scene,
+    spec: &BodySpec,
+    mesh: &TetMesh,
+) -> Result<(Model, Option<PrecisionController>)> {
     let precise = precise_model(scene, spec, mesh)?;
     if matches!(spec.model, ModelPin::Msd | ModelPin::Fem) {
         return Ok((precise, None));
     }
     let params = gc_parameters(spec, mesh, precise.dt());
-    let gc =
-        GcModel::from_precise_under(mesh, params, &precise, scene.gravity).with_context(|| {
+    let gc = CageModel::from_precise_under(mesh, params, &precise, scene.gravity).with_context(
+        || {
             format!(
                 "{}: body {:?}: Green-coordinates cage",
                 scene.path.display(),
                 spec.name
             )
-        })?;
+        },
+    )?;
     if spec.model == ModelPin::Gc {
         return Ok((Model::Gc(Box::new(gc)), None));
     }
-    let (active, lop) = Lop::new(precise, gc, lop_policy(scene));
+    let (active, lop) = PrecisionController::new(precise, gc, lop_policy(scene));
     Ok((active, Some(lop)))
 }
 

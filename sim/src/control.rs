@@ -6,7 +6,7 @@
 //! may take milliseconds; these functions only swap what was built, so they are cheap and the
 //! world stays valid whatever was asked.
 
-use crate::lop::{Lop, LopPolicy};
+use crate::lop::{LopPolicy, PrecisionController};
 use crate::model::{ContactReport, Model};
 use crate::world::World;
 
@@ -16,7 +16,12 @@ impl World {
     /// Returns the largest nodal distance between the old and the new model's shape after the
     /// hand-over (zero for a precise model; a cage's fit residual otherwise). Out-of-range `i`
     /// is ignored (returns 0).
-    pub fn replace_models(&mut self, i: usize, mut model: Model, lop: Option<Lop>) -> f64 {
+    pub fn replace_models(
+        &mut self,
+        i: usize,
+        mut model: Model,
+        lop: Option<PrecisionController>,
+    ) -> f64 {
         let Some(b) = self.bodies.get_mut(i) else {
             return 0.0;
         };
@@ -41,7 +46,7 @@ impl World {
 
     /// Puts body `i` back to rest with the given (freshly built, at rest) model and controller:
     /// rest shape, zero velocity, no loads, no contact. Its clock and reset count are kept.
-    pub fn reset_body(&mut self, i: usize, model: Model, lop: Option<Lop>) {
+    pub fn reset_body(&mut self, i: usize, model: Model, lop: Option<PrecisionController>) {
         let Some(b) = self.bodies.get_mut(i) else {
             return;
         };
@@ -63,7 +68,7 @@ impl World {
     }
 }
 
-impl Lop {
+impl PrecisionController {
     /// Replaces the switching policy; takes effect at the next step. The body keeps its level.
     pub fn set_policy(&mut self, policy: LopPolicy) {
         self.policy = policy;

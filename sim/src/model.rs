@@ -18,7 +18,7 @@ pub use crate::interaction::{
     BlowUp, ContactReport, ContactSpring, ToolAnchor, ToolContact, RUNAWAY_SPEED,
 };
 use crate::lop::{
-    CageDynamics, Damping, GcModel, GcModelError, GcParameters, PreciseOperators, Prestress,
+    CageDynamics, CageModel, CageModelError, Damping, GcParameters, PreciseOperators, Prestress,
 };
 use crate::mesh::{extents, TetMesh};
 use crate::msd::MassSpring;
@@ -43,7 +43,7 @@ pub enum Model {
     /// Finite elements (linear or corotational).
     Fem(crate::fem::Fem),
     /// Green-coordinates cage (boxed: it is large and rarely moved).
-    Gc(Box<GcModel>),
+    Gc(Box<CageModel>),
 }
 
 macro_rules! dispatch {
@@ -121,7 +121,7 @@ impl Model {
         }
     }
     /// Replaces positions and velocities (state transfer between levels of precision). Held
-    /// nodes stay at rest. A cage fits itself to the shape (see [`GcModel::take_over`]).
+    /// nodes stay at rest. A cage fits itself to the shape (see [`CageModel::take_over`]).
     pub fn set_state(&mut self, x: &[[f64; 3]], v: &[[f64; 3]]) {
         match self {
             Model::MassSpring(m) => m.set_state(x, v),
@@ -159,30 +159,30 @@ impl Model {
 
 // The cage's constructors from a precise `Model` live here, beside the enum, so that the cage
 // (`crate::lop`) never imports `Model`: it is built from the operators a model hands it.
-impl GcModel {
+impl CageModel {
     /// Builds the GC model of `mesh` from its precise model (`Model::MassSpring` or
     /// `Model::Fem`): masses, held nodes, damping and rest stiffness come from it.
     pub fn from_precise(
         mesh: &TetMesh,
         params: GcParameters,
         precise: &Model,
-    ) -> Result<GcModel, GcModelError> {
-        GcModel::from_model(mesh, params, precise, None)
+    ) -> Result<CageModel, CageModelError> {
+        CageModel::from_model(mesh, params, precise, None)
     }
 
-    /// [`GcModel::new`] with the operators of `precise`, and `prestress` if given.
+    /// [`CageModel::new`] with the operators of `precise`, and `prestress` if given.
     fn from_model(
         mesh: &TetMesh,
         params: GcParameters,
         precise: &Model,
         prestress: Option<Prestress<'_>>,
-    ) -> Result<GcModel, GcModelError> {
+    ) -> Result<CageModel, CageModelError> {
         let damping = precise.damping().ok_or_else(|| {
-            GcModelError::Parameter("a cage needs a precise model to stand for".into())
+            CageModelError::Parameter("a cage needs a precise model to stand for".into())
         })?;
         let held: Vec<bool> = (0..mesh.nodes.len()).map(|i| precise.is_held(i)).collect();
         let stiffness = |u: &[[f64; 3]]| precise.rest_stiffness_product(u).unwrap_or_default();
-        GcModel::new(
+        CageModel::new(
             mesh,
             params,
             &PreciseOperators {
@@ -195,7 +195,7 @@ impl GcModel {
         )
     }
 
-    /// [`GcModel::from_precise`] for a body that lives under a constant `gravity` (a scene's):
+    /// [`CageModel::from_precise`] for a body that lives under a constant `gravity` (a scene's):
     /// a projected cage is linearised about the precise model's equilibrium under it, with the
     /// *tangent* stiffness there, instead of about the rest shape. A soft, tall body sagging
     /// under its own weight is far more compliant sideways than at rest (the corotational FEM
@@ -204,13 +204,13 @@ impl GcModel {
     /// gravity; under a different gravity the cage is wrong by the difference, so use the
     /// scene's. Only a corotational FEM body has this effect and a static solver to find the
     /// equilibrium; for other bodies, zero gravity, or an equilibrium that cannot be found or
-    /// whose tangent is not positive definite, this is [`GcModel::from_precise`].
+    /// whose tangent is not positive definite, this is [`CageModel::from_precise`].
     pub fn from_precise_under(
         mesh: &TetMesh,
         params: GcParameters,
         precise: &Model,
         gravity: [f64; 3],
-    ) -> Result<GcModel, GcModelError> {
+    ) -> Result<CageModel, CageModelError> {
         let fem = match precise {
             Model::Fem(f)
                 if f.parameters().mode == FemMode::Corotational
@@ -219,12 +219,12 @@ impl GcModel {
             {
                 f
             }
-            _ => return GcModel::from_precise(mesh, params, precise),
+            _ => return CageModel::from_precise(mesh, params, precise),
         };
         let mut eq = fem.clone();
         eq.reset();
         if eq.solve_static(gravity, &[]).is_err() {
-            return GcModel::from_precise(mesh, params, precise);
+            return CageModel::from_precise(mesh, params, precise);
         }
         let x_g = eq.positions().to_vec();
         let n = x_g.len();
@@ -250,7 +250,7 @@ impl GcModel {
                 .map(|(p, q)| scale(sub(*p, *q), -0.5 / h))
                 .collect()
         };
-        GcModel::from_model(
+        CageModel::from_model(
             mesh,
             params,
             precise,

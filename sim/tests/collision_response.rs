@@ -12,7 +12,7 @@ mod common;
 use common::{cylinder, cylinder_fem_params};
 use lop_sim::collide::{CollisionParams, Collisions};
 use lop_sim::fem::Fem;
-use lop_sim::lop::{CageDynamics, CageShape, GcModel, GcParameters};
+use lop_sim::lop::{CageDynamics, CageModel, CageShape, GcParameters};
 use lop_sim::mesh::TetMesh;
 use lop_sim::model::{Model, ModelKind};
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
@@ -60,7 +60,7 @@ fn model(kind: ModelKind, mesh: &TetMesh) -> Model {
                 dt: 0.02,
             };
             Model::Gc(Box::new(
-                GcModel::from_precise(mesh, params, &fem()).unwrap(),
+                CageModel::from_precise(mesh, params, &fem()).unwrap(),
             ))
         }
     }

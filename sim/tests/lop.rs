@@ -7,8 +7,8 @@ use common::{cylinder, cylinder_fem_params};
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::Fem;
 use lop_sim::lop::{
-    fitted_cells, CageDynamics, CageShape, GcModel, GcParameters, Lop, LopPolicy, StartLevel,
-    SwitchReason,
+    fitted_cells, CageDynamics, CageModel, CageShape, GcParameters, LopPolicy, PrecisionController,
+    StartLevel, SwitchReason,
 };
 use lop_sim::mesh::TetMesh;
 use lop_sim::model::{Model, ModelKind};
@@ -75,8 +75,9 @@ fn projected_cage_follows_the_fem_sag() {
         CageShape::SubdividedBox(3),
     ] {
         let precise = Model::Fem(fem(&mesh));
-        let gc = GcModel::from_precise(&mesh, gc_params(shape, CageDynamics::Projected), &precise)
-            .unwrap();
+        let gc =
+            CageModel::from_precise(&mesh, gc_params(shape, CageDynamics::Projected), &precise)
+                .unwrap();
         let mut model = Model::Gc(Box::new(gc));
         settle(&mut model, 5000);
         let err = max_distance(model.positions(), reference.positions());
@@ -122,7 +123,7 @@ fn mass_spring_cage_settles_under_gravity() {
         density: 20.0,
         damping: 0.3,
     };
-    let gc = GcModel::from_precise(&mesh, gc_params(CageShape::Box, dynamics), &precise).unwrap();
+    let gc = CageModel::from_precise(&mesh, gc_params(CageShape::Box, dynamics), &precise).unwrap();
     let mut model = Model::Gc(Box::new(gc));
     settle(&mut model, 20_000);
     let moved = max_distance(model.positions(), &mesh.nodes);
@@ -156,7 +157,7 @@ fn loads_reach_the_cage() {
     let mut reference = fem(&mesh);
     reference.solve_static([0.0; 3], &loads).unwrap();
     let precise = Model::Fem(fem(&mesh));
-    let gc = GcModel::from_precise(
+    let gc = CageModel::from_precise(
         &mesh,
         gc_params(CageShape::Box, CageDynamics::Projected),
         &precise,
@@ -210,7 +211,7 @@ fn poke_switches_to_fem_and_back_without_a_pop() {
     let mesh = cylinder();
     let smallest = 0.06;
     let precise = Model::Fem(fem(&mesh));
-    let gc = GcModel::from_precise(
+    let gc = CageModel::from_precise(
         &mesh,
         gc_params(CageShape::Box, CageDynamics::Projected),
         &precise,
@@ -220,7 +221,7 @@ fn poke_switches_to_fem_and_back_without_a_pop() {
         start: StartLevel::Gc,
         ..LopPolicy::default()
     };
-    let (active, lop) = Lop::new(precise, gc, policy);
+    let (active, lop) = PrecisionController::new(precise, gc, policy);
     assert_eq!(active.kind(), ModelKind::Gc);
     let mut world = World::new([0.0; 3]);
     let i = world.add_lop_body("cyl", mesh.clone(), active, lop);
@@ -291,7 +292,7 @@ fn hand_over_starts_from_the_precise_shape_and_fades_the_residual() {
     }
     let x = world.bodies[i].model.positions().to_vec();
     let v = vec![[0.0; 3]; x.len()];
-    let gc = GcModel::from_precise(
+    let gc = CageModel::from_precise(
         &mesh,
         gc_params(CageShape::Box, CageDynamics::Projected),
         &Model::Fem(fem(&mesh)),
@@ -311,7 +312,7 @@ fn hand_over_starts_from_the_precise_shape_and_fades_the_residual() {
         "snap {snap} vs residual {residual}"
     );
 
-    let offset = |a: &GcModel, b: &GcModel| -> Vec<[f64; 3]> {
+    let offset = |a: &CageModel, b: &CageModel| -> Vec<[f64; 3]> {
         a.positions()
             .iter()
             .zip(b.positions())
@@ -345,7 +346,7 @@ fn hand_over_under_gravity_does_not_drift() {
     reference.solve_static(GRAVITY, &[]).unwrap();
     let x = reference.positions().to_vec();
     let v = vec![[0.0; 3]; x.len()];
-    let mut gc = GcModel::from_precise(
+    let mut gc = CageModel::from_precise(
         &mesh,
         gc_params(CageShape::Box, CageDynamics::Projected),
         &Model::Fem(fem(&mesh)),
@@ -384,7 +385,7 @@ fn projected_cage_has_the_fem_compliance_under_a_side_load() {
         let precise = Model::Fem(fem(&mesh));
         let mut errors = Vec::new();
         for dynamics in [CageDynamics::Projected, CageDynamics::Galerkin] {
-            let gc = GcModel::from_precise(&mesh, gc_params(shape, dynamics), &precise).unwrap();
+            let gc = CageModel::from_precise(&mesh, gc_params(shape, dynamics), &precise).unwrap();
             let mut model = Model::Gc(Box::new(gc));
             let mut settled = false;
             for _ in 0..5000 {
@@ -398,7 +399,7 @@ fn projected_cage_has_the_fem_compliance_under_a_side_load() {
             errors.push(max_distance(model.positions(), reference.positions()));
         }
         let mut fit =
-            GcModel::from_precise(&mesh, gc_params(shape, CageDynamics::Projected), &precise)
+            CageModel::from_precise(&mesh, gc_params(shape, CageDynamics::Projected), &precise)
                 .unwrap();
         let zero = vec![[0.0; 3]; mesh.nodes.len()];
         let best = fit.take_over(reference.positions(), &zero, 0.0);
@@ -458,9 +459,9 @@ fn prestressed_cage_follows_the_sagging_cylinder_sideways() {
     let mut errors = Vec::new();
     for under in [true, false] {
         let gc = if under {
-            GcModel::from_precise_under(&mesh, params, &precise, GRAVITY).unwrap()
+            CageModel::from_precise_under(&mesh, params, &precise, GRAVITY).unwrap()
         } else {
-            GcModel::from_precise(&mesh, params, &precise).unwrap()
+            CageModel::from_precise(&mesh, params, &precise).unwrap()
         };
         let mut model = Model::Gc(Box::new(gc));
         let mut settled = false;
@@ -474,7 +475,7 @@ fn prestressed_cage_follows_the_sagging_cylinder_sideways() {
         assert!(settled, "under gravity: {under}: did not settle");
         errors.push(max_distance(model.positions(), reference.positions()));
     }
-    let mut fit = GcModel::from_precise(&mesh, params, &precise).unwrap();
+    let mut fit = CageModel::from_precise(&mesh, params, &precise).unwrap();
     let zero = vec![[0.0; 3]; mesh.nodes.len()];
     let best = fit.take_over(reference.positions(), &zero, 0.0);
     eprintln!(

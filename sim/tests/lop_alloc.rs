@@ -6,7 +6,9 @@ mod common;
 use common::{cylinder, cylinder_fem_params};
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::Fem;
-use lop_sim::lop::{CageDynamics, CageShape, GcModel, GcParameters, Lop, LopPolicy};
+use lop_sim::lop::{
+    CageDynamics, CageModel, CageShape, GcParameters, LopPolicy, PrecisionController,
+};
 use lop_sim::model::{Model, ModelKind};
 use lop_sim::world::World;
 use lop_test_support::alloc::{self, Counting};
@@ -36,7 +38,7 @@ fn cage_steps_are_allocation_free() {
             dynamics,
             dt: 0.02,
         };
-        let gc = GcModel::from_precise(&mesh, params, &precise(&mesh)).unwrap();
+        let gc = CageModel::from_precise(&mesh, params, &precise(&mesh)).unwrap();
         let mut world = World::new([0.0, -9.81, 0.0]);
         let i = world.add_model("cyl", mesh.clone(), Model::Gc(Box::new(gc)));
         // The tool 2 mm into the side, a load on the top.
@@ -79,8 +81,8 @@ fn an_untouched_controlled_body_is_allocation_free() {
         dynamics: CageDynamics::Projected,
         dt: 0.02,
     };
-    let gc = GcModel::from_precise(&mesh, params, &p).unwrap();
-    let (active, lop) = Lop::new(p, gc, LopPolicy::default());
+    let gc = CageModel::from_precise(&mesh, params, &p).unwrap();
+    let (active, lop) = PrecisionController::new(p, gc, LopPolicy::default());
     let mut world = World::new([0.0, -9.81, 0.0]);
     let i = world.add_lop_body("cyl", mesh, active, lop);
     let far = ToolSphere {

@@ -10,7 +10,7 @@ use std::path::Path;
 use anyhow::{anyhow, bail, Context, Result};
 use lop_config::{BodySpec, ModelPin, Scene};
 use lop_scene::smallest_extent;
-use lop_sim::lop::{CageDynamics, CageShape, GcModel, GcParameters};
+use lop_sim::lop::{CageDynamics, CageModel, CageShape, GcParameters};
 use lop_sim::mesh::TetMesh;
 use lop_sim::model::Model;
 use serde::Serialize;
@@ -391,7 +391,7 @@ fn run_reference(
     for shape in SHAPES {
         for dynamics in [DynKind::Projected, DynKind::Galerkin, DynKind::MassSpring] {
             let params = gc_variant(spec, mesh, shape, dynamics, dt);
-            let gc = GcModel::from_precise_under(mesh, params, &precise, scene.gravity).map_err(
+            let gc = CageModel::from_precise_under(mesh, params, &precise, scene.gravity).map_err(
                 |e| {
                     anyhow!(
                         "{}: {} cage, {} dynamics: {e}",
@@ -446,7 +446,7 @@ fn run_reference(
             },
             ..base
         };
-        let gc = GcModel::from_precise(mesh, params, &precise)
+        let gc = CageModel::from_precise(mesh, params, &precise)
             .map_err(|e| anyhow!("{}: tuned mass-spring box cage: {e}", case.body))?;
         let mut row = VariantRow::new(
             reference,
@@ -464,7 +464,7 @@ fn run_reference(
     }
     for shape in SHAPES {
         let params = gc_variant(spec, mesh, shape, DynKind::Projected, dt);
-        let gc = GcModel::from_precise_under(mesh, params, &precise, scene.gravity)
+        let gc = CageModel::from_precise_under(mesh, params, &precise, scene.gravity)
             .map_err(|e| anyhow!("{}: {} cage: {e}", case.body, shape_label(shape)))?;
         let vertices = gc.coordinates().vertex_count();
         runners.push(Runner::new(
@@ -646,7 +646,7 @@ impl Calibration<'_> {
             },
             ..self.base
         };
-        let Ok(mut gc) = GcModel::from_precise(self.mesh, params, self.precise) else {
+        let Ok(mut gc) = CageModel::from_precise(self.mesh, params, self.precise) else {
             return f64::INFINITY;
         };
         let mut loads = vec![[0.0; 3]; self.mesh.nodes.len()];

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use anyhow::{anyhow, bail, Result};
 use lop_config::{BodySpec, ModelPin, Scene};
-use lop_sim::lop::{CageShape, GcModel};
+use lop_sim::lop::{CageModel, CageShape};
 use lop_sim::mesh::TetMesh;
 use lop_sim::model::Model;
 use serde::Serialize;
@@ -258,7 +258,7 @@ pub fn run(quick: bool) -> Result<Vec<SpeedRow>> {
                 for shape in SHAPES {
                     let params = gc_variant(&spec, &mesh, shape, DynKind::Projected, gc_dt);
                     let t0 = Instant::now();
-                    let gc = GcModel::from_precise_under(&mesh, params, &fem, scene.gravity)
+                    let gc = CageModel::from_precise_under(&mesh, params, &fem, scene.gravity)
                         .map_err(|e| {
                             anyhow!("body {}: {} cage: {e}", spec.name, shape_label(shape))
                         })?;

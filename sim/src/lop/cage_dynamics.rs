@@ -1,14 +1,14 @@
 //! The cage's dynamics, one per [`CageDynamics`] variant, each with its own constructor and
 //! step: the reduced implicit model in cage-vertex displacements ([`CageDynamics::Projected`]
 //! and [`CageDynamics::Galerkin`], which differ only in the stiffness they project) and the
-//! thesis' mass-spring system on the cage vertices ([`CageDynamics::MassSpring`]). [`GcModel`]
-//! (`gc_model.rs`) owns one and maps the body's loads to it and its cage back to the nodes.
+//! thesis' mass-spring system on the cage vertices ([`CageDynamics::MassSpring`]). [`CageModel`]
+//! (`cage_model.rs`) owns one and maps the body's loads to it and its cage back to the nodes.
 //!
 //! [`CageDynamics`]: super::CageDynamics
 //! [`CageDynamics::Projected`]: super::CageDynamics::Projected
 //! [`CageDynamics::Galerkin`]: super::CageDynamics::Galerkin
 //! [`CageDynamics::MassSpring`]: super::CageDynamics::MassSpring
-//! [`GcModel`]: super::GcModel
+//! [`CageModel`]: super::CageModel
 
 use crate::solve::dense::spd_solve_in_place;
 use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
@@ -20,7 +20,7 @@ use crate::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 use crate::vec3::{add, dot, scale};
 
 use super::compliance::matched_stiffness;
-use super::gc_model::{Damping, GcModelError, PreciseOperators};
+use super::cage_model::{CageModelError, Damping, PreciseOperators};
 use super::kernel::gemv_acc;
 
 /// Cage dynamics state: [`Reduced`] for the projected and Galerkin cages, a mass-spring
@@ -53,7 +53,7 @@ pub(super) struct Reduced {
     /// a hand-over computes it; zero from rest.
     pub(super) correction: Vec<f64>,
     /// The correction from rest: zero, or the prestressed equilibrium's (see
-    /// [`GcModel::from_precise_under`](super::GcModel::from_precise_under)).
+    /// [`CageModel::from_precise_under`](super::CageModel::from_precise_under)).
     pub(super) rest_correction: Vec<f64>,
     pub(super) correction_due: bool,
     /// The step's increment `d`, scratch.
@@ -111,7 +111,7 @@ impl Reduced {
         basis: &CageBasis<'_>,
         ops: &PreciseOperators<'_>,
         dt: f64,
-    ) -> Result<Reduced, GcModelError> {
+    ) -> Result<Reduced, CageModelError> {
         Reduced::new(basis, ops, dt, true)
     }
 
@@ -120,7 +120,7 @@ impl Reduced {
         basis: &CageBasis<'_>,
         ops: &PreciseOperators<'_>,
         dt: f64,
-    ) -> Result<Reduced, GcModelError> {
+    ) -> Result<Reduced, CageModelError> {
         Reduced::new(basis, ops, dt, false)
     }
 
@@ -132,7 +132,7 @@ impl Reduced {
         ops: &PreciseOperators<'_>,
         dt: f64,
         matched_to_body: bool,
-    ) -> Result<Reduced, GcModelError> {
+    ) -> Result<Reduced, CageModelError> {
         let CageBasis {
             mesh,
             held,
@@ -204,7 +204,7 @@ impl Reduced {
         };
         let a = m_r / (dt * dt) + &d_r / (2.0 * dt) + &k_r;
         let a_dense = a.as_slice().to_vec();
-        let a_inv = Cholesky::new(a).ok_or(GcModelError::Singular)?.inverse();
+        let a_inv = Cholesky::new(a).ok_or(CageModelError::Singular)?.inverse();
         let p = &a_inv * &k_r;
         let q_mat = &a_inv * (m_r / dt - &d_r * 0.5);
         let mut response = (-p).as_slice().to_vec();

@@ -29,7 +29,7 @@ use faer::sparse::{SparseColMat, Triplet};
 use faer::Side;
 use nalgebra::{Cholesky, DMatrix};
 
-use super::gc_model::{GcModelError, StiffnessProduct};
+use super::cage_model::{CageModelError, StiffnessProduct};
 use crate::mesh::TetMesh;
 use crate::solve::sparse::{Method, Ordering, Precision, SparseSpd};
 
@@ -48,7 +48,7 @@ pub(super) fn matched_stiffness(
     mg: &DMatrix<f64>,
     m_r: &DMatrix<f64>,
     tolerance: f64,
-) -> Result<Option<DMatrix<f64>>, GcModelError> {
+) -> Result<Option<DMatrix<f64>>, CageModelError> {
     let n = mesh.nodes.len();
     let m = mg.ncols();
     // Free-node numbering: node k owns DOFs 3·dof[k] .. 3·dof[k] + 3.
@@ -81,7 +81,7 @@ pub(super) fn matched_stiffness(
             }
             let y = stiffness(&u);
             if y.len() != n {
-                return Err(GcModelError::Parameter(
+                return Err(CageModelError::Parameter(
                     "the precise model gave no rest stiffness to project".into(),
                 ));
             }
@@ -104,7 +104,7 @@ pub(super) fn matched_stiffness(
         }
     }
     let k_ff = SparseColMat::<usize, f64>::try_new_from_triplets(nf, nf, &triplets)
-        .map_err(|e| GcModelError::Parameter(format!("assembling the rest stiffness: {e:?}")))?;
+        .map_err(|e| CageModelError::Parameter(format!("assembling the rest stiffness: {e:?}")))?;
     check_assembly(&k_ff, &free, n, stiffness, tolerance)?;
 
     let Some(mut k_ff) = factorize(&k_ff) else {
@@ -133,7 +133,9 @@ pub(super) fn matched_stiffness(
         }
     }
     let c_r = (&c_r + c_r.transpose()) * 0.5;
-    let c_inv = Cholesky::new(c_r).ok_or(GcModelError::Singular)?.inverse();
+    let c_inv = Cholesky::new(c_r)
+        .ok_or(CageModelError::Singular)?
+        .inverse();
     let k_r = m_r * c_inv * m_r;
     Ok(Some((&k_r + k_r.transpose()) * 0.5))
 }
@@ -213,7 +215,7 @@ fn check_assembly(
     n: usize,
     stiffness: StiffnessProduct<'_>,
     tolerance: f64,
-) -> Result<(), GcModelError> {
+) -> Result<(), CageModelError> {
     let mut u = vec![[0.0; 3]; n];
     let mut x = vec![0.0; 3 * free.len()];
     for (f, &k) in free.iter().enumerate() {
@@ -245,7 +247,7 @@ fn check_assembly(
     if diff <= tolerance * size.max(f64::MIN_POSITIVE) {
         Ok(())
     } else {
-        Err(GcModelError::Parameter(format!(
+        Err(CageModelError::Parameter(format!(
             "the precise model's stiffness couples nodes that share no tetrahedron (probe \
              mismatch {diff:.3e} of {size:.3e}); use dynamics = \"galerkin\""
         )))

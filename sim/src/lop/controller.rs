@@ -3,7 +3,7 @@
 use crate::model::{Model, ModelKind};
 use crate::vec3::{norm, sub};
 
-use super::GcModel;
+use super::CageModel;
 
 /// Which level a body starts at.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -51,7 +51,7 @@ pub enum SwitchReason {
     Contact,
     /// The precise model settled.
     Settled,
-    /// Asked for by the caller ([`Lop::to_precise`]).
+    /// Asked for by the caller ([`PrecisionController::to_precise`]).
     Requested,
 }
 
@@ -75,7 +75,7 @@ pub struct Switch {
 
 /// A body's controller: the model that is not running (parked) and the switching state.
 #[derive(Debug, Clone)]
-pub struct Lop {
+pub struct PrecisionController {
     parked: Model,
     pub(crate) policy: LopPolicy,
     calm: f64,
@@ -84,10 +84,10 @@ pub struct Lop {
     unread: bool,
 }
 
-impl Lop {
+impl PrecisionController {
     /// A controller over a body's `precise` model and its cage model `gc`; returns the model
     /// to run first (per `policy.start`) and the controller holding the other.
-    pub fn new(precise: Model, gc: GcModel, policy: LopPolicy) -> (Model, Lop) {
+    pub fn new(precise: Model, gc: CageModel, policy: LopPolicy) -> (Model, PrecisionController) {
         let gc = Model::Gc(Box::new(gc));
         let (active, parked) = match policy.start {
             StartLevel::Gc => (gc, precise),
@@ -95,7 +95,7 @@ impl Lop {
         };
         (
             active,
-            Lop {
+            PrecisionController {
                 parked,
                 policy,
                 calm: 0.0,

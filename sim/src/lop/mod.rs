@@ -1,6 +1,6 @@
 //! Levels of precision (thesis ch. 4): a body runs as a cheap Green-coordinates cage
-//! ([`GcModel`]) while nothing touches it, switches to its precise model (FEM if important,
-//! mass-spring otherwise) when the tool does, and back once it has settled ([`Lop`]).
+//! ([`CageModel`]) while nothing touches it, switches to its precise model (FEM if important,
+//! mass-spring otherwise) when the tool does, and back once it has settled ([`PrecisionController`]).
 //!
 //! # The cage model
 //!
@@ -45,7 +45,7 @@
 //!   3V × 3V solve in contact steps only): a cage as soft as its body would ring under an
 //!   explicit 300 N/m tool.
 //!
-//! - **Under gravity** ([`GcModel::from_precise_under`], what `lopd` builds): a corotational
+//! - **Under gravity** ([`CageModel::from_precise_under`], what `lopd` builds): a corotational
 //!   FEM body is first solved to its static equilibrium under the scene's gravity, and the
 //!   projected cage is linearised about *that* shape, with the FEM's tangent stiffness there
 //!   (central differences of its elastic forces, probed like `K`) in `C_r`, and a constant
@@ -79,12 +79,12 @@
 mod cage_dynamics;
 mod compliance;
 mod controller;
-mod gc_model;
+mod cage_model;
 mod kernel;
 
-pub use controller::{Lop, LopPolicy, StartLevel, Switch, SwitchReason};
-pub(crate) use gc_model::Prestress;
-pub use gc_model::{
-    build_cage, fitted_cells, CageDynamics, CageShape, Damping, GcModel, GcModelError,
+pub use controller::{LopPolicy, PrecisionController, StartLevel, Switch, SwitchReason};
+pub(crate) use cage_model::Prestress;
+pub use cage_model::{
+    build_cage, fitted_cells, CageDynamics, CageModel, CageModelError, CageShape, Damping,
     GcParameters, PreciseOperators, MAX_FITTED_VERTICES,
 };

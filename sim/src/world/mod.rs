@@ -16,7 +16,7 @@ pub use round::{BodyRound, Round, RoundReport, RoundTool, MAX_HEAT_CATCH_UP};
 use crate::collide::{CollisionBody, CollisionParams, CollisionStats, Collisions};
 use crate::contact::{closest_on_surface, scale, ToolSphere};
 use crate::heat::HeatWorld;
-use crate::lop::Lop;
+use crate::lop::PrecisionController;
 use crate::mesh::TetMesh;
 use crate::model::{BlowUp, ContactReport, ContactSpring, Model, ToolAnchor, ToolContact};
 use crate::msd::{MassSpring, MsdParameters};
@@ -39,7 +39,7 @@ pub struct Body {
     /// The model that moves it now.
     pub model: Model,
     /// The levels-of-precision controller (`None`: pinned to `model`).
-    pub lop: Option<Lop>,
+    pub lop: Option<PrecisionController>,
     /// External nodal loads for the next step, N. Filled by the caller between steps, cleared
     /// by [`World::clear_loads`].
     pub loads: Vec<[f64; 3]>,
@@ -274,8 +274,14 @@ impl World {
     }
 
     /// Adds a body under a levels-of-precision controller: `model` is the one to run first (as
-    /// returned by [`Lop::new`]); returns its index.
-    pub fn add_lop_body(&mut self, name: &str, mesh: TetMesh, model: Model, lop: Lop) -> usize {
+    /// returned by [`PrecisionController::new`]); returns its index.
+    pub fn add_lop_body(
+        &mut self,
+        name: &str,
+        mesh: TetMesh,
+        model: Model,
+        lop: PrecisionController,
+    ) -> usize {
         let i = self.add_model(name, mesh, model);
         self.bodies[i].lop = Some(lop);
         i

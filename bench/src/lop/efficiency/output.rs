@@ -142,7 +142,7 @@ fn opt_us(v: Option<f64>) -> String {
 /// Part 1's tables for stdout.
 pub fn render(rows: &[RunRow]) -> String {
     let mut s = String::from(
-        "Part 1: efficiency, time per iteration per body (every World::step_body call timed, \
+        "Part 1: efficiency, time per iteration per body (every body step of World::round timed, \
          no warm-up; organ-to-organ collision detection timed on its own), µs\n",
     );
     for trial in &TRIALS {
@@ -256,7 +256,7 @@ pub fn render(rows: &[RunRow]) -> String {
 fn render_collision(trial: &Trial, runs: &[&RunRow]) -> String {
     let pushed = trial.pushed.unwrap_or("-");
     let mut s = String::from(
-        "Collision detection: one World::detect_collisions per round, timed on its own (not in \
+        "Collision detection: once per World::round, timed on its own (not in \
          the step times above), µs.\n\
          \x20 median: over all rounds / the rounds in contact (a penetrating vertex found) / \
          apart; the first detection builds the trees\n\

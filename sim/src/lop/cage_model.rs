@@ -87,7 +87,7 @@ pub enum Damping {
 pub type StiffnessProduct<'a> = &'a dyn Fn(&[[f64; 3]]) -> Vec<[f64; 3]>;
 
 /// The precise model's equilibrium under a constant gravity, about which a projected cage is
-/// linearised instead of about the rest shape (see [`GcModel::from_precise_under`]).
+/// linearised instead of about the rest shape (see [`CageModel::from_precise_under`]).
 pub struct Prestress<'a> {
     /// The gravity of the equilibrium, m/s².
     pub gravity: [f64; 3],
@@ -113,7 +113,7 @@ pub struct PreciseOperators<'a> {
 
 /// Why a GC model could not be built.
 #[derive(Debug, Error)]
-pub enum GcModelError {
+pub enum CageModelError {
     /// The cage is not usable or does not hold the body.
     #[error("cage: {0}")]
     Cage(#[from] CageError),
@@ -133,7 +133,7 @@ pub enum GcModelError {
 /// The body's nodes are bound to the cage once (φ, ψ per node); a step moves the cage by its
 /// dynamics and re-evaluates every node, `x = Σ φᵢ vᵢ' + Σ ψⱼ sⱼ n(tⱼ')`. Fixed nodes stay at rest.
 #[derive(Debug, Clone)]
-pub struct GcModel {
+pub struct CageModel {
     params: GcParameters,
     gc: GreenCoordinates,
     binding: GcBinding,
@@ -218,22 +218,22 @@ pub fn fitted_cells(points: &[[f64; 3]]) -> [usize; 3] {
     cells
 }
 
-impl GcModel {
+impl CageModel {
     /// Builds the GC model of the body `mesh` (rest shape, fixed nodes), whose precise model
     /// provides `ops`.
     pub fn new(
         mesh: &TetMesh,
         params: GcParameters,
         ops: &PreciseOperators<'_>,
-    ) -> Result<GcModel, GcModelError> {
+    ) -> Result<CageModel, CageModelError> {
         if !(params.padding > 0.0 && params.padding.is_finite()) {
-            return Err(GcModelError::Parameter(format!(
+            return Err(CageModelError::Parameter(format!(
                 "cage padding = {} m: must be a positive distance",
                 params.padding
             )));
         }
         if !(params.dt > 0.0 && params.dt <= 1.0) {
-            return Err(GcModelError::Parameter(format!(
+            return Err(CageModelError::Parameter(format!(
                 "cage dt = {} s: must be in (0, 1]",
                 params.dt
             )));
@@ -290,7 +290,7 @@ impl GcModel {
             }
         }
         let m_r = jacobian.transpose() * &mg;
-        let fit = Cholesky::new(m_r.clone()).ok_or(GcModelError::Singular)?;
+        let fit = Cholesky::new(m_r.clone()).ok_or(CageModelError::Singular)?;
 
         let dt = params.dt;
         let basis = CageBasis {
@@ -320,7 +320,7 @@ impl GcModel {
         let kernel = Kernel::new(&binding, &held);
         let mut rest_normals = vec![[0.0; 3]; nt];
         gc.scaled_normals(&cage.vertices, &mut rest_normals);
-        let mut model = GcModel {
+        let mut model = CageModel {
             params,
             gc,
             binding,
@@ -387,7 +387,7 @@ impl GcModel {
     pub fn max_speed(&self) -> f64 {
         self.speed
     }
-    /// Seconds of blending left after the last [`GcModel::take_over`].
+    /// Seconds of blending left after the last [`CageModel::take_over`].
     pub fn blending(&self) -> f64 {
         self.blend_left
     }
@@ -414,7 +414,7 @@ impl GcModel {
         self.speed = 0.0;
     }
 
-    /// Where the cage alone puts node `k` (after [`GcModel::evaluate`]).
+    /// Where the cage alone puts node `k` (after [`CageModel::evaluate`]).
     #[inline]
     fn cage_position(&self, k: usize) -> [f64; 3] {
         let (r, d) = (self.rest[k], self.disp[k]);
@@ -507,7 +507,7 @@ impl GcModel {
         self.step_colliding(gravity, external, contact, &[])
     }
 
-    /// [`GcModel::step`] with organ-to-organ contact springs, resolved through the cage.
+    /// [`CageModel::step`] with organ-to-organ contact springs, resolved through the cage.
     /// Projected dynamics: each pushing spring's stiffness is projected onto the cage,
     /// `k (Gᵀ(w ⊗ n))(Gᵀ(w ⊗ n))ᵀ`, and the step solves the reduced system with it (a dense
     /// 3V × 3V Cholesky factorisation, only in steps with contact), so the contact is implicit
