@@ -88,9 +88,11 @@ pub(crate) mod bvh;
 
 use bvh::{Bvh, Nearest};
 
-use crate::contact::triangle_normal;
+use glam::DVec3;
+
+use crate::contact::unit_normal;
 use crate::model::ContactSpring;
-use crate::vec3::{add, cross, dot, norm, scale, sub};
+use crate::vec3::v;
 
 /// One body as collision sees it in one step.
 #[derive(Debug, Clone, Copy)]
@@ -236,29 +238,30 @@ impl Surface {
         }
     }
 
-    fn face_normal(&self, x: &[[f64; 3]], t: u32) -> [f64; 3] {
-        let [a, b, c] = self.tris[t as usize].map(|v| x[v as usize]);
-        triangle_normal(a, b, c)
+    fn face_normal(&self, x: &[[f64; 3]], t: u32) -> DVec3 {
+        let [a, b, c] = self.tris[t as usize].map(|i| v(x[i as usize]));
+        unit_normal(a, b, c)
     }
 
     /// Angle-weighted pseudo-normal of the feature holding the closest point (not normalised).
-    fn pseudo_normal(&self, x: &[[f64; 3]], hit: &Nearest) -> [f64; 3] {
+    fn pseudo_normal(&self, x: &[[f64; 3]], hit: &Nearest) -> DVec3 {
         let t = hit.triangle;
         let zeros = hit.bary.iter().filter(|&&w| w == 0.0).count();
         match zeros {
             2 => {
                 let k = hit.bary.iter().position(|&w| w != 0.0).unwrap_or(0);
-                let v = self.corner_vert[t as usize][k] as usize;
-                let mut n = [0.0; 3];
-                for &[tt, kk] in &self.incident[self.start[v] as usize..self.start[v + 1] as usize]
+                let vi = self.corner_vert[t as usize][k] as usize;
+                let mut n = DVec3::ZERO;
+                for &[tt, kk] in
+                    &self.incident[self.start[vi] as usize..self.start[vi + 1] as usize]
                 {
                     let tri = self.tris[tt as usize];
                     let kk = kk as usize;
-                    let p = x[tri[kk] as usize];
-                    let e1 = sub(x[tri[(kk + 1) % 3] as usize], p);
-                    let e2 = sub(x[tri[(kk + 2) % 3] as usize], p);
-                    let angle = norm(cross(e1, e2)).atan2(dot(e1, e2));
-                    n = add(n, scale(self.face_normal(x, tt), angle));
+                    let p = v(x[tri[kk] as usize]);
+                    let e1 = v(x[tri[(kk + 1) % 3] as usize]) - p;
+                    let e2 = v(x[tri[(kk + 2) % 3] as usize]) - p;
+                    let angle = e1.cross(e2).length().atan2(e1.dot(e2));
+                    n += self.face_normal(x, tt) * angle;
                 }
                 n
             }
@@ -267,7 +270,7 @@ impl Surface {
                 let n = self.face_normal(x, t);
                 match self.nbr[t as usize][z] {
                     NONE => n,
-                    o => add(n, self.face_normal(x, o)),
+                    o => n + self.face_normal(x, o),
                 }
             }
             _ => self.face_normal(x, t),
@@ -393,12 +396,9 @@ impl Collisions {
                     continue;
                 }
                 let so = &self.surfaces[o];
-                let (mut olo, mut ohi) = so.bvh.bounds();
-                for k in 0..3 {
-                    olo[k] -= skin;
-                    ohi[k] += skin;
-                }
-                if !(0..3).all(|k| alo[k] <= ohi[k] && olo[k] <= ahi[k]) {
+                let (olo, ohi) = so.bvh.bounds();
+                let (olo, ohi) = (olo - skin, ohi + skin);
+                if !(alo.cmple(ohi).all() && olo.cmple(ahi).all()) {
                     continue;
                 }
                 if a < o {
@@ -406,7 +406,7 @@ impl Collisions {
                 }
                 for &node in &self.surfaces[a].verts {
                     let p = body.positions[node as usize];
-                    if !(0..3).all(|k| olo[k] <= p[k] && p[k] <= ohi[k]) {
+                    if !(olo.cmple(v(p)).all() && v(p).cmple(ohi).all()) {
                         continue;
                     }
                     self.stats.vertex_queries += 1;
@@ -418,17 +418,17 @@ impl Collisions {
                     };
                     let dist = hit.d2.sqrt();
                     let pn = so.pseudo_normal(other.positions, &hit);
-                    let inside = dot(hit.offset, pn) < 0.0;
+                    let inside = hit.offset.dot(pn) < 0.0;
                     let depth = if inside { dist } else { -dist } + skin;
                     if !(depth > 0.0) || (inside && dist > limit) {
                         continue;
                     }
                     let normal = if dist > 0.0 {
-                        scale(hit.offset, if inside { -1.0 } else { 1.0 } / dist)
+                        hit.offset * (if inside { -1.0 } else { 1.0 } / dist)
                     } else {
-                        let l = norm(pn);
+                        let l = pn.length();
                         if l > 0.0 {
-                            scale(pn, 1.0 / l)
+                            pn * (1.0 / l)
                         } else {
                             continue;
                         }
@@ -441,7 +441,7 @@ impl Collisions {
                         triangle: hit.triangle,
                         bary: hit.bary,
                         depth,
-                        normal,
+                        normal: normal.to_array(),
                     });
                 }
             }
@@ -476,13 +476,13 @@ impl Collisions {
             self.surfaces.len()
         );
         for p in &self.found {
-            let f = scale(p.normal, k * p.depth);
+            let f = v(p.normal) * (k * p.depth);
             let l = &mut loads[p.body][p.node as usize];
-            *l = add(*l, f);
+            *l = (v(*l) + f).to_array();
             let tri = self.surfaces[p.other].tris[p.triangle as usize];
-            for (&v, &w) in tri.iter().zip(&p.bary) {
-                let l = &mut loads[p.other][v as usize];
-                *l = sub(*l, scale(f, w));
+            for (&i, &w) in tri.iter().zip(&p.bary) {
+                let l = &mut loads[p.other][i as usize];
+                *l = (v(*l) - f * w).to_array();
             }
         }
     }
@@ -520,26 +520,26 @@ impl Collisions {
             "collision springs: lists"
         );
         for p in &self.found {
-            let n = p.normal;
-            let x = bodies[p.body].positions[p.node as usize];
+            let n = v(p.normal);
+            let x = v(bodies[p.body].positions[p.node as usize]);
             springs[p.body].push(ContactSpring {
                 nodes: [p.node; 3],
                 weights: [1.0, 0.0, 0.0],
-                normal: n,
-                target: dot(n, x) + 0.5 * p.depth,
+                normal: p.normal,
+                target: n.dot(x) + 0.5 * p.depth,
                 stiffness: k,
             });
             let tri = self.surfaces[p.other].tris[p.triangle as usize];
             let xo = bodies[p.other].positions;
-            let c = (0..3).fold([0.0; 3], |acc, j| {
-                add(acc, scale(xo[tri[j] as usize], p.bary[j]))
+            let c = (0..3).fold(DVec3::ZERO, |acc, j| {
+                acc + v(xo[tri[j] as usize]) * p.bary[j]
             });
-            let m = scale(n, -1.0);
+            let m = n * -1.0;
             springs[p.other].push(ContactSpring {
                 nodes: tri,
                 weights: p.bary,
-                normal: m,
-                target: dot(m, c) + 0.5 * p.depth,
+                normal: m.to_array(),
+                target: m.dot(c) + 0.5 * p.depth,
                 stiffness: k,
             });
         }
