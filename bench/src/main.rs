@@ -12,6 +12,8 @@ mod interaction;
 mod latency;
 mod lop;
 mod models;
+#[cfg(feature = "parry")]
+mod parry;
 mod pipeline;
 mod plot;
 mod table;
@@ -37,6 +39,9 @@ enum Command {
     /// Tool interaction, the thesis' §6.3.4: haptic tick compute (god-object + force), collision
     /// detection per step, heat step per body (table, CSV, SVG).
     Interaction(interaction::InteractionArgs),
+    /// Organ collision and tool queries: ours against parry3d-f64 (time, allocations, answers).
+    #[cfg(feature = "parry")]
+    Collide(parry::CollideArgs),
 }
 
 fn main() -> ExitCode {
@@ -47,6 +52,8 @@ fn main() -> ExitCode {
         Command::Models(a) => models::run(a),
         Command::Lop(a) => lop::run(a),
         Command::Interaction(a) => interaction::run(a),
+        #[cfg(feature = "parry")]
+        Command::Collide(a) => parry::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
