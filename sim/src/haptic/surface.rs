@@ -451,7 +451,7 @@ impl SurfaceSet {
     pub(crate) fn triangles_in_box_v(&mut self, lo: DVec3, hi: DVec3, mut f: impl FnMut(usize)) {
         for b in 0..self.body_tris.len() {
             let (blo, bhi) = self.body_box[b];
-            if !self.active[b] || !(blo.cmple(hi).all() && bhi.cmpge(lo).all()) {
+            if !(self.active[b] && blo.cmple(hi).all() && bhi.cmpge(lo).all()) {
                 continue;
             }
             self.refit(b);
