@@ -185,6 +185,8 @@ impl ParryBody {
 type Hit = (usize, u32, usize, f64);
 
 /// The vertex-in-body detection of `Collisions::detect`, written on parry.
+// `!(depth > 0.0)` as in lop-sim: a NaN depth must fail the test.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
 fn parry_detect(
     bodies: &[ParryBody],
     positions: &[Vec<[f64; 3]>],
