@@ -12,6 +12,8 @@ mod interaction;
 mod latency;
 mod lop;
 mod models;
+#[cfg(feature = "parry")]
+mod parry;
 mod pipeline;
 mod plot;
 mod table;
@@ -40,6 +42,9 @@ enum Command {
     Interaction(interaction::InteractionArgs),
     /// Micro-timings, printed: collision detection on the organs, the GC cage deformation.
     Timings(timings::TimingsArgs),
+    /// Organ collision and tool queries: ours against parry3d-f64 (time, allocations, answers).
+    #[cfg(feature = "parry")]
+    Collide(parry::CollideArgs),
 }
 
 fn main() -> ExitCode {
@@ -51,6 +56,8 @@ fn main() -> ExitCode {
         Command::Lop(a) => lop::run(a),
         Command::Interaction(a) => interaction::run(a),
         Command::Timings(a) => timings::run(a),
+        #[cfg(feature = "parry")]
+        Command::Collide(a) => parry::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,5 +1,12 @@
 //! The device-to-scene workspace transform and the Euler-angle convention shared with body
 //! placement.
+//!
+//! The per-tick maps are [`glam::DAffine3`] / [`glam::DMat3`] products. glam's `f64` matrix
+//! times vector is `x_axis·v.x + y_axis·v.y + z_axis·v.z`, left to right, without `mul_add`:
+//! per component exactly the row-by-vector sums this module computed by hand before, so the
+//! transform is bit-for-bit what it was.
+
+use glam::{DAffine3, DMat3, DVec3};
 
 /// A 3×3 rotation matrix, row-major: `m[row][col]`.
 pub type Mat3 = [[f64; 3]; 3];
@@ -31,22 +38,22 @@ fn mat_mul(a: &Mat3, b: &Mat3) -> Mat3 {
     m
 }
 
+/// The row-major `m` as a glam matrix (glam stores columns).
+fn dmat3(m: &Mat3) -> DMat3 {
+    DMat3::from_cols_array_2d(m).transpose()
+}
+
 /// `R v`.
 pub fn mat_vec(m: &Mat3, v: [f64; 3]) -> [f64; 3] {
-    [
-        m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2],
-        m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
-        m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2],
-    ]
+    dmat3(m).mul_vec3(DVec3::from_array(v)).to_array()
 }
 
 /// `Rᵀ v`.
 pub fn mat_t_vec(m: &Mat3, v: [f64; 3]) -> [f64; 3] {
-    [
-        m[0][0] * v[0] + m[1][0] * v[1] + m[2][0] * v[2],
-        m[0][1] * v[0] + m[1][1] * v[1] + m[2][1] * v[2],
-        m[0][2] * v[0] + m[1][2] * v[1] + m[2][2] * v[2],
-    ]
+    // The columns of the row-major array are the rows of `R`: that matrix is `Rᵀ`.
+    DMat3::from_cols_array_2d(m)
+        .mul_vec3(DVec3::from_array(v))
+        .to_array()
 }
 
 /// The rotation of `rotate_deg = [x, y, z]` (degrees): first about the fixed x axis, then about
@@ -140,29 +147,28 @@ pub struct WorkspaceTransform {
 }
 
 impl WorkspaceTransform {
+    /// The rigid part, `x ↦ R x + offset`, applied to scaled device metres. The scale stays
+    /// outside the matrix (`R (s x)`, not `(s R) x`), which keeps the rounding what it was.
+    fn rigid(&self) -> DAffine3 {
+        DAffine3::from_mat3_translation(dmat3(&self.rotation), DVec3::from_array(self.offset))
+    }
+
     /// `scene_m = R · (device_mm · 1e-3 · scale) + offset`.
     pub fn device_to_scene(&self, mm: [f64; 3]) -> [f64; 3] {
         let k = 1e-3 * self.scale;
-        let r = mat_vec(&self.rotation, [mm[0] * k, mm[1] * k, mm[2] * k]);
-        [
-            r[0] + self.offset[0],
-            r[1] + self.offset[1],
-            r[2] + self.offset[2],
-        ]
+        self.rigid()
+            .transform_point3(DVec3::from_array(mm) * k)
+            .to_array()
     }
 
     /// `device_mm = Rᵀ · (scene_m − offset) / (1e-3 · scale)`.
     pub fn scene_to_device(&self, m: [f64; 3]) -> [f64; 3] {
         let d = mat_t_vec(
             &self.rotation,
-            [
-                m[0] - self.offset[0],
-                m[1] - self.offset[1],
-                m[2] - self.offset[2],
-            ],
+            (DVec3::from_array(m) - DVec3::from_array(self.offset)).to_array(),
         );
         let k = 1e3 / self.scale;
-        [d[0] * k, d[1] * k, d[2] * k]
+        (DVec3::from_array(d) * k).to_array()
     }
 
     /// `Rᵀ v`: a scene direction or force in the device frame.

@@ -16,7 +16,14 @@
 //!   strictly farther than the best are pruned, so the answer does not depend on the tree's shape
 //!   (nor on when it was last rebuilt).
 
+use glam::DVec3;
+
+use crate::contact::closest_bary;
+use crate::vec3::v;
+// The tests below check against plain-array brute force.
+#[cfg(test)]
 use crate::contact::closest_point_on_triangle;
+#[cfg(test)]
 use crate::vec3::{dot, sub};
 
 /// Most triangles in a leaf.
@@ -30,8 +37,8 @@ const STACK: usize = 64;
 
 #[derive(Debug, Clone, Copy)]
 struct Node {
-    lo: [f64; 3],
-    hi: [f64; 3],
+    lo: DVec3,
+    hi: DVec3,
     /// Leaf: first slot in `order`. Inner: index of the right child (the left one is `self + 1`).
     first: u32,
     /// Leaf: number of triangles (> 0). Inner: 0.
@@ -47,7 +54,7 @@ pub(crate) struct Nearest {
     pub bary: [f64; 3],
     /// Query minus closest point, computed as `Σ wᵢ (p − vᵢ)` so that a query lying in the
     /// triangle's plane gives an exact zero along its normal.
-    pub offset: [f64; 3],
+    pub offset: DVec3,
     /// Squared length of `offset`.
     pub d2: f64,
 }
@@ -59,7 +66,7 @@ pub(crate) struct Bvh {
     /// Triangle indices; every leaf owns a contiguous range.
     order: Vec<u32>,
     /// Build scratch: triangle centroids.
-    centroids: Vec<[f64; 3]>,
+    centroids: Vec<DVec3>,
     built: bool,
     /// Cost proxy right after the last build.
     built_cost: f64,
@@ -70,29 +77,27 @@ pub(crate) struct Bvh {
 }
 
 #[inline]
-fn union(a: &mut Node, lo: [f64; 3], hi: [f64; 3]) {
-    for k in 0..3 {
-        a.lo[k] = a.lo[k].min(lo[k]);
-        a.hi[k] = a.hi[k].max(hi[k]);
-    }
+fn union(a: &mut Node, lo: DVec3, hi: DVec3) {
+    a.lo = a.lo.min(lo);
+    a.hi = a.hi.max(hi);
 }
 
 #[inline]
-fn half_area(lo: [f64; 3], hi: [f64; 3]) -> f64 {
-    let e = sub(hi, lo);
-    e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
+fn half_area(lo: DVec3, hi: DVec3) -> f64 {
+    let e = hi - lo;
+    e.x * e.y + e.y * e.z + e.z * e.x
 }
 
 /// Squared distance from `p` to the box (0 inside).
 #[inline]
-fn box_d2(n: &Node, p: [f64; 3]) -> f64 {
-    let d = [0, 1, 2].map(|k| (n.lo[k] - p[k]).max(p[k] - n.hi[k]).max(0.0));
-    dot(d, d)
+fn box_d2(n: &Node, p: DVec3) -> f64 {
+    let d = (n.lo - p).max(p - n.hi).max(DVec3::ZERO);
+    d.dot(d)
 }
 
 const EMPTY: Node = Node {
-    lo: [f64::INFINITY; 3],
-    hi: [f64::NEG_INFINITY; 3],
+    lo: DVec3::INFINITY,
+    hi: DVec3::NEG_INFINITY,
     first: 0,
     count: 0,
 };
@@ -105,7 +110,7 @@ impl Bvh {
             // A binary tree with L ≥ 1 leaves has 2L − 1 nodes, and L ≤ T.
             nodes: Vec::with_capacity((2 * triangles).max(1)),
             order: (0..triangles as u32).collect(),
-            centroids: vec![[0.0; 3]; triangles],
+            centroids: vec![DVec3::ZERO; triangles],
             built: false,
             built_cost: 0.0,
             builds: 0,
@@ -130,7 +135,7 @@ impl Bvh {
     }
 
     /// The box around the whole surface (`lo > hi` for an empty one).
-    pub fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+    pub fn bounds(&self) -> (DVec3, DVec3) {
         self.nodes
             .first()
             .map_or((EMPTY.lo, EMPTY.hi), |r| (r.lo, r.hi))
@@ -157,12 +162,8 @@ impl Bvh {
             return;
         }
         for (c, t) in self.centroids.iter_mut().zip(tris) {
-            let (a, b, d) = (
-                positions[t[0] as usize],
-                positions[t[1] as usize],
-                positions[t[2] as usize],
-            );
-            *c = [0, 1, 2].map(|k| (a[k] + b[k] + d[k]) / 3.0);
+            let [a, b, d] = t.map(|i| v(positions[i as usize]));
+            *c = (a + b + d) / 3.0;
         }
         for (i, o) in self.order.iter_mut().enumerate() {
             *o = i as u32;
@@ -178,19 +179,13 @@ impl Bvh {
         let mut node = EMPTY;
         let (mut clo, mut chi) = (EMPTY.lo, EMPTY.hi);
         for &t in &self.order[s..e] {
-            for &v in &tris[t as usize] {
-                let p = positions[v as usize];
-                union(
-                    &mut node,
-                    p.map(|c| c - self.margin),
-                    p.map(|c| c + self.margin),
-                );
+            for &i in &tris[t as usize] {
+                let p = v(positions[i as usize]);
+                union(&mut node, p - self.margin, p + self.margin);
             }
             let c = self.centroids[t as usize];
-            for k in 0..3 {
-                clo[k] = clo[k].min(c[k]);
-                chi[k] = chi[k].max(c[k]);
-            }
+            clo = clo.min(c);
+            chi = chi.max(c);
         }
         if e - s <= LEAF_SIZE {
             node.first = s as u32;
@@ -199,10 +194,10 @@ impl Bvh {
             return;
         }
         self.nodes.push(node);
-        let ext = sub(chi, clo);
-        let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
+        let ext = chi - clo;
+        let axis = if ext.x >= ext.y && ext.x >= ext.z {
             0
-        } else if ext[1] >= ext[2] {
+        } else if ext.y >= ext.z {
             1
         } else {
             2
@@ -231,13 +226,9 @@ impl Bvh {
             if n.count > 0 {
                 let (s, e) = (n.first as usize, (n.first + n.count) as usize);
                 for &t in &self.order[s..e] {
-                    for &v in &tris[t as usize] {
-                        let p = positions[v as usize];
-                        union(
-                            &mut fresh,
-                            p.map(|c| c - self.margin),
-                            p.map(|c| c + self.margin),
-                        );
+                    for &i in &tris[t as usize] {
+                        let p = v(positions[i as usize]);
+                        union(&mut fresh, p - self.margin, p + self.margin);
                     }
                 }
             } else {
@@ -278,6 +269,7 @@ impl Bvh {
         p: [f64; 3],
         max_d2: f64,
     ) -> (Option<Nearest>, usize) {
+        let p = v(p);
         let mut best: Option<Nearest> = None;
         let mut best_d2 = max_d2;
         let mut tested = 0;
@@ -296,16 +288,11 @@ impl Bvh {
                 let (s, e) = (n.first as usize, (n.first + n.count) as usize);
                 for &t in &self.order[s..e] {
                     tested += 1;
-                    let tri = tris[t as usize];
-                    let (a, b, c) = (
-                        positions[tri[0] as usize],
-                        positions[tri[1] as usize],
-                        positions[tri[2] as usize],
-                    );
-                    let w = closest_point_on_triangle(p, a, b, c);
-                    let (pa, pb, pc) = (sub(p, a), sub(p, b), sub(p, c));
-                    let offset = [0, 1, 2].map(|k| w[0] * pa[k] + w[1] * pb[k] + w[2] * pc[k]);
-                    let d2 = dot(offset, offset);
+                    let [a, b, c] = tris[t as usize].map(|i| v(positions[i as usize]));
+                    let w = closest_bary(p, a, b, c);
+                    let (pa, pb, pc) = (p - a, p - b, p - c);
+                    let offset = pa * w[0] + pb * w[1] + pc * w[2];
+                    let d2 = offset.dot(offset);
                     let better = match best {
                         None => d2 <= best_d2,
                         Some(b) => d2 < best_d2 || (d2 == best_d2 && t < b.triangle),
@@ -349,11 +336,11 @@ impl Bvh {
 impl Bvh {
     /// Calls `f` with every triangle whose box overlaps the box `[lo, hi]` (each once, in tree
     /// order). Allocation-free.
-    pub fn overlapping(&self, lo: [f64; 3], hi: [f64; 3], mut f: impl FnMut(u32)) {
+    pub fn overlapping(&self, lo: DVec3, hi: DVec3, mut f: impl FnMut(u32)) {
         if self.nodes.is_empty() {
             return;
         }
-        let overlaps = |n: &Node| (0..3).all(|k| n.lo[k] <= hi[k] && n.hi[k] >= lo[k]);
+        let overlaps = |n: &Node| n.lo.cmple(hi).all() && n.hi.cmpge(lo).all();
         let mut stack = [0u32; STACK];
         let mut top = 1;
         while top > 0 {

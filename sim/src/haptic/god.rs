@@ -28,10 +28,12 @@
 //!
 //! Everything is allocation-free after [`GodObject::new`].
 
+use glam::DVec3;
+
 use super::surface::SurfaceSet;
-use super::sweep::{crease, sweep_sphere_triangle};
-use crate::contact::{closest_point_on_triangle, ForceLaw};
-use crate::vec3::{add, dot, norm, scale, sub};
+use super::sweep::{crease, sweep};
+use crate::contact::{bary_point, closest_bary, ForceLaw};
+use crate::vec3::v;
 
 /// Gap kept between the proxy sphere and a surface it rests on, m: keeps the next sweep from
 /// starting in contact because of rounding.
@@ -75,11 +77,11 @@ pub struct GodState {
 #[derive(Debug, Clone)]
 pub struct GodObject {
     radius: f64,
-    proxy: [f64; 3],
+    proxy: DVec3,
     started: bool,
     anchor: Option<Anchor>,
     grab: Option<Anchor>,
-    planes: [[f64; 3]; MAX_PLANES],
+    planes: [DVec3; MAX_PLANES],
     nplanes: usize,
     candidates: Vec<u32>,
 }
@@ -89,11 +91,11 @@ impl GodObject {
     pub fn new(radius: f64, triangles: usize) -> GodObject {
         GodObject {
             radius,
-            proxy: [0.0; 3],
+            proxy: DVec3::ZERO,
             started: false,
             anchor: None,
             grab: None,
-            planes: [[0.0; 3]; MAX_PLANES],
+            planes: [DVec3::ZERO; MAX_PLANES],
             nplanes: 0,
             candidates: Vec::with_capacity(triangles),
         }
@@ -106,7 +108,7 @@ impl GodObject {
 
     /// The proxy, m.
     pub fn proxy(&self) -> [f64; 3] {
-        self.proxy
+        self.proxy.to_array()
     }
 
     /// Forgets the surface: the next update puts the proxy on the device.
@@ -120,14 +122,15 @@ impl GodObject {
     pub fn follow_surface(&mut self, set: &SurfaceSet) {
         if let Some(a) = self.grab.or(self.anchor) {
             if a.triangle < set.triangles().len() {
-                self.proxy = add(set.point_on(a.triangle, a.bary), a.offset);
+                self.proxy = set.point_on_v(a.triangle, a.bary) + v(a.offset);
             }
         }
     }
 
     /// One tick: the device is at `device` (m) and the grab button is `grab`. Allocation-free.
     pub fn update(&mut self, set: &mut SurfaceSet, device: [f64; 3], grab: bool) -> GodState {
-        if !device.iter().all(|c| c.is_finite()) {
+        let device = v(device);
+        if !device.is_finite() {
             // Broken sample: nothing to render; keep the proxy where it was.
             return self.state(device, false);
         }
@@ -140,7 +143,7 @@ impl GodObject {
         // Picking.
         if let Some(g) = self.grab {
             if grab && g.triangle < set.triangles().len() {
-                self.proxy = add(set.point_on(g.triangle, g.bary), g.offset);
+                self.proxy = set.point_on_v(g.triangle, g.bary) + v(g.offset);
                 return self.state(device, true);
             }
             self.grab = None;
@@ -163,13 +166,13 @@ impl GodObject {
         self.gather_planes(set, device);
         for _ in 0..MAX_ITERATIONS {
             let target = self.project(device);
-            let d = sub(target, self.proxy);
-            if norm(d) < 1e-12 {
+            let d = target - self.proxy;
+            if d.length() < 1e-12 {
                 break;
             }
             match self.sweep(set, d) {
                 Some((s, n)) => {
-                    self.proxy = add(add(self.proxy, scale(d, s)), scale(n, SKIN));
+                    self.proxy = self.proxy + d * s + n * SKIN;
                     if self.nplanes == MAX_PLANES || self.has_plane(n) {
                         break;
                     }
@@ -188,50 +191,50 @@ impl GodObject {
         // back and forth between them, and the tissue's load with it, every frame.
         let previous = self.anchor.take();
         let r = self.radius;
-        let pushing = |offset: [f64; 3]| dot(sub(device, self.proxy), offset) < 0.0;
+        let pushing = |offset: DVec3| (device - self.proxy).dot(offset) < 0.0;
         if let Some(prev) = previous {
             if prev.triangle < set.triangles().len() {
-                let [a, b, c] = set.corners(prev.triangle);
-                let w = closest_point_on_triangle(self.proxy, a, b, c);
-                let q = add(add(scale(a, w[0]), scale(b, w[1])), scale(c, w[2]));
-                let offset = sub(self.proxy, q);
-                let outside = dot(offset, set.normal_of(prev.triangle)) > 0.0;
-                if outside && norm(offset) <= r + STICK && pushing(offset) {
+                let [a, b, c] = set.corners_v(prev.triangle);
+                let w = closest_bary(self.proxy, a, b, c);
+                let q = bary_point(a, b, c, w);
+                let offset = self.proxy - q;
+                let outside = offset.dot(set.normal_of_v(prev.triangle)) > 0.0;
+                if outside && offset.length() <= r + STICK && pushing(offset) {
                     self.anchor = Some(Anchor {
                         bary: w,
-                        offset,
+                        offset: offset.to_array(),
                         ..prev
                     });
                     return self.state(device, false);
                 }
             }
         }
-        if let Some(c) = set.closest(self.proxy, r + 4.0 * SKIN) {
-            let offset = sub(self.proxy, c.hit.point);
-            if !c.hit.inside && pushing(offset) && norm(sub(device, self.proxy)) > 0.0 {
+        if let Some(c) = set.closest(self.proxy.to_array(), r + 4.0 * SKIN) {
+            let offset = self.proxy - v(c.hit.point);
+            if !c.hit.inside && pushing(offset) && (device - self.proxy).length() > 0.0 {
                 self.anchor = Some(Anchor {
                     body: c.body,
                     triangle: c.hit.triangle,
                     bary: c.hit.barycentric,
-                    offset,
+                    offset: offset.to_array(),
                 });
             }
         }
         self.state(device, false)
     }
 
-    fn state(&self, device: [f64; 3], grabbing: bool) -> GodState {
+    fn state(&self, device: DVec3, grabbing: bool) -> GodState {
         let anchor = if grabbing { self.grab } else { self.anchor };
-        let gap = sub(self.proxy, device);
-        let depth = norm(gap);
+        let gap = self.proxy - device;
+        let depth = gap.length();
         let touching = anchor.is_some() && depth > 0.0 && depth.is_finite();
         GodState {
-            proxy: self.proxy,
+            proxy: self.proxy.to_array(),
             anchor,
             grabbing,
             depth: if touching { depth } else { 0.0 },
             direction: if touching {
-                scale(gap, 1.0 / depth)
+                (gap * (1.0 / depth)).to_array()
             } else {
                 [0.0; 3]
             },
@@ -244,55 +247,56 @@ impl GodObject {
     fn depenetrate(&mut self, set: &mut SurfaceSet) {
         let r = self.radius;
         for _ in 0..3 {
-            let Some(c) = set.closest(self.proxy, r) else {
+            let Some(c) = set.closest(self.proxy.to_array(), r) else {
                 return;
             };
             if c.hit.inside || c.hit.distance >= r {
                 return;
             }
+            let point = v(c.hit.point);
             let out = if c.hit.distance > 1e-12 {
-                scale(sub(self.proxy, c.hit.point), 1.0 / c.hit.distance)
+                (self.proxy - point) * (1.0 / c.hit.distance)
             } else {
-                c.hit.normal
+                v(c.hit.normal)
             };
-            self.proxy = add(c.hit.point, scale(out, r + SKIN));
+            self.proxy = point + out * (r + SKIN);
         }
     }
 
-    fn has_plane(&self, n: [f64; 3]) -> bool {
+    fn has_plane(&self, n: DVec3) -> bool {
         self.planes[..self.nplanes]
             .iter()
-            .any(|p| dot(*p, n) > 0.9999)
+            .any(|p| p.dot(n) > 0.9999)
     }
 
     /// The planes of the surface the proxy rests on that the device pushes into.
-    fn gather_planes(&mut self, set: &mut SurfaceSet, device: [f64; 3]) {
+    fn gather_planes(&mut self, set: &mut SurfaceSet, device: DVec3) {
         self.nplanes = 0;
         let r = self.radius;
         let reach = r + 4.0 * SKIN;
         let p = self.proxy;
         self.candidates.clear();
-        let lo = p.map(|c| c - reach);
-        let hi = p.map(|c| c + reach);
+        let lo = p - reach;
+        let hi = p + reach;
         let cands = &mut self.candidates;
-        set.triangles_in_box(lo, hi, |t| {
+        set.triangles_in_box_v(lo, hi, |t| {
             if cands.len() < cands.capacity() {
                 cands.push(t as u32);
             }
         });
-        let goal = sub(device, p);
+        let goal = device - p;
         for i in 0..self.candidates.len() {
             let t = self.candidates[i] as usize;
-            let [a, b, c] = set.corners(t);
-            let w = closest_point_on_triangle(p, a, b, c);
-            let q = add(add(scale(a, w[0]), scale(b, w[1])), scale(c, w[2]));
-            let off = sub(p, q);
-            let l = norm(off);
-            if !(l > 1e-12) || l > reach || dot(off, set.normal_of(t)) < 0.0 {
+            let [a, b, c] = set.corners_v(t);
+            let w = closest_bary(p, a, b, c);
+            let q = bary_point(a, b, c, w);
+            let off = p - q;
+            let l = off.length();
+            if !(l > 1e-12) || l > reach || off.dot(set.normal_of_v(t)) < 0.0 {
                 continue;
             }
-            let n = scale(off, 1.0 / l);
-            if dot(goal, n) < 0.0 && !self.has_plane(n) && self.nplanes < MAX_PLANES {
+            let n = off * (1.0 / l);
+            if goal.dot(n) < 0.0 && !self.has_plane(n) && self.nplanes < MAX_PLANES {
                 self.planes[self.nplanes] = n;
                 self.nplanes += 1;
             }
@@ -300,59 +304,59 @@ impl GodObject {
     }
 
     /// The device projected onto the active planes (all through the proxy).
-    fn project(&self, device: [f64; 3]) -> [f64; 3] {
-        let g = sub(device, self.proxy);
+    fn project(&self, device: DVec3) -> DVec3 {
+        let g = device - self.proxy;
         match self.nplanes {
             0 => device,
             1 => {
                 let n = self.planes[0];
-                let gn = dot(g, n);
+                let gn = g.dot(n);
                 if gn >= 0.0 {
                     device
                 } else {
-                    sub(device, scale(n, gn))
+                    device - n * gn
                 }
             }
             2 => {
                 // Leave a plane if moving along the other one's projection leaves it.
                 for k in 0..2 {
                     let (n, m) = (self.planes[k], self.planes[1 - k]);
-                    let t = sub(g, scale(n, dot(g, n).min(0.0)));
-                    if dot(t, m) >= 0.0 {
-                        return add(self.proxy, t);
+                    let t = g - n * g.dot(n).min(0.0);
+                    if t.dot(m) >= 0.0 {
+                        return self.proxy + t;
                     }
                 }
                 let u = crease(self.planes[0], self.planes[1]);
-                add(self.proxy, scale(u, dot(g, u)))
+                self.proxy + u * g.dot(u)
             }
             _ => self.proxy,
         }
     }
 
     /// The first contact of the proxy sphere moving by `d`: fraction and contact normal.
-    fn sweep(&mut self, set: &mut SurfaceSet, d: [f64; 3]) -> Option<(f64, [f64; 3])> {
+    fn sweep(&mut self, set: &mut SurfaceSet, d: DVec3) -> Option<(f64, DVec3)> {
         let r = self.radius + 2.0 * SKIN;
         let p = self.proxy;
-        let end = add(p, d);
-        let lo = [0, 1, 2].map(|k| p[k].min(end[k]) - r);
-        let hi = [0, 1, 2].map(|k| p[k].max(end[k]) + r);
+        let end = p + d;
+        let lo = p.min(end) - r;
+        let hi = p.max(end) + r;
         self.candidates.clear();
         let cands = &mut self.candidates;
-        set.triangles_in_box(lo, hi, |t| {
+        set.triangles_in_box_v(lo, hi, |t| {
             if cands.len() < cands.capacity() {
                 cands.push(t as u32);
             }
         });
-        let len = norm(d);
-        let mut best: Option<(f64, [f64; 3])> = None;
+        let len = d.length();
+        let mut best: Option<(f64, DVec3)> = None;
         for &t in &self.candidates {
-            if let Some(hit) = sweep_sphere_triangle(p, d, self.radius, set.corners(t as usize)) {
+            if let Some((s, normal)) = sweep(p, d, self.radius, set.corners_v(t as usize)) {
                 // Sliding along a plane already in contact is not an impact.
-                if dot(d, hit.normal) > -1e-9 * len {
+                if d.dot(normal) > -1e-9 * len {
                     continue;
                 }
-                if best.is_none_or(|(s, _)| hit.s < s) {
-                    best = Some((hit.s, hit.normal));
+                if best.is_none_or(|(bs, _)| s < bs) {
+                    best = Some((s, normal));
                 }
             }
         }
@@ -388,14 +392,14 @@ pub fn hand_force(
     let u = state.direction;
     let mut f = law_magnitude(law, stiffness, state.depth);
     if damping > 0.0 && velocity.iter().all(|c| c.is_finite()) {
-        f -= damping * dot(velocity, u);
+        f -= damping * v(velocity).dot(v(u));
     }
     if !state.grabbing {
         f = f.max(0.0);
     }
-    let out = scale(u, f);
-    if out.iter().all(|c| c.is_finite()) {
-        out
+    let out = v(u) * f;
+    if out.is_finite() {
+        out.to_array()
     } else {
         [0.0; 3]
     }

@@ -5,9 +5,11 @@
 //! Built once per topology ([`SurfaceSet::new`] allocates everything); after that, updating the
 //! positions and every query are allocation-free, so the 1 kHz loop can own one.
 
+use glam::DVec3;
+
 use crate::collide::bvh::Bvh;
-use crate::contact::{closest_point_on_triangle, triangle_normal, SurfaceHit};
-use crate::vec3::{add, dot, scale, sub};
+use crate::contact::{bary_point, closest_bary, unit_normal, SurfaceHit};
+use crate::vec3::v;
 
 /// Growth of every hierarchy box, m: a body's hierarchy is refitted only once one of its nodes
 /// has moved farther than this since the last refit. Tissue under the tool moves a few mm/s
@@ -47,7 +49,7 @@ pub struct SurfaceSet {
     /// Per body: its triangles are `tris[start..end]`.
     body_tris: Vec<(usize, usize)>,
     /// Per body: bounding box of its nodes (updated with the positions).
-    body_box: Vec<([f64; 3], [f64; 3])>,
+    body_box: Vec<(DVec3, DVec3)>,
     /// Per body: the range of node indices its triangles use.
     body_nodes: Vec<(usize, usize)>,
     /// Per body: whether queries consider it (its positions are current).
@@ -150,7 +152,7 @@ impl SurfaceSet {
         SurfaceSet {
             tris,
             body_tris,
-            body_box: vec![([0.0; 3], [0.0; 3]); bodies],
+            body_box: vec![(DVec3::ZERO, DVec3::ZERO); bodies],
             body_nodes,
             active: vec![true; bodies],
             body_frame: vec![None; bodies],
@@ -212,15 +214,13 @@ impl SurfaceSet {
         }
         for b in 0..self.body_tris.len() {
             let (s, e) = self.body_tris[b];
-            let mut lo = [f64::INFINITY; 3];
-            let mut hi = [f64::NEG_INFINITY; 3];
+            let mut lo = DVec3::INFINITY;
+            let mut hi = DVec3::NEG_INFINITY;
             for t in &self.tris[s..e] {
-                for &v in t {
-                    let p = self.x[v as usize];
-                    for k in 0..3 {
-                        lo[k] = lo[k].min(p[k]);
-                        hi[k] = hi[k].max(p[k]);
-                    }
+                for &i in t {
+                    let p = v(self.x[i as usize]);
+                    lo = lo.min(p);
+                    hi = hi.max(p);
                 }
             }
             self.body_box[b] = (lo, hi);
@@ -236,18 +236,17 @@ impl SurfaceSet {
         let Some(&(n0, n1)) = self.body_nodes.get(b) else {
             return;
         };
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
+        let mut lo = DVec3::INFINITY;
+        let mut hi = DVec3::NEG_INFINITY;
         let mut drift2 = self.drift2[b];
         for i in n0..n1 {
             let p = at(i);
             self.x[i] = p;
-            let d = sub(p, self.refit_x[i]);
-            drift2 = drift2.max(dot(d, d));
-            for k in 0..3 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
+            let p = v(p);
+            let d = p - v(self.refit_x[i]);
+            drift2 = drift2.max(d.dot(d));
+            lo = lo.min(p);
+            hi = hi.max(p);
         }
         self.body_box[b] = (lo, hi);
         self.drift2[b] = drift2;
@@ -305,7 +304,8 @@ impl SurfaceSet {
             return false;
         }
         let (lo, hi) = self.body_box[b];
-        (0..3).all(|k| p[k] >= lo[k] - margin && p[k] <= hi[k] + margin)
+        let p = v(p);
+        p.cmpge(lo - margin).all() && p.cmple(hi + margin).all()
     }
 
     /// Refits body `b`'s hierarchy if a node has moved farther than the boxes' margin since the
@@ -328,10 +328,10 @@ impl SurfaceSet {
 
     /// The greedy walk of thesis Algorithm 1: from `start`, move to the neighbour closest to `p`
     /// while one is closer. Returns the vertex it stops on and its squared distance.
-    fn walk(&mut self, start: u32, p: [f64; 3]) -> (u32, f64) {
+    fn walk(&mut self, start: u32, p: DVec3) -> (u32, f64) {
         let d2 = |x: [f64; 3]| {
-            let d = sub(p, x);
-            dot(d, d)
+            let d = p - v(x);
+            d.dot(d)
         };
         let mut v = start;
         let mut best = d2(self.x[v as usize]);
@@ -356,19 +356,19 @@ impl SurfaceSet {
         }
     }
 
-    fn hit(&self, t: usize, p: [f64; 3]) -> SurfaceHit {
-        let [a, b, c] = self.tris[t].map(|v| self.x[v as usize]);
-        let w = closest_point_on_triangle(p, a, b, c);
-        let q = add(add(scale(a, w[0]), scale(b, w[1])), scale(c, w[2]));
-        let n = triangle_normal(a, b, c);
-        let d = sub(p, q);
+    fn hit(&self, t: usize, p: DVec3) -> SurfaceHit {
+        let [a, b, c] = self.corners_v(t);
+        let w = closest_bary(p, a, b, c);
+        let q = bary_point(a, b, c, w);
+        let n = unit_normal(a, b, c);
+        let d = p - q;
         SurfaceHit {
             triangle: t,
-            point: q,
+            point: q.to_array(),
             barycentric: w,
-            normal: n,
-            distance: dot(d, d).sqrt(),
-            inside: dot(d, n) < 0.0,
+            normal: n.to_array(),
+            distance: d.dot(d).sqrt(),
+            inside: d.dot(n) < 0.0,
         }
     }
 
@@ -388,16 +388,16 @@ impl SurfaceSet {
             return None;
         }
         self.stats.walks += 1;
-        let (v, _) = self.walk(self.warm[b], p);
-        self.warm[b] = v;
+        let (vertex, _) = self.walk(self.warm[b], v(p));
+        self.warm[b] = vertex;
         let mut best: Option<SurfaceHit> = None;
         let (ts, te) = (
-            self.vtri_ptr[v as usize] as usize,
-            self.vtri_ptr[v as usize + 1] as usize,
+            self.vtri_ptr[vertex as usize] as usize,
+            self.vtri_ptr[vertex as usize + 1] as usize,
         );
         for i in ts..te {
             let t = self.vtri[i] as usize;
-            let h = self.hit(t, p);
+            let h = self.hit(t, v(p));
             if best.is_none_or(|bh| h.distance < bh.distance) {
                 best = Some(h);
             }
@@ -411,7 +411,7 @@ impl SurfaceSet {
                 if walk_d <= reach {
                     self.stats.fallbacks += 1;
                 }
-                best = Some(self.hit(s + n.triangle as usize, p));
+                best = Some(self.hit(s + n.triangle as usize, v(p)));
             }
         }
         let h = best?;
@@ -421,7 +421,7 @@ impl SurfaceSet {
         Some(Closest {
             body: b,
             hit: h,
-            vertex: v,
+            vertex,
         })
     }
 
@@ -443,10 +443,15 @@ impl SurfaceSet {
 
     /// Calls `f(global triangle)` for every triangle of every body whose box overlaps
     /// `[lo, hi]` (refitting those bodies' hierarchies first).
-    pub fn triangles_in_box(&mut self, lo: [f64; 3], hi: [f64; 3], mut f: impl FnMut(usize)) {
+    pub fn triangles_in_box(&mut self, lo: [f64; 3], hi: [f64; 3], f: impl FnMut(usize)) {
+        self.triangles_in_box_v(v(lo), v(hi), f)
+    }
+
+    /// [`triangles_in_box`](Self::triangles_in_box) on `DVec3`s.
+    pub(crate) fn triangles_in_box_v(&mut self, lo: DVec3, hi: DVec3, mut f: impl FnMut(usize)) {
         for b in 0..self.body_tris.len() {
             let (blo, bhi) = self.body_box[b];
-            if !self.active[b] || !(0..3).all(|k| blo[k] <= hi[k] && bhi[k] >= lo[k]) {
+            if !(self.active[b] && blo.cmple(hi).all() && bhi.cmpge(lo).all()) {
                 continue;
             }
             self.refit(b);
@@ -457,18 +462,33 @@ impl SurfaceSet {
 
     /// The point with barycentric weights `w` on global triangle `t`.
     pub fn point_on(&self, t: usize, w: [f64; 3]) -> [f64; 3] {
-        let [a, b, c] = self.tris[t].map(|v| self.x[v as usize]);
-        add(add(scale(a, w[0]), scale(b, w[1])), scale(c, w[2]))
+        self.point_on_v(t, w).to_array()
+    }
+
+    /// [`point_on`](Self::point_on) as a `DVec3`.
+    pub(crate) fn point_on_v(&self, t: usize, w: [f64; 3]) -> DVec3 {
+        let [a, b, c] = self.corners_v(t);
+        bary_point(a, b, c, w)
     }
 
     /// Unit outward normal of global triangle `t`.
     pub fn normal_of(&self, t: usize) -> [f64; 3] {
-        let [a, b, c] = self.tris[t].map(|v| self.x[v as usize]);
-        triangle_normal(a, b, c)
+        self.normal_of_v(t).to_array()
+    }
+
+    /// [`normal_of`](Self::normal_of) as a `DVec3`.
+    pub(crate) fn normal_of_v(&self, t: usize) -> DVec3 {
+        let [a, b, c] = self.corners_v(t);
+        unit_normal(a, b, c)
     }
 
     /// The corners of global triangle `t`.
     pub fn corners(&self, t: usize) -> [[f64; 3]; 3] {
-        self.tris[t].map(|v| self.x[v as usize])
+        self.tris[t].map(|i| self.x[i as usize])
+    }
+
+    /// [`corners`](Self::corners) as `DVec3`s.
+    pub(crate) fn corners_v(&self, t: usize) -> [DVec3; 3] {
+        self.tris[t].map(|i| v(self.x[i as usize]))
     }
 }

@@ -2,8 +2,10 @@
 //! triangle's Minkowski sum with the sphere — the triangle's plane pushed out by the radius on
 //! its outward side, three capsules around the edges, three balls around the corners.
 
-use crate::contact::{closest_point_on_triangle, triangle_normal};
-use crate::vec3::{add, cross, dot, norm, scale, sub};
+use glam::DVec3;
+
+use crate::contact::{closest_bary, unit_normal};
+use crate::vec3::v;
 
 /// First contact of a moving sphere with a triangle.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -43,23 +45,31 @@ pub fn sweep_sphere_triangle(
     r: f64,
     [a, b, c]: [[f64; 3]; 3],
 ) -> Option<Impact> {
-    let mut best: Option<Impact> = None;
-    let mut consider = |s: f64, normal: [f64; 3]| {
-        if dot(d, normal) < 0.0 && best.is_none_or(|b| s < b.s) {
-            best = Some(Impact { s, normal });
+    sweep(v(x), v(d), r, [v(a), v(b), v(c)]).map(|(s, normal)| Impact {
+        s,
+        normal: normal.to_array(),
+    })
+}
+
+/// [`sweep_sphere_triangle`] on `DVec3`s: the fraction and the contact normal.
+pub(crate) fn sweep(x: DVec3, d: DVec3, r: f64, [a, b, c]: [DVec3; 3]) -> Option<(f64, DVec3)> {
+    let mut best: Option<(f64, DVec3)> = None;
+    let mut consider = |s: f64, normal: DVec3| {
+        if d.dot(normal) < 0.0 && best.is_none_or(|b| s < b.0) {
+            best = Some((s, normal));
         }
     };
     // Face: the plane offset by r.
-    let n = triangle_normal(a, b, c);
-    if norm(n) > 0.0 {
-        let h0 = dot(sub(x, a), n);
-        let dn = dot(d, n);
+    let n = unit_normal(a, b, c);
+    if n.length() > 0.0 {
+        let h0 = (x - a).dot(n);
+        let dn = d.dot(n);
         if h0 >= 0.0 && dn < 0.0 {
             let s = ((h0 - r) / -dn).max(0.0);
             if s <= 1.0 {
-                let p = add(x, scale(d, s));
-                let q = sub(p, scale(n, dot(sub(p, a), n)));
-                let w = closest_point_on_triangle(q, a, b, c);
+                let p = x + d * s;
+                let q = p - n * (p - a).dot(n);
+                let w = closest_bary(q, a, b, c);
                 if w.iter().all(|&v| v > 0.0) {
                     consider(s, n);
                 }
@@ -68,38 +78,38 @@ pub fn sweep_sphere_triangle(
     }
     // Edges: capsules (the cylinder part; the ends are the corner balls).
     for (p0, p1) in [(a, b), (b, c), (c, a)] {
-        let e = sub(p1, p0);
-        let len = norm(e);
+        let e = p1 - p0;
+        let len = e.length();
         if !(len > 0.0) {
             continue;
         }
-        let e = scale(e, 1.0 / len);
-        let m = sub(x, p0);
-        let mp = sub(m, scale(e, dot(m, e)));
-        let dp = sub(d, scale(e, dot(d, e)));
-        let (qa, qb, qc) = (dot(dp, dp), 2.0 * dot(mp, dp), dot(mp, mp) - r * r);
+        let e = e * (1.0 / len);
+        let m = x - p0;
+        let mp = m - e * m.dot(e);
+        let dp = d - e * d.dot(e);
+        let (qa, qb, qc) = (dp.dot(dp), 2.0 * mp.dot(dp), mp.dot(mp) - r * r);
         if let Some(s) = enter(qa, qb, qc) {
-            let p = add(x, scale(d, s));
-            let t = dot(sub(p, p0), e);
+            let p = x + d * s;
+            let t = (p - p0).dot(e);
             if t > 0.0 && t < len {
-                let axis = add(p0, scale(e, t));
-                let off = sub(p, axis);
-                let l = norm(off);
+                let axis = p0 + e * t;
+                let off = p - axis;
+                let l = off.length();
                 if l > 0.0 {
-                    consider(s, scale(off, 1.0 / l));
+                    consider(s, off * (1.0 / l));
                 }
             }
         }
     }
     // Corners.
-    for v in [a, b, c] {
-        let m = sub(x, v);
-        if let Some(s) = enter(dot(d, d), 2.0 * dot(m, d), dot(m, m) - r * r) {
-            let p = add(x, scale(d, s));
-            let off = sub(p, v);
-            let l = norm(off);
+    for corner in [a, b, c] {
+        let m = x - corner;
+        if let Some(s) = enter(d.dot(d), 2.0 * m.dot(d), m.dot(m) - r * r) {
+            let p = x + d * s;
+            let off = p - corner;
+            let l = off.length();
             if l > 0.0 {
-                consider(s, scale(off, 1.0 / l));
+                consider(s, off * (1.0 / l));
             }
         }
     }
@@ -107,12 +117,12 @@ pub fn sweep_sphere_triangle(
 }
 
 /// Direction of the line where two planes with unit normals `n1`, `n2` meet (zero if parallel).
-pub(crate) fn crease(n1: [f64; 3], n2: [f64; 3]) -> [f64; 3] {
-    let u = cross(n1, n2);
-    let l = norm(u);
+pub(crate) fn crease(n1: DVec3, n2: DVec3) -> DVec3 {
+    let u = n1.cross(n2);
+    let l = u.length();
     if l > 1e-9 {
-        scale(u, 1.0 / l)
+        u * (1.0 / l)
     } else {
-        [0.0; 3]
+        DVec3::ZERO
     }
 }

@@ -19,8 +19,8 @@ use crate::mesh::TetMesh;
 use crate::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 use crate::vec3::{add, dot, scale};
 
-use super::compliance::matched_stiffness;
 use super::cage_model::{CageModelError, Damping, PreciseOperators};
+use super::compliance::matched_stiffness;
 use super::kernel::gemv_acc;
 
 /// Cage dynamics state: [`Reduced`] for the projected and Galerkin cages, a mass-spring

@@ -77,14 +77,14 @@
 //! and FMA when the CPU has them. `lop-bench lop` measures it against the FEM step.
 
 mod cage_dynamics;
+mod cage_model;
 mod compliance;
 mod controller;
-mod cage_model;
 mod kernel;
 
-pub use controller::{LopPolicy, PrecisionController, StartLevel, Switch, SwitchReason};
 pub(crate) use cage_model::Prestress;
 pub use cage_model::{
     build_cage, fitted_cells, CageDynamics, CageModel, CageModelError, CageShape, Damping,
     GcParameters, PreciseOperators, MAX_FITTED_VERTICES,
 };
+pub use controller::{LopPolicy, PrecisionController, StartLevel, Switch, SwitchReason};
