@@ -85,7 +85,7 @@ pub enum Pacing {
 
 /// An error on the RT path: plain and `Copy`, so reporting it never allocates.
 ///
-/// The variants mirror the OpenHaptics error classes (see `reference/openhaptics.md`).
+/// The variants mirror the OpenHaptics error classes (as the HD API reference defines them).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum DeviceError {
     /// The device reported a hardware fault (`HD_DEVICE_FAULT`, `HD_TIMER_ERROR`).

@@ -68,7 +68,7 @@ impl MockDevice {
         }
     }
 
-    /// The Phantom Omni's figures (see `reference/openhaptics.md`): 3.3 N peak, 0.88 N
+    /// The Phantom Omni's figures (the vendor's published specifications): 3.3 N peak, 0.88 N
     /// continuous, 0.7 N/mm nominal max stiffness, usable workspace ±80 × ±60 × ±35 mm.
     pub fn omni_limits() -> DeviceLimits {
         DeviceLimits {

@@ -507,7 +507,7 @@ impl OpenHapticsDevice {
 }
 
 /// Limits before the device has reported its own: the Omni's nominal figures
-/// (`reference/openhaptics.md`).
+/// (the vendor's published specifications).
 fn omni_nominal_limits() -> DeviceLimits {
     DeviceLimits {
         max_force_n: 3.3,

@@ -1,5 +1,5 @@
-//! The few OpenHaptics HD declarations lop uses, written from the published API facts
-//! (`reference/openhaptics.md`), and the run-time loading of `libHD.so`.
+//! The few OpenHaptics HD declarations lop uses, written from the vendor's published HD API
+//! reference, and the run-time loading of `libHD.so`.
 //!
 //! The library and its headers are proprietary and cannot be shipped, so nothing links against
 //! it: [`HdApi::load`] `dlopen`s the library and resolves each symbol by name. The library stays
@@ -192,7 +192,7 @@ impl HdApi {
             }
         };
         // SAFETY (every transmute below): the symbol has this C signature in the HD API
-        // (reference/openhaptics.md); a function pointer and a data pointer have the same size
+        // (the vendor's HD API reference); a function pointer and a data pointer have the same size
         // on Linux.
         macro_rules! f {
             ($name:literal) => {

@@ -1,5 +1,5 @@
 //! A stand-in for the OpenHaptics HD library: a small `cdylib` that exports the HD symbols lop's
-//! `openhaptics` driver loads (C ABI, same names and constants as `reference/openhaptics.md`),
+//! `openhaptics` driver loads (C ABI, same names and constants as the vendor's HD API),
 //! so the driver's whole path runs in CI without a Phantom Omni.
 //!
 //! What it does, like the real library:
@@ -68,7 +68,7 @@ const HD_INVALID_OPERATION: c_uint = 0x0102;
 const HD_ILLEGAL_BEGIN: c_uint = 0x0400;
 const HD_ILLEGAL_END: c_uint = 0x0401;
 
-/// The Omni's nominal figures (reference/openhaptics.md).
+/// The Omni's nominal figures (the vendor's published specifications).
 const MAX_FORCE: f64 = 3.3;
 const MAX_CONTINUOUS_FORCE: f64 = 0.88;
 const MAX_STIFFNESS: f64 = 0.7;

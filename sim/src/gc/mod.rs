@@ -5,8 +5,8 @@
 //! triangle surface around it — through Green coordinates (Lipman, Levin & Cohen-Or, "Green
 //! Coordinates", ACM SIGGRAPH 2008, section 4 and appendix; analysed in Lipman & Levin,
 //! "Derivation and Analysis of Green Coordinates", Computational Methods and Function Theory,
-//! 2010). The formulas and their numerical traps are collected in lop's reference page
-//! `reference/green-coordinates.md`; this module follows it.
+//! 2010): this module implements their closed form and guards its numerical traps (points near
+//! the cage's faces and edges), as the notes below describe.
 //!
 //! # Definition
 //! For a cage with vertices `v_i` and triangles `t_j` (unit outward normals `n(t_j)`), a point
