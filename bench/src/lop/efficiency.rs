@@ -488,6 +488,8 @@ fn run_one(
     let mut max_force_x = vec![0.0f64; n];
     let wall = Instant::now();
     let mut before = vec![ModelKind::Gc; n];
+    // The bodies' part of each round's report, copied out so the bodies can be read mutably.
+    let mut rounds: Vec<BodyRound> = Vec::with_capacity(n);
     for k in 1..=ticks {
         let t = k as f64 * tick;
         // One round of the world, as `lopd deform` runs it: organ-to-organ contacts at the
@@ -526,7 +528,7 @@ fn run_one(
                 tree_builds: stats.tree_builds,
             });
         }
-        let rounds: Vec<BodyRound> = report.bodies.clone();
+        rounds.clone_from(&report.bodies);
         for (i, r) in rounds.iter().enumerate().filter(|(_, r)| r.steps > 0) {
             let colliding = !world.contact_springs(i).is_empty();
             let f = contact_force(world.contact_springs(i), world.bodies[i].model.positions());
