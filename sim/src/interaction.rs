@@ -7,6 +7,7 @@
 //! dispatches to them all import it, and it imports only tool geometry and vector helpers.
 
 use crate::contact::{closest_on_surface, ToolSphere};
+pub use crate::patch::{PatchPoint, ToolPatch};
 use crate::vec3::{add, dot, norm, scale, sub};
 
 /// The tool's contact with a body during one step: the penalty spring is integrated inside the
@@ -24,6 +25,10 @@ pub struct ToolContact<'a> {
     /// Where the god-object holds the body, if it decides the contact (see [`ToolAnchor`]);
     /// `None`: the sphere presses on the closest candidate triangle.
     pub anchor: Option<ToolAnchor>,
+    /// The god-object's press as a contact patch over the tool's footprint (see
+    /// [`crate::patch`]): when given, a model that resolves patches uses it instead of the
+    /// anchor's point (FEM and mass-spring do; the cage keeps the anchor's point).
+    pub patch: Option<ToolPatch<'a>>,
 }
 
 /// The god-object's hold on a body for one step (the haptic loop's contact, thesis §5.2.1).
@@ -135,8 +140,12 @@ impl ContactSpring {
 pub struct ContactReport {
     /// Force the tissue received at the end of the step, N (the hand feels the opposite).
     pub force_on_tissue: [f64; 3],
-    /// Penetration depth at the end of the step, m.
+    /// Penetration depth at the end of the step, m (a god-object contact: the length of the
+    /// tool spring, |force| / stiffness).
     pub depth: f64,
+    /// A contact patch's proxy (the tool sphere's centre) at the end of the step, m; `None`
+    /// for a point contact.
+    pub proxy: Option<[f64; 3]>,
 }
 
 /// Why a step was rejected and the body reset.

@@ -16,6 +16,8 @@
 //! - [`interaction`]: what passes between the world and a model's step — the tool's contact and
 //!   the god-object's anchor, organ contact springs, the contact report, blow-ups. A leaf: the
 //!   models import it, never `model`.
+//! - [`patch`]: the tool as a contact patch — the points of the surface the tool's sphere
+//!   covers, and the complementarity problem that presses them, balanced by the tool spring.
 //! - [`contact`]: tool-to-surface geometry (the tool sphere, closest points, force laws).
 //! - [`haptic`]: the god-object over a set of surfaces (what the 1 kHz loop runs) and its
 //!   offline probe over a world.
@@ -44,6 +46,7 @@ pub mod lop;
 pub mod mesh;
 pub mod model;
 pub mod msd;
+pub mod patch;
 mod solve;
 mod vec3;
 pub mod world;

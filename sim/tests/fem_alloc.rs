@@ -57,6 +57,7 @@ fn step_is_allocation_free() {
                 surface: &mesh.surface,
                 candidates: &candidates,
                 anchor: None,
+                patch: None,
             };
             let c = (s % 40 < 30).then_some(&contact);
             let report = fem.step(g, &loads, c).unwrap();

@@ -74,6 +74,7 @@ fn press(
         surface: &mesh.surface,
         candidates: &candidates,
         anchor: None,
+        patch: None,
     };
     let mut speeds = Vec::with_capacity(steps);
     let mut report = ContactReport::default();

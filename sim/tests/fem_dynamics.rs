@@ -101,6 +101,7 @@ fn deterministic_bit_for_bit() {
         surface: &mesh.surface,
         candidates: &candidates,
         anchor: None,
+        patch: None,
     };
     for mode in [FemMode::Linear, FemMode::Corotational] {
         let run = || {

@@ -33,6 +33,7 @@ fn step_is_allocation_free_after_the_first_step() {
         surface: &mesh.surface,
         candidates: &candidates,
         anchor: None,
+        patch: None,
     };
     let loads = vec![[0.0, 0.0, 1e-4]; mesh.nodes.len()];
     for integrator in Integrator::ALL {

@@ -212,6 +212,7 @@ pub(super) fn step_times(quick: bool) -> Result<(Vec<MeshRow>, Vec<StepRow>)> {
             surface: &mesh.surface,
             candidates: cand,
             anchor: None,
+            patch: None,
         });
         meshes.push(MeshRow {
             mesh: case.mesh.into(),

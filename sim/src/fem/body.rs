@@ -124,6 +124,9 @@ impl Fem {
             },
             inv_used: vec![0; INVERSE_SLOTS],
             inv_clock: 0,
+            patch_tmp: vec![0.0; n_dof],
+            patch_cols: Vec::new(),
+            lcp: crate::patch::Lcp::new(),
         });
         let mut fem = Fem {
             params,

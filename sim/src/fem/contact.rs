@@ -305,6 +305,7 @@ impl Pressed {
         ContactReport {
             force_on_tissue: f,
             depth,
+            proxy: None,
         }
     }
 

@@ -149,6 +149,7 @@ mod forces;
 mod ordering;
 mod packed;
 mod params;
+mod patch;
 mod precondition;
 mod rotation;
 mod shapes;
@@ -285,6 +286,13 @@ struct Scratch {
     inv_key: Vec<u32>,
     inv_used: Vec<u64>,
     inv_clock: u64,
+    /// Per DOF: the correction `K̃⁻¹ C λ` of a contact patch (`patch_correct` only).
+    patch_tmp: Vec<f64>,
+    /// Per patch point, per DOF: its column `c_j`, then `K̃⁻¹ c_j`; grown to the largest
+    /// patch on first use (`patch_correct` only).
+    patch_cols: Vec<f64>,
+    /// The patch's complementarity problem, sized once.
+    lcp: crate::patch::Lcp,
 }
 
 /// Node blocks of `K̃⁻¹` columns kept by a linear body (see `Scratch::inv_cols`): a touched

@@ -61,7 +61,12 @@ impl Fem {
                     state + m * gravity[c] + ext[c] + m * vel_coef * self.v[i][c];
             }
         }
-        let pressed = contact.and_then(|c| self.contact_setup(c));
+        // A god-object press over the tool's footprint replaces the one-point contact.
+        let patch = contact.and_then(|c| c.patch);
+        let pressed = match patch {
+            Some(_) => None,
+            None => contact.and_then(|c| self.contact_setup(c)),
+        };
         let solved = match self.params.mode {
             _ if colliding => self.solve_colliding(pressed, springs),
             FemMode::Linear => self.solve_linear_total(pressed),
@@ -69,6 +74,10 @@ impl Fem {
                 CorotationalSolver::Refactor => self.solve_refactor(pressed),
                 CorotationalSolver::LaggedFactorPcg => self.solve_pcg(pressed),
             },
+        };
+        let solved = match (solved, patch) {
+            (Ok(_), Some(p)) => Ok(self.patch_correct(&p)),
+            (r, _) => r,
         };
         self.counters.steps += 1;
         let Ok(report) = solved else {

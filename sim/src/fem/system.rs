@@ -379,6 +379,21 @@ impl System {
         Ok(())
     }
 
+    /// Solves for the `ncols` columns of `b` (column-major, `n_dof` rows) with the current
+    /// factor: one blocked solve with the double-precision factor, else one solve per column.
+    pub fn solve_columns(&mut self, b: &mut [f64], ncols: usize) {
+        if self.n_dof == 0 || ncols == 0 {
+            return;
+        }
+        if self.matrix.current() == Some(Precision::Double) {
+            self.matrix.solve_columns_reusing(b, ncols);
+        } else {
+            for col in b.chunks_exact_mut(self.n_dof).take(ncols) {
+                self.solve_in_place(col);
+            }
+        }
+    }
+
     /// Solves `A x = rhs` in place with the current factor (in its precision; the result is
     /// `f64` either way). Without a factor, leaves `rhs` unchanged.
     pub fn solve_in_place(&mut self, rhs: &mut [f64]) {

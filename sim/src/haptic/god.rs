@@ -127,6 +127,24 @@ impl GodObject {
         }
     }
 
+    /// Puts a resting proxy where the deformation process balanced the tool's contact patch
+    /// on body `body` (see [`crate::patch`]): the sphere touches the tissue there and the tool
+    /// spring holds what the patch pushes, so the hand feels what the tissue receives. Keeps
+    /// the anchor's material point (its offset follows). Ignored while grabbing, off contact,
+    /// on another body or with a non-finite point.
+    pub fn rest_at(&mut self, set: &SurfaceSet, body: usize, proxy: [f64; 3]) {
+        let p = v(proxy);
+        if self.grab.is_some() || !p.is_finite() {
+            return;
+        }
+        if let Some(a) = &mut self.anchor {
+            if a.body == body && a.triangle < set.triangles().len() {
+                self.proxy = p;
+                a.offset = (p - set.point_on_v(a.triangle, a.bary)).to_array();
+            }
+        }
+    }
+
     /// One tick: the device is at `device` (m) and the grab button is `grab`. Allocation-free.
     pub fn update(&mut self, set: &mut SurfaceSet, device: [f64; 3], grab: bool) -> GodState {
         let device = v(device);

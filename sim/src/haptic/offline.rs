@@ -57,6 +57,14 @@ impl WorldProbe {
             world.bodies[body].model.positions()[i - offsets[body]]
         });
         self.god.follow_surface(&self.set);
+        // A press balanced as a contact patch: the proxy rests where the tissue put it.
+        if let Coupling::GodObject(Some((b, a))) = self.coupling {
+            if !a.grab {
+                if let Some(p) = world.bodies.get(b).and_then(|body| body.last_contact.proxy) {
+                    self.god.rest_at(&self.set, b, p);
+                }
+            }
+        }
     }
 
     /// How the last [`tick`](Self::tick)'s god-object acts on the tissue: the anchor to pass to

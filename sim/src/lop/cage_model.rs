@@ -528,6 +528,7 @@ impl CageModel {
         let mut report = touch.map_or_else(ContactReport::default, |t| ContactReport {
             force_on_tissue: t.on_tissue,
             depth: t.depth,
+            proxy: None,
         });
         let loads = StepLoads {
             gravity,

@@ -12,6 +12,8 @@ use faer::Side;
 
 use super::forces::{self, Loads, Network};
 use crate::contact::{add, dot, norm, scale, sub};
+use crate::interaction::ContactReport;
+use crate::patch::{project, spread, Lcp, ToolPatch, MAX_PATCH};
 use crate::solve::sparse::{Method, Ordering, Precision, SparseSpd};
 
 /// Marks an eliminated node or a block that is not stored.
@@ -38,6 +40,12 @@ pub(super) struct ImplicitSolver {
     kv: Vec<[f64; 3]>,
     /// Right-hand side `h (f − γv − hKv)` on entry to the solve, `Δv` on exit.
     rhs: Vec<f64>,
+    /// Per unknown: a contact patch's column, its solve, then the correction (`patch_correct`).
+    patch_tmp: Vec<f64>,
+    /// The patch's complementarity problem, sized once.
+    lcp: Lcp,
+    /// What the last step's patch did.
+    patch_report: Option<ContactReport>,
 }
 
 impl std::fmt::Debug for ImplicitSolver {
@@ -117,6 +125,9 @@ impl ImplicitSolver {
             force: vec![[0.0; 3]; n],
             kv: vec![[0.0; 3]; n],
             rhs: vec![0.0; dim],
+            patch_tmp: vec![0.0; dim],
+            lcp: Lcp::new(),
+            patch_report: None,
         }
     }
 
@@ -137,6 +148,10 @@ impl ImplicitSolver {
         if !self.solve() {
             return false;
         }
+        self.patch_report = loads
+            .contact
+            .and_then(|c| c.patch)
+            .map(|p| self.patch_correct(&p, x, v, h));
         for (i, &d) in self.dof.iter().enumerate() {
             if d == NONE {
                 continue;
@@ -158,7 +173,11 @@ impl ImplicitSolver {
         h: f64,
     ) {
         net.conservative_forces(x, loads, &mut self.force);
-        let touch = loads.contact.and_then(|c| forces::touch(c, x));
+        // A contact patch is solved after the step's factorisation (`patch_correct`).
+        let touch = loads
+            .contact
+            .filter(|c| c.patch.is_none())
+            .and_then(|c| forces::touch(c, x));
         if let Some(t) = &touch {
             for k in 0..3 {
                 let i = t.tri[k] as usize;
@@ -225,6 +244,79 @@ impl ImplicitSolver {
                 *slot = h * rc;
             }
         }
+    }
+
+    /// What the last step's contact patch did, if it had one.
+    pub fn patch_report(&self) -> Option<ContactReport> {
+        self.patch_report
+    }
+
+    /// With `rhs` holding `Δv` of the step without the tool: solves the contact patch (see
+    /// [`crate::patch`]) with this step's factor of `A` and adds its response. The contact
+    /// forces `λ` enter the right-hand side as `h C λ`, so the velocity changes by
+    /// `h A⁻¹ C λ` and the positions by `h² A⁻¹ C λ`.
+    fn patch_correct(
+        &mut self,
+        patch: &ToolPatch<'_>,
+        x: &[[f64; 3]],
+        v: &[[f64; 3]],
+        h: f64,
+    ) -> ContactReport {
+        let m = patch.points.len().min(MAX_PATCH);
+        let Some(a) = self.a.as_mut() else {
+            return ContactReport::default();
+        };
+        if m == 0 || !(patch.stiffness > 0.0 && patch.stiffness.is_finite()) {
+            return ContactReport::default();
+        }
+        let patch = ToolPatch {
+            points: &patch.points[..m],
+            ..*patch
+        };
+        let (dof, rhs) = (&self.dof, &self.rhs);
+        self.lcp.reset(m);
+        patch.free_gaps(
+            |k| {
+                let i = k as usize;
+                match dof.get(i) {
+                    Some(&d) if d != NONE => {
+                        let dv = [rhs[3 * d], rhs[3 * d + 1], rhs[3 * d + 2]];
+                        add(x[i], scale(add(v[i], dv), h))
+                    }
+                    _ => x.get(i).copied().unwrap_or([f64::NAN; 3]),
+                }
+            },
+            self.lcp.q(),
+        );
+        let h2 = h * h;
+        for k in 0..m {
+            self.patch_tmp.fill(0.0);
+            spread(&patch, k, 1.0, |i| unknown(dof, i), &mut self.patch_tmp);
+            a.solve_in_place(&mut self.patch_tmp);
+            let am = self.lcp.matrix();
+            for j in 0..m {
+                am[k * m + j] = h2 * project(&patch, j, |i| unknown(dof, i), &self.patch_tmp);
+            }
+        }
+        patch.add_tool_compliance(self.lcp.matrix());
+        if !self.lcp.solve() {
+            return ContactReport::default();
+        }
+        self.patch_tmp.fill(0.0);
+        for (j, &l) in self.lcp.lambda().iter().enumerate() {
+            if l != 0.0 {
+                spread(&patch, j, h * l, |i| unknown(dof, i), &mut self.patch_tmp);
+            }
+        }
+        a.solve_in_place(&mut self.patch_tmp);
+        if !self.patch_tmp.iter().all(|d| d.is_finite()) {
+            return ContactReport::default();
+        }
+        self.rhs
+            .iter_mut()
+            .zip(&self.patch_tmp)
+            .for_each(|(d, c)| *d += c);
+        crate::patch::report(&patch, self.lcp.lambda())
     }
 
     /// Numeric refactorisation into the reused buffers, then the solve: `rhs` becomes `Δv`.
@@ -325,4 +417,9 @@ fn add_off(vals: &mut [f64], off: &[usize; 3], b: &[[f64; 3]; 3], s: f64) {
             vals[off[c] + r] += s * b[r][c];
         }
     }
+}
+
+/// The first unknown of node `i`, if it is free.
+fn unknown(dof: &[usize], i: u32) -> Option<usize> {
+    dof.get(i as usize).filter(|&&d| d != NONE).map(|&d| 3 * d)
 }

@@ -575,10 +575,16 @@ impl MassSpring {
             }
         }
         self.check()?;
+        if let (Some(c), Stepper::Implicit(solver)) = (contact, &self.stepper) {
+            if c.patch.is_some() {
+                return Ok(solver.patch_report().unwrap_or_default());
+            }
+        }
         Ok(contact.map_or_else(ContactReport::default, |c| {
             forces::touch(c, &self.x).map_or_else(ContactReport::default, |t| ContactReport {
                 force_on_tissue: t.on_tissue,
                 depth: t.depth,
+                proxy: None,
             })
         }))
     }

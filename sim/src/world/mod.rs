@@ -14,12 +14,13 @@ mod round;
 pub use round::{BodyRound, Round, RoundReport, RoundTool, MAX_HEAT_CATCH_UP};
 
 use crate::collide::{CollisionBody, CollisionParams, CollisionStats, Collisions};
-use crate::contact::{closest_on_surface, scale, ToolSphere};
+use crate::contact::{closest_on_surface, scale, ForceLaw, ToolSphere};
 use crate::heat::HeatWorld;
 use crate::lop::PrecisionController;
 use crate::mesh::TetMesh;
 use crate::model::{BlowUp, ContactReport, ContactSpring, Model, ToolAnchor, ToolContact};
 use crate::msd::{MassSpring, MsdParameters};
+use crate::patch::{gather, GatherScratch, PatchPoint, ToolPatch, MAX_PATCH};
 
 /// How far beyond the tool radius a body's bounding box is still checked for contact, m. Covers
 /// the tissue's motion during one step.
@@ -55,6 +56,9 @@ pub struct Body {
     node_triangles: Vec<Vec<u32>>,
     /// Scratch: filled by `step_body` with the triangles near the tool, read by the model.
     candidates: Vec<u32>,
+    /// Scratch: the god-object press's contact patch, gathered by `step_body_coupled`.
+    patch_points: Vec<PatchPoint>,
+    patch_scratch: GatherScratch,
 }
 
 /// How the tool acts on the bodies.
@@ -257,7 +261,9 @@ impl World {
                 node_triangles[k as usize].push(t as u32);
             }
         }
+        let patch_scratch = GatherScratch::new(mesh.surface.len(), n);
         self.bodies.push(Body {
+            patch_scratch,
             name: name.to_string(),
             mesh,
             model,
@@ -269,6 +275,7 @@ impl World {
             last_contact: ContactReport::default(),
             node_triangles,
             candidates: Vec::with_capacity(64),
+            patch_points: Vec::with_capacity(MAX_PATCH),
         });
         self.bodies.len() - 1
     }
@@ -383,12 +390,38 @@ impl World {
         }
         let dt = b.model.dt();
         b.time += dt;
+        // A press by the god-object (linear law) acts over the tool's footprint: the patch of
+        // the sphere resting at the anchor, held by the tool spring to the device.
+        let mut patch = None;
+        if let (Some(t), Some(a)) = (tool, anchor) {
+            if !a.grab && t.law == ForceLaw::Linear {
+                if let Some(proxy) = anchor_proxy(&b.mesh.surface, b.model.positions(), &a) {
+                    gather(
+                        &b.mesh.surface,
+                        &b.node_triangles,
+                        b.model.positions(),
+                        a.triangle,
+                        proxy,
+                        t.radius,
+                        &mut b.patch_points,
+                        &mut b.patch_scratch,
+                    );
+                    patch = Some(ToolPatch {
+                        device: t.center,
+                        proxy,
+                        stiffness: t.stiffness,
+                        points: &b.patch_points,
+                    });
+                }
+            }
+        }
         let contact = match tool {
             Some(t) if anchor.is_some() || !b.candidates.is_empty() => Some(ToolContact {
                 tool: *t,
                 surface: &b.mesh.surface,
                 candidates: &b.candidates,
                 anchor,
+                patch,
             }),
             _ => None,
         };
@@ -412,6 +445,21 @@ impl World {
             }
         }
     }
+}
+
+/// The god-object's proxy at its anchor on positions `x`: the material point plus the offset.
+fn anchor_proxy(surface: &[[u32; 3]], x: &[[f64; 3]], a: &ToolAnchor) -> Option<[f64; 3]> {
+    let tri = surface.get(a.triangle as usize)?;
+    if tri.iter().any(|&k| k as usize >= x.len()) {
+        return None;
+    }
+    let mut p = a.offset;
+    for k in 0..3 {
+        for c in 0..3 {
+            p[c] += a.bary[k] * x[tri[k] as usize][c];
+        }
+    }
+    p.iter().all(|c| c.is_finite()).then_some(p)
 }
 
 /// Whether `p` is within `margin` of the bounding box of `positions`.

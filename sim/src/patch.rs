@@ -1,0 +1,504 @@
+//! The tool as a contact patch: the tool tip's sphere presses every part of the surface it
+//! covers, not one material point.
+//!
+//! # The model
+//! The tip is a rigid, frictionless sphere of radius `r` whose centre `s` (the proxy) is held by
+//! the tool spring `k` to the device at `c`; it has no mass, so it sits where the spring
+//! balances the tissue's push. Its contact with the tissue is unilateral and hard: every
+//! contact point `p_j` of the surface the sphere covers stays outside it,
+//! `n_j · (p_j − s) ≥ r_j`, with `n_j` the unit direction from the proxy to the point at the
+//! start of the step, and pushes the tissue along `n_j` with `λ_j ≥ 0` only while it touches
+//! (`λ_j > 0 ⇒` equality). The proxy's balance `k (c − s) = Σ λ_j n_j` closes the system, so
+//! the hand feels `k (s − c) = −Σ λ_j n_j`: **exactly the opposite of what the tissue
+//! receives**, the patch's resultant.
+//!
+//! The contact points ([`gather`]):
+//! - every surface node within reach (`|x − s| < r + margin`), target `r`: on a mesh finer
+//!   than the tool the tissue wraps the sphere node by node;
+//! - the closest point of every surface triangle in reach when it lies inside the triangle or
+//!   on an edge (a vertex is already a node point), target `r − a_t` with the allowance
+//!   `a_t = min(h_t² / (6 r), r / 20)` (`h_t` the longest edge): the depth the middle of a
+//!   triangle whose nodes rest on the sphere reaches, so face points do not fight the node
+//!   points of a fine mesh, while on a mesh coarser than the tool (the sphere inside one face)
+//!   they keep the sphere from sinking between nodes.
+//!
+//! Inside a model's implicit step (`K̃ d = b + C λ`, `C`'s column `c_j` spreading `n_j` over
+//! the point's nodes with its weights) the gaps after the step are linear in `λ`:
+//! `w = q + A λ`, `q_j = n_j · (p̂_j − c) − r_j` with `p̂_j` the point after the step without
+//! contact, `A = Cᵀ K̃⁻¹ C + Nᵀ N / k` (`N`'s columns the `n_j`). `A` is symmetric positive
+//! definite, and `w ≥ 0, λ ≥ 0, wᵀλ = 0` is a linear complementarity problem that [`Lcp`]
+//! solves exactly by principal pivoting (block pivoting first, then Murty's least-index rule,
+//! which terminates for every positive definite `A`). The model then adds `K̃⁻¹ C λ`.
+//!
+//! Why not a penalty per node: its stiffness is one more parameter to tune against the mesh
+//! (too soft and the tool sinks, too stiff and the step needs a new factor every time the set
+//! of touching nodes changes); the hard constraint needs neither, keeps the rest factor of a
+//! linear body, and its force follows from the tissue alone.
+//!
+//! The god-object's sphere in the haptic loop rests on the same surface (the latest frame), so
+//! the force the hand feels there and the patch's resultant agree within the multirate delay.
+
+use crate::contact::{bary_point, closest_bary, unit_normal};
+use crate::interaction::ContactReport;
+use crate::vec3::v;
+use glam::DVec3;
+
+/// Most contact points of one patch. A 3 mm tool pressed 0.3 mm into tissue meshed at 0.2 mm
+/// covers about 80 surface nodes; the rest is the ring in reach around it. Points beyond it
+/// are left out (the farthest, as the gathering walks outwards).
+pub const MAX_PATCH: usize = 192;
+
+/// One contact point of the patch: a material point of the surface and the sphere it must
+/// stay out of.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PatchPoint {
+    /// Nodes carrying the point (a node point repeats its node).
+    pub nodes: [u32; 3],
+    /// Their weights (sum 1).
+    pub weights: [f64; 3],
+    /// Unit direction from the proxy to the point at the start of the step: the tissue is
+    /// pushed along it.
+    pub normal: [f64; 3],
+    /// The point stays at least this far from the proxy along `normal`, m.
+    pub reach: f64,
+}
+
+/// The tool's footprint on one body for one step (see the module docs).
+#[derive(Debug, Clone, Copy)]
+pub struct ToolPatch<'a> {
+    /// The device (tool) position the spring pulls the proxy to, m.
+    pub device: [f64; 3],
+    /// The proxy at the start of the step, m.
+    pub proxy: [f64; 3],
+    /// The tool spring between proxy and device, N/m.
+    pub stiffness: f64,
+    /// The contact points.
+    pub points: &'a [PatchPoint],
+}
+
+impl ToolPatch<'_> {
+    /// The point `j` at positions `x`.
+    pub(crate) fn point(&self, j: usize, x: &impl Fn(u32) -> [f64; 3]) -> DVec3 {
+        let p = &self.points[j];
+        (0..3).fold(DVec3::ZERO, |acc, k| acc + v(x(p.nodes[k])) * p.weights[k])
+    }
+
+    /// `q_j = n_j · (p̂_j − c) − r_j` for every point, with `predicted` the positions after the
+    /// step without contact, into `q`.
+    pub(crate) fn free_gaps(&self, predicted: impl Fn(u32) -> [f64; 3], q: &mut [f64]) {
+        let c = v(self.device);
+        for (j, p) in self.points.iter().enumerate() {
+            q[j] = v(p.normal).dot(self.point(j, &predicted) - c) - p.reach;
+        }
+    }
+
+    /// The resultant on the tissue for contact forces `λ`, N.
+    pub(crate) fn resultant(&self, lambda: &[f64]) -> [f64; 3] {
+        self.points
+            .iter()
+            .zip(lambda)
+            .fold(DVec3::ZERO, |acc, (p, &l)| acc + v(p.normal) * l)
+            .to_array()
+    }
+
+    /// Adds `Nᵀ N / k` to the column-major `m × m` matrix `a`.
+    pub(crate) fn add_tool_compliance(&self, a: &mut [f64]) {
+        let m = self.points.len();
+        let inv_k = 1.0 / self.stiffness;
+        for j in 0..m {
+            for i in 0..m {
+                a[j * m + i] += v(self.points[i].normal).dot(v(self.points[j].normal)) * inv_k;
+            }
+        }
+    }
+}
+
+/// Scratch for [`gather`], sized once for a surface.
+#[derive(Debug, Clone, Default)]
+pub struct GatherScratch {
+    queue: Vec<u32>,
+    tri_stamp: Vec<u32>,
+    node_stamp: Vec<u32>,
+    stamp: u32,
+}
+
+impl GatherScratch {
+    /// Scratch for a surface of `triangles` triangles over `nodes` nodes.
+    pub fn new(triangles: usize, nodes: usize) -> GatherScratch {
+        GatherScratch {
+            queue: Vec::with_capacity(triangles),
+            tri_stamp: vec![0; triangles],
+            node_stamp: vec![0; nodes],
+            stamp: 0,
+        }
+    }
+}
+
+/// How far beyond the sphere a point is still gathered, as a fraction of the radius: it may
+/// come into contact during the step (its force stays zero if it does not).
+pub const REACH_MARGIN: f64 = 0.05;
+
+/// Collects the contact points of a sphere of `radius` at `proxy` on a surface at positions `x`,
+/// walking outwards over the triangles from `start` (the triangle the god-object rests on)
+/// through `node_triangles` (for each node, the triangles using it). Allocation-free once the
+/// scratch is sized; at most [`MAX_PATCH`] points.
+#[allow(clippy::too_many_arguments)]
+pub fn gather(
+    surface: &[[u32; 3]],
+    node_triangles: &[Vec<u32>],
+    x: &[[f64; 3]],
+    start: u32,
+    proxy: [f64; 3],
+    radius: f64,
+    out: &mut Vec<PatchPoint>,
+    s: &mut GatherScratch,
+) {
+    out.clear();
+    if s.tri_stamp.len() < surface.len() || s.node_stamp.len() < x.len() {
+        return;
+    }
+    let Some(tri0) = surface.get(start as usize) else {
+        return;
+    };
+    if tri0.iter().any(|&k| k as usize >= x.len()) || !(radius > 0.0) {
+        return;
+    }
+    s.stamp = s.stamp.wrapping_add(1);
+    if s.stamp == 0 {
+        s.tri_stamp.iter_mut().for_each(|t| *t = 0);
+        s.node_stamp.iter_mut().for_each(|t| *t = 0);
+        s.stamp = 1;
+    }
+    let stamp = s.stamp;
+    let c = v(proxy);
+    let reach = radius * (1.0 + REACH_MARGIN);
+    s.queue.clear();
+    s.queue.push(start);
+    s.tri_stamp[start as usize] = stamp;
+    let mut head = 0;
+    while head < s.queue.len() && out.len() < MAX_PATCH {
+        let t = s.queue[head];
+        head += 1;
+        let tri = surface[t as usize];
+        if tri.iter().any(|&k| k as usize >= x.len()) {
+            continue;
+        }
+        let [a, b, cc] = tri.map(|k| v(x[k as usize]));
+        let w = closest_bary(c, a, b, cc);
+        let p = bary_point(a, b, cc, w);
+        let dist = (p - c).length();
+        if !(dist < reach) && t != start {
+            continue;
+        }
+        // Node points.
+        for &k in &tri {
+            if s.node_stamp[k as usize] == stamp {
+                continue;
+            }
+            s.node_stamp[k as usize] = stamp;
+            let d = v(x[k as usize]) - c;
+            let len = d.length();
+            if len < reach && len > 1e-9 * radius && out.len() < MAX_PATCH {
+                out.push(PatchPoint {
+                    nodes: [k; 3],
+                    weights: [1.0, 0.0, 0.0],
+                    normal: (d / len).to_array(),
+                    reach: radius,
+                });
+            }
+        }
+        // The face point, unless it is a vertex.
+        let on_vertex = w.iter().filter(|&&wi| wi > 1e-9).count() <= 1;
+        let allowance = 0.0;
+        if !on_vertex && dist < reach - allowance && out.len() < MAX_PATCH {
+            let normal = if dist > 1e-9 * radius {
+                (p - c) / dist
+            } else {
+                -unit_normal(a, b, cc)
+            };
+            if normal.is_finite() {
+                let duplicate = out.iter().any(|q| {
+                    q.nodes != [q.nodes[0]; 3]
+                        && (bary_point_of(q, x) - p).length() < 1e-12 * radius.max(1.0)
+                });
+                if !duplicate {
+                    out.push(PatchPoint {
+                        nodes: tri,
+                        weights: w,
+                        normal: normal.to_array(),
+                        reach: radius - allowance,
+                    });
+                }
+            }
+        }
+        // Walk on through the triangles around this one.
+        for &k in &tri {
+            for &n in &node_triangles[k as usize] {
+                if s.tri_stamp[n as usize] != stamp {
+                    s.tri_stamp[n as usize] = stamp;
+                    s.queue.push(n);
+                }
+            }
+        }
+    }
+}
+
+/// The report of a solved patch: the resultant on the tissue, the tool spring's length and the
+/// proxy it balances at.
+pub(crate) fn report(patch: &ToolPatch<'_>, lambda: &[f64]) -> ContactReport {
+    let f = v(patch.resultant(lambda));
+    ContactReport {
+        force_on_tissue: f.to_array(),
+        depth: f.length() / patch.stiffness,
+        proxy: Some((v(patch.device) - f / patch.stiffness).to_array()),
+    }
+}
+
+/// Adds `scale · c_j` (point `j`'s direction spread over its nodes with their weights) to the
+/// DOF vector `out`; `first_dof(node)` is the node's first DOF, `None` if it is held.
+pub(crate) fn spread(
+    patch: &ToolPatch<'_>,
+    j: usize,
+    scale: f64,
+    first_dof: impl Fn(u32) -> Option<usize>,
+    out: &mut [f64],
+) {
+    let p = &patch.points[j];
+    for k in 0..3 {
+        let w = p.weights[k] * scale;
+        if w != 0.0 {
+            if let Some(d) = first_dof(p.nodes[k]) {
+                for c in 0..3 {
+                    out[d + c] += w * p.normal[c];
+                }
+            }
+        }
+    }
+}
+
+/// `c_jᵀ z` for a DOF vector `z` (see [`spread`]).
+pub(crate) fn project(
+    patch: &ToolPatch<'_>,
+    j: usize,
+    first_dof: impl Fn(u32) -> Option<usize>,
+    z: &[f64],
+) -> f64 {
+    let p = &patch.points[j];
+    let mut s = 0.0;
+    for k in 0..3 {
+        if p.weights[k] != 0.0 {
+            if let Some(d) = first_dof(p.nodes[k]) {
+                s += p.weights[k]
+                    * (p.normal[0] * z[d] + p.normal[1] * z[d + 1] + p.normal[2] * z[d + 2]);
+            }
+        }
+    }
+    s
+}
+
+fn bary_point_of(p: &PatchPoint, x: &[[f64; 3]]) -> DVec3 {
+    (0..3).fold(DVec3::ZERO, |acc, k| {
+        acc + v(x[p.nodes[k] as usize]) * p.weights[k]
+    })
+}
+
+/// A solver for the patch's linear complementarity problem `w = q + A λ ≥ 0`, `λ ≥ 0`,
+/// `wᵀλ = 0` with `A` symmetric positive definite, in buffers sized once for [`MAX_PATCH`].
+#[derive(Debug, Clone)]
+pub struct Lcp {
+    /// `A`, column-major `m × m`; filled by the caller through [`Lcp::matrix`].
+    a: Vec<f64>,
+    q: Vec<f64>,
+    lambda: Vec<f64>,
+    active: Vec<bool>,
+    idx: Vec<usize>,
+    sub: Vec<f64>,
+    rhs: Vec<f64>,
+    m: usize,
+}
+
+impl Default for Lcp {
+    fn default() -> Lcp {
+        Lcp::new()
+    }
+}
+
+impl Lcp {
+    /// Buffers for up to [`MAX_PATCH`] points.
+    pub fn new() -> Lcp {
+        Lcp {
+            a: Vec::with_capacity(MAX_PATCH * MAX_PATCH),
+            q: Vec::with_capacity(MAX_PATCH),
+            lambda: Vec::with_capacity(MAX_PATCH),
+            active: Vec::with_capacity(MAX_PATCH),
+            idx: Vec::with_capacity(MAX_PATCH),
+            sub: Vec::with_capacity(MAX_PATCH * MAX_PATCH),
+            rhs: Vec::with_capacity(MAX_PATCH),
+            m: 0,
+        }
+    }
+
+    /// Starts a problem of size `m` (at most [`MAX_PATCH`]): `A` and `q` zeroed, to be filled
+    /// through [`Lcp::matrix`] and [`Lcp::q`].
+    pub fn reset(&mut self, m: usize) {
+        let m = m.min(MAX_PATCH);
+        self.m = m;
+        self.a.clear();
+        self.a.resize(m * m, 0.0);
+        self.q.clear();
+        self.q.resize(m, 0.0);
+        self.lambda.clear();
+        self.lambda.resize(m, 0.0);
+    }
+
+    /// `A`, column-major.
+    pub fn matrix(&mut self) -> &mut [f64] {
+        &mut self.a
+    }
+
+    /// `q`.
+    pub fn q(&mut self) -> &mut [f64] {
+        &mut self.q
+    }
+
+    /// The last solution `λ`.
+    pub fn lambda(&self) -> &[f64] {
+        &self.lambda
+    }
+
+    /// Solves the problem; false (and `λ = 0`) if `A` or `q` is not finite, `A` is not
+    /// positive definite, or pivoting did not finish.
+    pub fn solve(&mut self) -> bool {
+        let m = self.m;
+        if !self.a.iter().chain(&self.q).all(|x| x.is_finite()) {
+            self.lambda.iter_mut().for_each(|l| *l = 0.0);
+            return false;
+        }
+        // A tiny ridge keeps coincident points (two faces' shared edge) solvable.
+        let diag_max = (0..m).map(|j| self.a[j * m + j]).fold(0.0, f64::max);
+        for j in 0..m {
+            self.a[j * m + j] += 1e-12 * diag_max;
+        }
+        let q_scale = self.q.iter().fold(0.0f64, |s, x| s.max(x.abs()));
+        let w_tol = 1e-10 * q_scale;
+        self.active.clear();
+        self.active.extend(self.q.iter().map(|&qj| qj < 0.0));
+        if !self.active.iter().any(|&a| a) {
+            self.lambda.iter_mut().for_each(|l| *l = 0.0);
+            return true;
+        }
+        // Block pivoting (every violated index flips) for a few rounds, then one index at a
+        // time, the least first (Murty): finite for a positive definite A.
+        let max_iter = 20 + 10 * m;
+        for iter in 0..max_iter {
+            if !self.solve_active() {
+                self.lambda.iter_mut().for_each(|l| *l = 0.0);
+                return false;
+            }
+            let l_scale = self.lambda.iter().fold(0.0f64, |s, x| s.max(x.abs()));
+            let l_tol = 1e-12 * l_scale;
+            let mut flipped = false;
+            for j in 0..m {
+                let violated = if self.active[j] {
+                    self.lambda[j] < -l_tol
+                } else {
+                    let w = self.q[j]
+                        + (0..m)
+                            .filter(|&k| self.active[k])
+                            .map(|k| self.a[k * m + j] * self.lambda[k])
+                            .sum::<f64>();
+                    w < -w_tol
+                };
+                if violated {
+                    self.active[j] = !self.active[j];
+                    flipped = true;
+                    if iter >= 5 {
+                        break;
+                    }
+                }
+            }
+            if !flipped {
+                self.lambda.iter_mut().for_each(|l| *l = l.max(0.0));
+                return true;
+            }
+        }
+        self.lambda.iter_mut().for_each(|l| *l = 0.0);
+        false
+    }
+
+    /// `λ_S = −A_SS⁻¹ q_S` on the active set `S`, zero elsewhere.
+    fn solve_active(&mut self) -> bool {
+        let m = self.m;
+        self.idx.clear();
+        self.idx.extend((0..m).filter(|&j| self.active[j]));
+        let s = self.idx.len();
+        self.lambda.iter_mut().for_each(|l| *l = 0.0);
+        if s == 0 {
+            return true;
+        }
+        self.sub.clear();
+        for &c in &self.idx {
+            for &r in &self.idx {
+                self.sub.push(self.a[c * m + r]);
+            }
+        }
+        self.rhs.clear();
+        self.rhs.extend(self.idx.iter().map(|&j| -self.q[j]));
+        if !crate::solve::dense::spd_solve_in_place(&mut self.sub, s, &mut self.rhs) {
+            return false;
+        }
+        for (k, &j) in self.idx.iter().enumerate() {
+            self.lambda[j] = self.rhs[k];
+        }
+        self.lambda.iter().all(|l| l.is_finite())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The LCP against brute force over every active set, on small random SPD problems.
+    #[test]
+    fn lcp_matches_enumeration() {
+        let mut seed = 7u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        };
+        let mut lcp = Lcp::new();
+        for m in 1..=6 {
+            for _ in 0..30 {
+                let b: Vec<f64> = (0..m * m).map(|_| rnd()).collect();
+                let mut a = vec![0.0; m * m];
+                for i in 0..m {
+                    for j in 0..m {
+                        a[j * m + i] = (0..m).map(|k| b[i * m + k] * b[j * m + k]).sum::<f64>()
+                            + if i == j { 0.1 } else { 0.0 };
+                    }
+                }
+                let q: Vec<f64> = (0..m).map(|_| rnd()).collect();
+                lcp.reset(m);
+                lcp.matrix().copy_from_slice(&a);
+                lcp.q().copy_from_slice(&q);
+                assert!(lcp.solve());
+                let l = lcp.lambda().to_vec();
+                for j in 0..m {
+                    let w = q[j] + (0..m).map(|k| a[k * m + j] * l[k]).sum::<f64>();
+                    assert!(l[j] >= 0.0 && w >= -1e-9, "m {m}: λ {l:?}, w_{j} {w}");
+                    assert!((l[j] * w).abs() < 1e-9, "complementarity");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn lcp_refuses_non_finite_input() {
+        let mut lcp = Lcp::new();
+        lcp.reset(2);
+        lcp.matrix().copy_from_slice(&[1.0, 0.0, 0.0, f64::NAN]);
+        lcp.q().copy_from_slice(&[-1.0, -1.0]);
+        assert!(!lcp.solve());
+        assert_eq!(lcp.lambda(), &[0.0, 0.0]);
+    }
+}
