@@ -295,11 +295,28 @@ impl DeformLoop {
         for b in self.world.bodies.iter_mut() {
             log_switch(b);
         }
-        self.publish(sim_now, tool_stamp, tool_read, world_step_ns);
+        // The press's contact patch, balanced where the haptic loop should rest its proxy.
+        let contact = match tool.as_ref().map(|t| t.coupling) {
+            Some(Coupling::GodObject(Some((b, a)))) if !a.grab => self
+                .world
+                .bodies
+                .get(b)
+                .and_then(|body| body.last_contact.proxy)
+                .map(|p| (b as u32, p)),
+            _ => None,
+        };
+        self.publish(sim_now, tool_stamp, tool_read, world_step_ns, contact);
     }
 
     /// Publishes the frame of the current state.
-    fn publish(&mut self, sim_now: f64, tool_stamp: u64, tool_read: u64, world_step_ns: u64) {
+    fn publish(
+        &mut self,
+        sim_now: f64,
+        tool_stamp: u64,
+        tool_read: u64,
+        world_step_ns: u64,
+        contact: Option<(u32, [f64; 3])>,
+    ) {
         let world = &self.world;
         let Ok(mut sample) = self.frame_pub.loan_slice_uninit(self.node_count) else {
             return;
@@ -314,6 +331,8 @@ impl DeformLoop {
         header.tool_read_ns = tool_read;
         header.step_ns = world_step_ns;
         header.node_count = self.node_count as u32;
+        (header.contact_body, header.contact_proxy) = contact.unwrap_or((NO_CONTACT, [0.0; 3]));
+        header._pad2 = 0;
         for (i, b) in world.bodies.iter().enumerate() {
             let bf = &mut header.bodies[i];
             let (lo, hi) = bounds(b.model.positions());

@@ -567,6 +567,11 @@ impl HapticLoop {
             ix.god.reset();
         } else if new_frame || moved {
             ix.god.follow_surface(&ix.set);
+            // The press balanced as a contact patch: rest the proxy where the tissue put it.
+            let b = fh.contact_body as usize;
+            if new_frame && fh.contact_body != NO_CONTACT && b < count {
+                ix.god.rest_at(&ix.set, b, fh.contact_proxy);
+            }
         }
         true
     }

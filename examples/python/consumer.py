@@ -22,7 +22,7 @@ import time
 
 import iceoryx2 as iox2
 
-CONTRACT_VERSION = 4
+CONTRACT_VERSION = 5
 MAX_BODIES = 16
 BODY_NAME_LEN = 32
 MODELS = {0: "GC", 1: "MSD", 2: "FEM"}
@@ -61,6 +61,9 @@ class FrameHeader(ctypes.Structure):
         ("node_count", ctypes.c_uint32),
         ("_pad", ctypes.c_uint32),
         ("bodies", BodyFrame * MAX_BODIES),
+        ("contact_proxy", ctypes.c_double * 3),
+        ("contact_body", ctypes.c_uint32),
+        ("_pad2", ctypes.c_uint32),
     ]
 
     @staticmethod
@@ -120,7 +123,7 @@ class TopologyHeader(ctypes.Structure):
 
 
 # The sizes every reader must agree on (docs/ipc.md).
-assert ctypes.sizeof(FrameHeader) == 840 and ctypes.alignment(FrameHeader) == 8
+assert ctypes.sizeof(FrameHeader) == 872 and ctypes.alignment(FrameHeader) == 8
 assert ctypes.sizeof(NodeSample) == 20
 assert ctypes.sizeof(TopologyHeader) == 1184
 

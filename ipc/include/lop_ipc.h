@@ -20,7 +20,7 @@
 extern "C" {
 #endif
 
-#define LOP_CONTRACT_VERSION 4u
+#define LOP_CONTRACT_VERSION 5u
 #define LOP_MAX_BODIES 16
 #define LOP_BODY_NAME_LEN 32
 #define LOP_MAX_SUBSCRIBERS 16
@@ -87,7 +87,7 @@ typedef struct lop_BodyFrame {
     uint32_t switches;
 } lop_BodyFrame;
 
-/* "lop::FrameHeader", user header of PREFIX/scene/frame. 840 bytes, align 8. */
+/* "lop::FrameHeader", user header of PREFIX/scene/frame. 872 bytes, align 8. */
 typedef struct lop_FrameHeader {
     uint32_t contract_version;
     uint32_t body_count;
@@ -101,7 +101,12 @@ typedef struct lop_FrameHeader {
     uint32_t node_count;
     uint32_t _pad;
     lop_BodyFrame bodies[LOP_MAX_BODIES];
+    double contact_proxy[3];  /* the tool's contact patch balanced here, m */
+    uint32_t contact_body;    /* the body it pressed, or LOP_NO_CONTACT */
+    uint32_t _pad2;
 } lop_FrameHeader;
+
+#define LOP_NO_CONTACT 0xFFFFFFFFu
 
 /* "lop::NodeSample", payload element of PREFIX/scene/frame. 20 bytes, align 4. */
 typedef struct lop_NodeSample {
@@ -245,7 +250,8 @@ LOP_ASSERT(offsetof(lop_ToolState, tool_stiffness) == 152, "ToolState.tool_stiff
 LOP_ASSERT(sizeof(lop_BodyFrame) == 48, "BodyFrame size");
 LOP_ASSERT(offsetof(lop_BodyFrame, model) == 40, "BodyFrame.model");
 LOP_ASSERT(offsetof(lop_BodyFrame, switches) == 44, "BodyFrame.switches");
-LOP_ASSERT(sizeof(lop_FrameHeader) == 72 + 48 * LOP_MAX_BODIES, "FrameHeader size");
+LOP_ASSERT(sizeof(lop_FrameHeader) == 72 + 48 * LOP_MAX_BODIES + 32, "FrameHeader size");
+LOP_ASSERT(offsetof(lop_FrameHeader, contact_body) == 96 + 48 * LOP_MAX_BODIES, "FrameHeader.contact_body");
 LOP_ASSERT(offsetof(lop_FrameHeader, node_count) == 64, "FrameHeader.node_count");
 LOP_ASSERT(offsetof(lop_FrameHeader, bodies) == 72, "FrameHeader.bodies");
 LOP_ASSERT(sizeof(lop_NodeSample) == 20, "NodeSample size");

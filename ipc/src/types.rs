@@ -139,7 +139,7 @@ pub struct BodyFrame {
 /// User header of a scene frame (`PREFIX/scene/frame`); the payload is `[NodeSample]` with
 /// `node_count` elements, bodies' nodes concatenated in topology order.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[type_name("lop::FrameHeader")]
 pub struct FrameHeader {
     /// [`crate::CONTRACT_VERSION`].
@@ -167,6 +167,40 @@ pub struct FrameHeader {
     pub _pad: u32,
     /// Per-body state; the first `body_count` are valid.
     pub bodies: [BodyFrame; MAX_BODIES],
+    /// Where this step balanced the tool's contact patch (the tool sphere's centre, resting on
+    /// the tissue and held by the tool spring), m; valid when `contact_body` is a body index.
+    /// The haptic loop rests its god-object there, so the hand feels what the tissue received.
+    pub contact_proxy: [f64; 3],
+    /// The body the patch pressed, or [`NO_CONTACT`].
+    pub contact_body: u32,
+    /// Padding, zero.
+    pub _pad2: u32,
+}
+
+/// `FrameHeader::contact_body` when no contact patch was pressed this step.
+pub const NO_CONTACT: u32 = u32::MAX;
+
+impl Default for FrameHeader {
+    /// Zeros, and no contact patch.
+    fn default() -> FrameHeader {
+        FrameHeader {
+            contract_version: 0,
+            body_count: 0,
+            topology_id: 0,
+            sequence: 0,
+            sim_time: 0.0,
+            publish_ns: 0,
+            tool_stamp_ns: 0,
+            tool_read_ns: 0,
+            step_ns: 0,
+            node_count: 0,
+            _pad: 0,
+            bodies: [BodyFrame::default(); MAX_BODIES],
+            contact_proxy: [0.0; 3],
+            contact_body: NO_CONTACT,
+            _pad2: 0,
+        }
+    }
 }
 
 /// One node of a frame.

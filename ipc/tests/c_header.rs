@@ -40,7 +40,8 @@ fn c_header_matches_the_rust_layouts() {
         BodyFrame { aabb_min, aabb_max, kinetic_energy, max_speed, step_ns, resets, model, state,
             _pad, switches }
         FrameHeader { contract_version, body_count, topology_id, sequence, sim_time, publish_ns,
-            tool_stamp_ns, tool_read_ns, step_ns, node_count, _pad, bodies }
+            tool_stamp_ns, tool_read_ns, step_ns, node_count, _pad, bodies, contact_proxy,
+            contact_body, _pad2 }
         NodeSample { position, temperature, flags }
         BodyTopology { name, node_offset, node_count, triangle_offset, triangle_count,
             tet_offset, tet_count, color, importance, _pad }

@@ -10,7 +10,7 @@ use lop_ipc::*;
 
 #[test]
 fn contract_version_is_one() {
-    assert_eq!(CONTRACT_VERSION, 4);
+    assert_eq!(CONTRACT_VERSION, 5);
 }
 
 #[test]
@@ -48,7 +48,7 @@ fn frame_layout() {
     assert_eq!(offset_of!(BodyFrame, state), 41);
     assert_eq!(offset_of!(BodyFrame, switches), 44);
 
-    assert_eq!(size_of::<FrameHeader>(), 72 + 48 * MAX_BODIES);
+    assert_eq!(size_of::<FrameHeader>(), 72 + 48 * MAX_BODIES + 32);
     assert_eq!(align_of::<FrameHeader>(), 8);
     assert_eq!(offset_of!(FrameHeader, contract_version), 0);
     assert_eq!(offset_of!(FrameHeader, body_count), 4);
@@ -61,6 +61,8 @@ fn frame_layout() {
     assert_eq!(offset_of!(FrameHeader, step_ns), 56);
     assert_eq!(offset_of!(FrameHeader, node_count), 64);
     assert_eq!(offset_of!(FrameHeader, bodies), 72);
+    assert_eq!(offset_of!(FrameHeader, contact_proxy), 72 + 48 * MAX_BODIES);
+    assert_eq!(offset_of!(FrameHeader, contact_body), 96 + 48 * MAX_BODIES);
 
     assert_eq!(size_of::<NodeSample>(), 20);
     assert_eq!(align_of::<NodeSample>(), 4);

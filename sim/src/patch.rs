@@ -207,10 +207,14 @@ pub fn gather(
                 });
             }
         }
-        // The face point, unless it is a vertex.
+        // The face point, unless it is a vertex (a node point), with the face's allowance.
         let on_vertex = w.iter().filter(|&&wi| wi > 1e-9).count() <= 1;
-        let allowance = 0.0;
-        if !on_vertex && dist < reach - allowance && out.len() < MAX_PATCH {
+        let longest = (b - a)
+            .length()
+            .max((cc - b).length())
+            .max((a - cc).length());
+        let allowance = (longest * longest / (6.0 * radius)).min(radius / 20.0);
+        if !on_vertex && dist < reach && out.len() < MAX_PATCH {
             let normal = if dist > 1e-9 * radius {
                 (p - c) / dist
             } else {
@@ -463,7 +467,9 @@ mod tests {
     fn lcp_matches_enumeration() {
         let mut seed = 7u64;
         let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
         };
         let mut lcp = Lcp::new();

@@ -63,13 +63,19 @@ impl Fem {
         s.patch_tmp.fill(0.0);
         for (col, &l) in s.patch_cols[..m * n].chunks_exact(n).zip(s.lcp.lambda()) {
             if l != 0.0 {
-                s.patch_tmp.iter_mut().zip(col).for_each(|(t, c)| *t += l * c);
+                s.patch_tmp
+                    .iter_mut()
+                    .zip(col)
+                    .for_each(|(t, c)| *t += l * c);
             }
         }
         if !s.patch_tmp.iter().all(|d| d.is_finite()) {
             return ContactReport::default();
         }
-        s.sol.iter_mut().zip(&s.patch_tmp).for_each(|(d, c)| *d += c);
+        s.sol
+            .iter_mut()
+            .zip(&s.patch_tmp)
+            .for_each(|(d, c)| *d += c);
         report(&patch, s.lcp.lambda())
     }
 }

@@ -298,7 +298,7 @@ impl Reduced {
                 report = Some(ContactReport {
                     force_on_tissue: scale(t.normal, t.stiffness * g),
                     depth: (orig.depth - (t.depth - gap)).max(0.0),
-                proxy: None,
+                    proxy: None,
                 });
             }
         }
