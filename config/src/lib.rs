@@ -17,8 +17,10 @@
 //!
 //! [`resolve_scene`] takes a name or a path. A name (no `/`, no `.toml` suffix) is looked up as
 //! `NAME.toml` in, in order: each directory of `$LOP_SCENE_DIR` (`:`-separated), this crate's
-//! `scenes/` folder, `/usr/share/lop/scenes`. Shipped scenes: `beam` (thesis ch. 3),
-//! `cylinders` (§6.1) and `organs` (§6.2). Mock-device scripts resolve the same way through
+//! `scenes/` folder, `/usr/share/lop/scenes`. Shipped scenes: `abdomen` (the default of `lopd`:
+//! the organs with soft-tissue values from the literature, sources in its comments), `beam`
+//! (thesis ch. 3), `cylinders` (§6.1) and `organs` (§6.2, the thesis' reproduction). Mock-device
+//! scripts resolve the same way through
 //! [`resolve_script`] (`$LOP_SCRIPT_DIR`, this crate's `scripts/`, `/usr/share/lop/scripts`).
 //!
 //! # Scene files

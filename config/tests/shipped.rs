@@ -3,8 +3,12 @@
 
 use lop_config::{
     list_scenes, load_scene, parse_daemon_config, parse_scene, resolve_scene, FemMode, ForceLaw,
-    HeatParams, HeatSpec, Importance, MassSpec, ModelPin, Scene,
+    GcDynamics, HeatParams, HeatSpec, Importance, MassSpec, ModelPin, Scene,
 };
+
+/// Length and FNV-1a hash of config/scenes/organs.toml (see `organs_scene_file_is_unchanged`).
+const ORGANS_LEN: usize = 6349;
+const ORGANS_FNV1A: u64 = 0xdb6979cc21aa5c5b;
 
 fn shipped(name: &str) -> Scene {
     let path = resolve_scene(name).unwrap_or_else(|e| panic!("{e}"));
@@ -47,7 +51,7 @@ fn assert_common(scene: &Scene, script: &str) {
 #[test]
 fn all_shipped_scenes_are_listed() {
     let names: Vec<String> = list_scenes().into_iter().map(|(n, _)| n).collect();
-    for want in ["beam", "cylinders", "organs"] {
+    for want in ["abdomen", "beam", "cylinders", "organs"] {
         assert!(names.iter().any(|n| n == want), "{want} not in {names:?}");
     }
 }
@@ -136,6 +140,80 @@ fn organs_match_table_6_2() {
         );
         assert_eq!(b.msd.as_ref().unwrap().mass, MassSpec::Density(10.0));
     }
+}
+
+/// The default scene: the organs' meshes with the literature's soft-tissue values cited in its
+/// comments (config/scenes/abdomen.toml).
+#[test]
+fn abdomen_has_real_tissue_values() {
+    let s = shipped("abdomen");
+    assert_eq!(s.name, "abdomen");
+    assert_common(&s, "abdomen-poke.toml");
+    // Gravity off: the organs' supports are not modelled (see the scene's comments).
+    assert_eq!(s.gravity, [0.0, 0.0, 0.0]);
+    // The same device mapping and bodies as the thesis' organs scene.
+    let organs = shipped("organs");
+    assert_eq!(s.workspace, organs.workspace);
+    assert_eq!(s.lop, organs.lop);
+    let names: Vec<&str> = s.bodies.iter().map(|b| b.name.as_str()).collect();
+    assert_eq!(names, ["liver", "spleen", "stomach", "pancreas"]);
+    // Young's modulus per organ, Pa, as cited in the scene.
+    let young = [
+        ("liver", 4100.0),
+        ("spleen", 18000.0),
+        ("stomach", 10000.0),
+        ("pancreas", 1400.0),
+    ];
+    for (b, o) in s.bodies.iter().zip(&organs.bodies) {
+        assert_eq!(b.mesh, o.mesh, "{}", b.name);
+        assert_eq!(b.fixed_nodes, o.fixed_nodes, "{}", b.name);
+        assert_eq!(b.importance, o.importance, "{}", b.name);
+        let fem = b
+            .fem
+            .as_ref()
+            .expect("every abdomen body has FEM parameters");
+        let (_, e) = young.iter().find(|(n, _)| *n == b.name).unwrap();
+        assert_eq!(fem.young, *e, "{}", b.name);
+        // Soft tissue, kPa range.
+        assert!(
+            (1e3..1e5).contains(&fem.young),
+            "{}: E {}",
+            b.name,
+            fem.young
+        );
+        // Near incompressible, below where linear tetrahedra lock.
+        assert!(
+            (0.4..0.5).contains(&fem.poisson),
+            "{}: nu {}",
+            b.name,
+            fem.poisson
+        );
+        assert_eq!(fem.poisson, 0.45, "{}", b.name);
+        assert!((1000.0..=1100.0).contains(&fem.density), "{}", b.name);
+        assert_eq!(fem.mode, FemMode::Corotational);
+        let msd = b.msd.as_ref().unwrap();
+        assert_eq!(msd.mass, MassSpec::Density(fem.density), "{}", b.name);
+        assert!(msd.stiffness > 0.0 && msd.damping > 0.0);
+        let gc = b.gc.as_ref().unwrap();
+        assert_eq!(gc.dynamics, GcDynamics::Projected, "{}", b.name);
+    }
+}
+
+/// `organs` is the thesis' reproduction: its file stays byte for byte as it was when `abdomen`
+/// became the default (FNV-1a of the file). Change the thesis' numbers in a new scene instead.
+#[test]
+fn organs_scene_file_is_unchanged() {
+    let path = resolve_scene("organs").unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325_u64, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    });
+    assert_eq!(
+        (bytes.len(), hash),
+        (ORGANS_LEN, ORGANS_FNV1A),
+        "{} changed: it reproduces the thesis' Table 6.2",
+        path.display()
+    );
 }
 
 /// The ```toml blocks of the crate documentation (the user documentation of the file formats).

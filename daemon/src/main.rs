@@ -109,8 +109,9 @@ enum MeshCommand {
 
 #[derive(Args, Clone)]
 struct CommonArgs {
-    /// Scene name (see `lopd scenes`) or path to a scene TOML.
-    #[arg(long, default_value = "organs")]
+    /// Scene name (see `lopd scenes`) or path to a scene TOML. The default, `abdomen`, has
+    /// soft-tissue parameters from the literature; `organs` is the thesis' reproduction.
+    #[arg(long, default_value = "abdomen")]
     scene: String,
     /// Service prefix, so several rigs or tests can share a machine.
     #[arg(long, default_value = lop_ipc::SERVICE_PREFIX_DEFAULT)]
@@ -141,8 +142,9 @@ struct HapticArgs {
 
 #[derive(Args, Clone)]
 struct SimulateArgs {
-    /// Scene name or path.
-    #[arg(long, default_value = "organs")]
+    /// Scene name or path (the same default as `lopd run`, so a session recorded there
+    /// replays on its scene).
+    #[arg(long, default_value = "abdomen")]
     scene: String,
     /// Steps of every body (the cap with --until-converged).
     #[arg(long, default_value_t = 1000)]

@@ -69,7 +69,7 @@ fn every_shipped_script_loads_and_fits_the_omni_workspace() {
         })
         .collect();
     names.sort();
-    let mut expected: Vec<String> = ["beam", "cylinders", "organs"]
+    let mut expected: Vec<String> = ["abdomen", "beam", "cylinders", "organs"]
         .iter()
         .flat_map(|scene| {
             ["drag", "grab", "heat", "poke"].map(|action| format!("{scene}-{action}"))
