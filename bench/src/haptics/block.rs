@@ -108,9 +108,17 @@ pub fn block(size: f64, cache: &Path) -> Result<Block> {
     let cached =
         msh_path.exists() && std::fs::read_to_string(&geo_path).is_ok_and(|old| old == text);
     if !cached {
-        std::fs::write(&geo_path, &text)
+        // Under this process's own names first, renamed into place after: two runs (or two
+        // tests) generating the same block at once never read a half-written file.
+        let tmp_geo = cache.join(format!("{stem}.{}.geo.tmp", std::process::id()));
+        let tmp_msh = cache.join(format!("{stem}.{}.msh.tmp", std::process::id()));
+        std::fs::write(&tmp_geo, &text)
+            .with_context(|| format!("writing {}", tmp_geo.display()))?;
+        run_gmsh(&tmp_geo, &tmp_msh)?;
+        std::fs::rename(&tmp_msh, &msh_path)
+            .with_context(|| format!("writing {}", msh_path.display()))?;
+        std::fs::rename(&tmp_geo, &geo_path)
             .with_context(|| format!("writing {}", geo_path.display()))?;
-        run_gmsh(&geo_path, &msh_path)?;
     }
     let mut mesh = read_gmsh(&msh_path)?;
     mesh.fixed = mesh

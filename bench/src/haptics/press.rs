@@ -84,6 +84,8 @@ pub struct Sample {
 pub struct Hold {
     /// Mean force magnitude, N.
     pub mean: f64,
+    /// Mean vertical force (pushing the hand up), N.
+    pub mean_z: f64,
     /// `(max − min)/mean` of the force magnitude.
     pub variation: f64,
     /// Largest `|F_xy| / |F|`.
@@ -101,8 +103,6 @@ pub struct Press {
     pub reached: bool,
     /// The measured part of the hold.
     pub hold: Hold,
-    /// Ticks run.
-    pub ticks: usize,
 }
 
 impl Press {
@@ -223,7 +223,6 @@ pub fn press(block: &Block, setup: &Setup, plan: &PressPlan) -> Result<Press> {
         samples,
         reached,
         hold,
-        ticks: tick,
     })
 }
 
@@ -231,6 +230,7 @@ fn hold_stats(samples: &[&Sample]) -> Hold {
     if samples.is_empty() {
         return Hold {
             mean: f64::NAN,
+            mean_z: f64::NAN,
             variation: f64::NAN,
             sideways: f64::NAN,
             depth: f64::NAN,
@@ -260,6 +260,7 @@ fn hold_stats(samples: &[&Sample]) -> Hold {
         .fold(0.0, f64::max);
     Hold {
         mean,
+        mean_z: samples.iter().map(|s| s.force[2]).sum::<f64>() / n,
         variation: if mean > 0.0 {
             (max - min) / mean
         } else {

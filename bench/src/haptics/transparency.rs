@@ -74,13 +74,23 @@ pub struct MeshRow {
     pub tets: usize,
     /// Whether lop pressed on it (the converged reference mesh is not pressed).
     pub pressed: bool,
-    /// Reference: candidate nodes, seconds to assemble, factorise and condense.
+    /// Reference: free DOFs, non-zeros of the Cholesky factor, candidate nodes, seconds to
+    /// assemble, factorise and condense.
+    pub dofs: usize,
+    pub factor_nnz: usize,
     pub candidates: usize,
     pub reference_setup_s: f64,
-    /// Force on the hand at d = 0.3 mm through lop, mN (vertical press).
+    /// Force on the hand through lop at d = 0.3 mm, mN: the vertical press's hold (static; its
+    /// depth is in `hold_vertical`).
     pub lop_mn: Option<f64>,
-    /// The static reference on this mesh at 0.3 mm, mN.
+    /// The same while the device descends (interpolated at 0.3 mm): includes the one-tick lag
+    /// of the god-object behind the device, about `k v Δt`.
+    pub lop_moving_mn: Option<f64>,
+    /// The static reference on this mesh at 0.3 mm, mN; its deepest penetration (mm) and its
+    /// equilibrium residual `|Σ reactions − F| / |F|`.
     pub reference_mn: f64,
+    pub reference_penetration_mm: f64,
+    pub reference_equilibrium: f64,
     /// lop against the same-mesh reference and against Hertz, relative.
     pub error_same: Option<f64>,
     pub error_hertz: Option<f64>,
@@ -195,11 +205,14 @@ pub fn run(quick: bool, out: &Path) -> Result<Report> {
         let setup_s = t0.elapsed().as_secs_f64();
         let mut curve = Vec::new();
         let mut at_compare = f64::NAN;
+        let (mut penetration, mut equilibrium) = (f64::NAN, f64::NAN);
         for &d in &depths {
             let c = reference.solve(d, Penalty::Exact)?;
             curve.push((d * 1e3, c.force() * 1e3));
             if (d - COMPARE_DEPTH).abs() < 1e-9 {
                 at_compare = c.force();
+                penetration = c.penetration;
+                equilibrium = reference.equilibrium_residual(&c);
             }
             reference_rows.push(ReferenceRow {
                 mesh: b.label(),
@@ -229,7 +242,11 @@ pub fn run(quick: bool, out: &Path) -> Result<Report> {
         } else {
             None
         };
-        let lop = runs.as_ref().and_then(|(v, _)| v.force_at(COMPARE_DEPTH));
+        let lop = runs
+            .as_ref()
+            .map(|(v, _)| v.hold.mean_z)
+            .filter(|f| f.is_finite());
+        let moving = runs.as_ref().and_then(|(v, _)| v.force_at(COMPARE_DEPTH));
         meshes.push(MeshRow {
             key: format!("block_{}mm", block::size_mm(size)),
             size_mm: size * 1e3,
@@ -237,10 +254,15 @@ pub fn run(quick: bool, out: &Path) -> Result<Report> {
             nodes: b.mesh.nodes.len(),
             tets: b.mesh.tets.len(),
             pressed,
+            dofs: reference.stiffness().n_dof(),
+            factor_nnz: reference.stiffness().nnz.1,
             candidates: reference.candidates(),
             reference_setup_s: setup_s,
             lop_mn: lop.map(|f| f * 1e3),
+            lop_moving_mn: moving.map(|f| f * 1e3),
             reference_mn: at_compare * 1e3,
+            reference_penetration_mm: penetration * 1e3,
+            reference_equilibrium: equilibrium,
             error_same: lop.map(|f| f / at_compare - 1.0),
             error_hertz: lop.map(|f| f / hertz(COMPARE_DEPTH) - 1.0),
             hold_vertical: runs.as_ref().map(|(v, _)| v.hold.into()),
@@ -353,18 +375,37 @@ fn print_tables(
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "Meshes (gmsh, graded; reference = static FE contact, exact multipliers)"
+        "Meshes (gmsh, graded) and the static FE contact reference on them (exact multipliers; \
+         cand: candidate nodes; pen: deepest penetration at 0.3 mm; equil: |sum of reactions - F|/|F|)"
     );
     let _ = writeln!(
         s,
-        "{:<14} {:>9} {:>8} {:>8} {:>11} {:>12}",
-        "mesh", "edge mm", "nodes", "tets", "candidates", "ref setup s"
+        "{:<14} {:>8} {:>7} {:>7} {:>7} {:>9} {:>6} {:>8} {:>10} {:>9}",
+        "mesh",
+        "edge mm",
+        "nodes",
+        "tets",
+        "dofs",
+        "L nnz",
+        "cand",
+        "setup s",
+        "pen@0.3 m",
+        "equil"
     );
     for m in meshes {
         let _ = writeln!(
             s,
-            "{:<14} {:>9.3} {:>8} {:>8} {:>11} {:>12.1}",
-            m.key, m.edge_mm, m.nodes, m.tets, m.candidates, m.reference_setup_s
+            "{:<14} {:>8.3} {:>7} {:>7} {:>7} {:>9} {:>6} {:>8.1} {:>10.1e} {:>9.1e}",
+            m.key,
+            m.edge_mm,
+            m.nodes,
+            m.tets,
+            m.dofs,
+            m.factor_nnz,
+            m.candidates,
+            m.reference_setup_s,
+            m.reference_penetration_mm * 1e-3,
+            m.reference_equilibrium
         );
     }
     let _ = writeln!(
@@ -398,20 +439,22 @@ fn print_tables(
     }
     let _ = writeln!(
         s,
-        "\nForce on the hand through lop at d = {} mm (vertical press), mN",
+        "\nForce on the hand through lop at d = {} mm, mN: held still (static), and while \
+         descending at the press speed (the god-object lags the device by a tick: + k v dt)",
         COMPARE_DEPTH * 1e3
     );
     let _ = writeln!(
         s,
-        "{:<14} {:>9} {:>9} {:>10} {:>9} {:>10}",
-        "mesh", "lop", "ref same", "vs same", "Hertz", "vs Hertz"
+        "{:<14} {:>9} {:>9} {:>9} {:>10} {:>9} {:>10}",
+        "mesh", "lop held", "moving", "ref same", "vs same", "Hertz", "vs Hertz"
     );
     for m in meshes.iter().filter(|m| m.pressed) {
         let _ = writeln!(
             s,
-            "{:<14} {:>9} {:>9.2} {:>10} {:>9.2} {:>10}",
+            "{:<14} {:>9} {:>9} {:>9.2} {:>10} {:>9.2} {:>10}",
             m.key,
-            opt(m.lop_mn, 2),
+            opt(m.lop_mn, 3),
+            opt(m.lop_moving_mn, 3),
             m.reference_mn,
             pct(m.error_same),
             hertz(COMPARE_DEPTH) * 1e3,
