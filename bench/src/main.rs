@@ -1,7 +1,7 @@
 //! `lop-bench`: benchmarks of the lop pipeline. One module per subcommand (`latency`, `models`,
-//! `lop`, `interaction`, `haptics`, …); shared helpers in `table` (percentile rows, table printing), `plot` (SVG charts),
-//! `pipeline` (spawning `lopd` with a guard) and `cyclictest` (the machine's own wake-up
-//! latency, as a yardstick).
+//! `lop`, `interaction`, `haptics`, …); shared helpers in `table` (percentile rows, table
+//! printing), `plot` (SVG charts), `pipeline` (spawning `lopd` with a guard) and `cyclictest`
+//! (the machine's own wake-up latency, as a yardstick).
 
 use std::process::ExitCode;
 
