@@ -2,6 +2,7 @@
 # Installs what lop's builds, tests and benchmarks need beyond the Rust toolchain, on Debian or
 # Ubuntu. Idempotent: it only calls apt-get / pip when something is missing.
 #   tetgen    regenerates and checks the shipped meshes (assets/generate.py --check)
+#   gmsh      meshes the graded test blocks of `lop-bench haptics` (bench/src/haptics/block.rs)
 #   rt-tests  cyclictest, the machine's own wake-up latency floor in `lop-bench latency`
 #   chromium  headless browser for the web viewer's screenshot test (view/tests/browser.rs)
 #   iceoryx2  the Python binding, at exactly the daemon's iceoryx2 version, for the renderer
@@ -14,6 +15,7 @@ ICEORYX2_VERSION=0.10.0
 
 need=()
 command -v tetgen >/dev/null 2>&1 || need+=(tetgen)
+command -v gmsh >/dev/null 2>&1 || need+=(gmsh)
 command -v cyclictest >/dev/null 2>&1 || need+=(rt-tests)
 command -v python3 >/dev/null 2>&1 || need+=(python3)
 command -v chromium >/dev/null 2>&1 || need+=(chromium)

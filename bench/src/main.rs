@@ -1,13 +1,14 @@
 //! `lop-bench`: benchmarks of the lop pipeline. One module per subcommand (`latency`, `models`,
-//! `lop`); shared helpers in `table` (percentile rows, table printing), `plot` (SVG charts),
-//! `pipeline` (spawning `lopd` with a guard) and `cyclictest` (the machine's own wake-up
-//! latency, as a yardstick).
+//! `lop`, `interaction`, `haptics`, …); shared helpers in `table` (percentile rows, table
+//! printing), `plot` (SVG charts), `pipeline` (spawning `lopd` with a guard) and `cyclictest`
+//! (the machine's own wake-up latency, as a yardstick).
 
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
 mod cyclictest;
+mod haptics;
 mod interaction;
 mod latency;
 mod lop;
@@ -40,6 +41,10 @@ enum Command {
     /// Tool interaction, the thesis' §6.3.4: haptic tick compute (god-object + force), collision
     /// detection per step, heat step per body (table, CSV, SVG).
     Interaction(interaction::InteractionArgs),
+    /// Haptics, part 1 (transparency): the force lop renders when a 3 mm tool presses a clamped
+    /// block, on three gmsh meshes, against a static FE contact reference and Hertz; the force's
+    /// steadiness during a hold (tables, CSV, SVG, PASS/FAIL).
+    Haptics(haptics::HapticsArgs),
     /// Micro-timings, printed: collision detection on the organs, the GC cage deformation.
     Timings(timings::TimingsArgs),
     /// Organ collision and tool queries: ours against parry3d-f64 (time, allocations, answers).
@@ -55,6 +60,7 @@ fn main() -> ExitCode {
         Command::Models(a) => models::run(a),
         Command::Lop(a) => lop::run(a),
         Command::Interaction(a) => interaction::run(a),
+        Command::Haptics(a) => haptics::run(a),
         Command::Timings(a) => timings::run(a),
         #[cfg(feature = "parry")]
         Command::Collide(a) => parry::run(a),

@@ -1,0 +1,58 @@
+//! `lop-bench haptics`: what the hand feels, measured against what it should feel.
+//!
+//! Part 1, **transparency** (`transparency.rs`): a 3 mm tool pressed into a clamped
+//! 40 × 40 × 20 mm block (E 30 kPa, ν 0.3, linear FEM, tool spring 600 N/m) on graded meshes of
+//! 0.8, 0.4 and 0.2 mm at the contact (`block.rs`, generated with gmsh). The force lop renders
+//! (`press.rs`: the offline god-object and `World::round`, as the daemon runs them) against an
+//! independent static FE contact reference on the same mesh and on a finer one
+//! (`reference.rs`) and against Hertz (`hertz.rs`); then the force's steadiness while the hand
+//! holds still. Targets: within 10 % of the same-mesh reference, the meshes within 15 % of each
+//! other, the finest within 20 % of Hertz; hold variation ≤ 5 %, sideways part < 10 %.
+
+// `!(x > 0.0)` is how a check is written so that NaN fails it (as in lop-sim); 3×3 blocks read
+// best as index loops.
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
+
+mod block;
+mod hertz;
+mod press;
+mod reference;
+mod transparency;
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::Args;
+
+/// Options of `lop-bench haptics`.
+#[derive(Args, Debug)]
+pub struct HapticsArgs {
+    /// Small and fast (for the smoke test): the 0.8 and 0.4 mm meshes, four reference depths, no
+    /// converged reference.
+    #[arg(long)]
+    quick: bool,
+    /// Where the CSV and SVG files go (created if missing).
+    #[arg(long, default_value = "target/lop-bench/haptics")]
+    out: PathBuf,
+    /// Also write every number as JSON to this file.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+/// Runs the benchmark.
+pub fn run(a: HapticsArgs) -> Result<()> {
+    let clock = Instant::now();
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let report = transparency::run(a.quick, &a.out)?;
+    println!(
+        "\nlop-bench haptics{} took {:.1} s",
+        if a.quick { " --quick" } else { "" },
+        clock.elapsed().as_secs_f64()
+    );
+    if let Some(path) = a.json {
+        let body = serde_json::to_string_pretty(&report)?;
+        std::fs::write(&path, body).with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}

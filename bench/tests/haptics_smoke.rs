@@ -1,0 +1,61 @@
+//! Smoke test of `lop-bench haptics --quick`: both quick meshes are generated (gmsh), the
+//! reference and the presses give positive finite forces, the reference sits within a band of
+//! Hertz, the targets are all evaluated (PASS or FAIL, whichever contact model lop has), and
+//! the CSV and SVG exist. No wall-clock bound and no assertion on lop's own figures: they are
+//! what the benchmark measures.
+
+mod common;
+
+use std::time::Duration;
+
+use serde_json::Value;
+
+#[test]
+fn haptics_quick_reports_every_mesh_and_target() {
+    let dir = std::env::temp_dir().join(format!("lop-bench-haptics-{}", std::process::id()));
+    let json = dir.join("report.json");
+    let stdout = common::run_bench(
+        &[
+            "haptics".as_ref(),
+            "--quick".as_ref(),
+            "--out".as_ref(),
+            dir.as_os_str(),
+            "--json".as_ref(),
+            json.as_os_str(),
+        ],
+        Duration::from_secs(900),
+    );
+    assert!(stdout.contains("Targets"), "{stdout}");
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let meshes = report["meshes"].as_array().unwrap();
+    let keys: Vec<&str> = meshes.iter().map(|m| m["key"].as_str().unwrap()).collect();
+    assert_eq!(keys, ["block_0.8mm", "block_0.4mm"]);
+    for m in meshes {
+        assert!(m["tets"].as_u64().unwrap() > 1000, "{m}");
+        let edge = m["edge_mm"].as_f64().unwrap();
+        let size = m["size_mm"].as_f64().unwrap();
+        assert!(edge > 0.5 * size && edge < 2.0 * size, "{m}");
+        assert!(m["reference_equilibrium"].as_f64().unwrap() < 1e-8, "{m}");
+        let lop = m["lop_mn"].as_f64().unwrap();
+        assert!(lop.is_finite() && lop > 0.0, "{m}");
+        assert!(m["reached"].as_bool().unwrap(), "{m}");
+    }
+    for r in report["reference"].as_array().unwrap() {
+        let ratio = r["force_mn"].as_f64().unwrap() / r["hertz_layer_mn"].as_f64().unwrap();
+        assert!(ratio > 0.95 && ratio < 1.6, "{r}");
+    }
+    // Per mesh: same-mesh, and hold variation and sideways on two paths; across: spread and
+    // Hertz on the finest.
+    let targets = report["targets"].as_array().unwrap();
+    assert_eq!(targets.len(), 2 + 1 + 1 + 2 * 4, "{targets:?}");
+    for f in [
+        "reference.csv",
+        "press_0.8mm_vertical.csv",
+        "press_0.4mm_tilted.csv",
+        "force_vs_depth.svg",
+        "error_vs_mesh.svg",
+    ] {
+        assert!(dir.join(f).exists(), "{f}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
