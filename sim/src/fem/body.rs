@@ -126,6 +126,11 @@ impl Fem {
             inv_clock: 0,
             patch_tmp: vec![0.0; n_dof],
             patch_cols: Vec::new(),
+            pc_slot_of: Vec::new(),
+            pc_node: Vec::new(),
+            pc_used: Vec::new(),
+            pc_cols: Vec::new(),
+            pc_clock: 0,
             lcp: crate::patch::Lcp::new(),
         });
         let mut fem = Fem {

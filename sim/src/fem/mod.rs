@@ -293,6 +293,13 @@ struct Scratch {
     patch_cols: Vec<f64>,
     /// The patch's complementarity problem, sized once.
     lcp: crate::patch::Lcp,
+    /// Linear mode: the patch's cache of `K̃⁻¹` columns, three per node (`patch::patch_slot`):
+    /// per node its slot or `NONE`, per slot its node and last use, the columns.
+    pc_slot_of: Vec<u32>,
+    pc_node: Vec<u32>,
+    pc_used: Vec<u64>,
+    pc_cols: Vec<f64>,
+    pc_clock: u64,
 }
 
 /// Node blocks of `K̃⁻¹` columns kept by a linear body (see `Scratch::inv_cols`): a touched

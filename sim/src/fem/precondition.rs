@@ -107,6 +107,7 @@ impl Fem {
         self.extra_iterations = 0;
         self.baseline_iterations = None;
         self.s.inv_key.iter_mut().for_each(|k| *k = NONE);
+        self.clear_patch_cache();
         if warped {
             self.factor = Factor::WarpedDynamic;
             self.s.node_rot_lag.copy_from_slice(&self.s.node_rot);
