@@ -71,8 +71,7 @@ impl Fem {
                         let slot = s.pc_slot_of[nb] as usize;
                         for ja in 0..3 {
                             let (wa, na) = (pj.weights[ja], pj.nodes[ja] as usize);
-                            let Some(&da) = dof.get(na).filter(|&&d| wa != 0.0 && d != NONE)
-                            else {
+                            let Some(&da) = dof.get(na).filter(|&&d| wa != 0.0 && d != NONE) else {
                                 continue;
                             };
                             // n_jᵀ G(a, b) n_k with G's column c of node b at node a's rows.
@@ -130,14 +129,20 @@ impl Fem {
                     for c in 0..3 {
                         let f = l * p.weights[k] * p.normal[c];
                         let col = &s.pc_cols[(3 * slot + c) * n..(3 * slot + c + 1) * n];
-                        s.patch_tmp.iter_mut().zip(col).for_each(|(t, g)| *t += f * g);
+                        s.patch_tmp
+                            .iter_mut()
+                            .zip(col)
+                            .for_each(|(t, g)| *t += f * g);
                     }
                 }
             }
         } else {
             for (col, &l) in s.patch_cols[..m * n].chunks_exact(n).zip(s.lcp.lambda()) {
                 if l != 0.0 {
-                    s.patch_tmp.iter_mut().zip(col).for_each(|(t, c)| *t += l * c);
+                    s.patch_tmp
+                        .iter_mut()
+                        .zip(col)
+                        .for_each(|(t, c)| *t += l * c);
                 }
             }
         }
