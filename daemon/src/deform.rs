@@ -296,15 +296,10 @@ impl DeformLoop {
             log_switch(b);
         }
         // The press's contact patch, balanced where the haptic loop should rest its proxy.
-        let contact = match tool.as_ref().map(|t| t.coupling) {
-            Some(Coupling::GodObject(Some((b, a)))) if !a.grab => self
-                .world
-                .bodies
-                .get(b)
-                .and_then(|body| body.last_contact.proxy)
-                .map(|p| (b as u32, p)),
-            _ => None,
-        };
+        let contact = tool
+            .as_ref()
+            .and_then(|t| self.world.contact_proxy(t.coupling))
+            .map(|(b, p)| (b as u32, p));
         self.publish(sim_now, tool_stamp, tool_read, world_step_ns, contact);
     }
 

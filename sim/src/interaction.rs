@@ -64,23 +64,35 @@ impl ToolAnchor {
         proxy: [f64; 3],
         grab: bool,
     ) -> Option<ToolAnchor> {
-        let tri = surface.get(triangle as usize)?;
-        if tri.iter().any(|&k| k as usize >= x.len())
-            || !bary.iter().chain(proxy.iter()).all(|v| v.is_finite())
-        {
+        if !proxy.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        let mut a = ToolAnchor {
+            triangle,
+            bary,
+            offset: [0.0; 3],
+            grab,
+        };
+        a.offset = sub(proxy, a.point(surface, x)?);
+        Some(a)
+    }
+
+    /// The material point on a surface at positions `x`; `None` if the triangle or the
+    /// weights are invalid.
+    pub fn point(&self, surface: &[[u32; 3]], x: &[[f64; 3]]) -> Option<[f64; 3]> {
+        let tri = surface.get(self.triangle as usize)?;
+        if tri.iter().any(|&k| k as usize >= x.len()) || !self.bary.iter().all(|w| w.is_finite()) {
             return None;
         }
         let [p0, p1, p2] = tri.map(|k| x[k as usize]);
-        let p = add(
-            add(scale(p0, bary[0]), scale(p1, bary[1])),
-            scale(p2, bary[2]),
-        );
-        Some(ToolAnchor {
-            triangle,
-            bary,
-            offset: sub(proxy, p),
-            grab,
-        })
+        let w = self.bary;
+        Some(add(add(scale(p0, w[0]), scale(p1, w[1])), scale(p2, w[2])))
+    }
+
+    /// The god-object on a surface at positions `x`: the material point plus the offset.
+    pub fn proxy(&self, surface: &[[u32; 3]], x: &[[f64; 3]]) -> Option<[f64; 3]> {
+        let p = add(self.point(surface, x)?, self.offset);
+        p.iter().all(|c| c.is_finite()).then_some(p)
     }
 }
 
@@ -234,13 +246,8 @@ pub(crate) fn touch(c: &ToolContact<'_>, x: &[[f64; 3]]) -> Option<Touch> {
 
 /// The tool's contact on positions `x` at the god-object's anchor (see [`ToolAnchor`]).
 pub(crate) fn anchored_touch(c: &ToolContact<'_>, a: ToolAnchor, x: &[[f64; 3]]) -> Option<Touch> {
-    let tri = *c.surface.get(a.triangle as usize)?;
-    if tri.iter().any(|&k| k as usize >= x.len()) || !a.bary.iter().all(|w| w.is_finite()) {
-        return None;
-    }
-    let [p0, p1, p2] = tri.map(|k| x[k as usize]);
-    let w = a.bary;
-    let p = add(add(scale(p0, w[0]), scale(p1, w[1])), scale(p2, w[2]));
+    let p = a.point(c.surface, x)?;
+    let tri = c.surface[a.triangle as usize];
     let g = sub(add(p, a.offset), c.tool.center);
     let depth = norm(g);
     if !(depth > 1e-12) || (!a.grab && !(dot(g, a.offset) > 0.0)) {
@@ -253,7 +260,7 @@ pub(crate) fn anchored_touch(c: &ToolContact<'_>, a: ToolAnchor, x: &[[f64; 3]])
     }
     Some(Touch {
         tri,
-        weights: w,
+        weights: a.bary,
         normal,
         depth,
         on_tissue: scale(normal, -f),

@@ -35,8 +35,12 @@
 //! of touching nodes changes); the hard constraint needs neither, keeps the rest factor of a
 //! linear body, and its force follows from the tissue alone.
 //!
-//! The god-object's sphere in the haptic loop rests on the same surface (the latest frame), so
-//! the force the hand feels there and the patch's resultant agree within the multirate delay.
+//! The haptic loop's god-object finds the contact (which body, where, no pop-through) and its
+//! anchor gives the proxy the patch starts from ([`gather`] walks out from there); where the
+//! patch balanced is published with every frame and the god-object rests its proxy there
+//! ([`crate::haptic::GodObject::rest_at`]), so the hand feels the patch's resultant within the
+//! multirate delay. Its own face-by-face sweep would put the sphere on the faces rather than on
+//! the nodes, a few micrometres off, which is 7–10 % of a light press's force.
 
 use crate::contact::{bary_point, closest_bary, unit_normal};
 use crate::interaction::ContactReport;
@@ -68,8 +72,6 @@ pub struct PatchPoint {
 pub struct ToolPatch<'a> {
     /// The device (tool) position the spring pulls the proxy to, m.
     pub device: [f64; 3],
-    /// The proxy at the start of the step, m.
-    pub proxy: [f64; 3],
     /// The tool spring between proxy and device, N/m.
     pub stiffness: f64,
     /// The contact points.
@@ -110,6 +112,99 @@ impl ToolPatch<'_> {
                 a[j * m + i] += v(self.points[i].normal).dot(v(self.points[j].normal)) * inv_k;
             }
         }
+    }
+}
+
+/// A model's solve of its contact patch: the points' free gaps, `A = Cᵀ K⁻¹ C` through the
+/// model's factor, the complementarity problem, and the displacement the forces add. Its
+/// buffers are sized for the model's unknowns once; the columns grow to the largest patch.
+#[derive(Debug, Clone)]
+pub(crate) struct PatchSolve {
+    /// The complementarity problem: `A` and `q` are filled here or by the caller.
+    pub(crate) lcp: Lcp,
+    /// Per point, per unknown: its column `c_j`, then `K⁻¹ c_j`.
+    cols: Vec<f64>,
+    /// Per unknown: the displacement the contact forces add, `scale · K⁻¹ C λ`.
+    pub(crate) correction: Vec<f64>,
+}
+
+impl PatchSolve {
+    /// Scratch for a model of `n` unknowns.
+    pub(crate) fn new(n: usize) -> PatchSolve {
+        PatchSolve {
+            lcp: Lcp::new(),
+            cols: Vec::new(),
+            correction: vec![0.0; n],
+        }
+    }
+
+    /// The patch limited to [`MAX_PATCH`] points, or `None` if it has none or its spring is
+    /// not a positive finite stiffness.
+    pub(crate) fn limit<'a>(patch: &ToolPatch<'a>) -> Option<ToolPatch<'a>> {
+        let m = patch.points.len().min(MAX_PATCH);
+        (m > 0 && patch.stiffness > 0.0 && patch.stiffness.is_finite()).then_some(ToolPatch {
+            points: &patch.points[..m],
+            ..*patch
+        })
+    }
+
+    /// Starts the problem: `q` from `predicted`, the nodes' positions after the step without
+    /// contact; `A` zero.
+    pub(crate) fn begin(&mut self, patch: &ToolPatch<'_>, predicted: impl Fn(u32) -> [f64; 3]) {
+        self.lcp.reset(patch.points.len());
+        patch.free_gaps(predicted, self.lcp.q());
+    }
+
+    /// Fills `A = scale · Cᵀ K⁻¹ C` by one solve of the points' columns together:
+    /// `solve_columns(b, m)` solves the model's system for the `m` columns of `b` (`n` rows
+    /// each), `scale` turns its solution into the points' displacement.
+    pub(crate) fn matrix_by_solves(
+        &mut self,
+        patch: &ToolPatch<'_>,
+        first_dof: impl Fn(u32) -> Option<usize> + Copy,
+        scale: f64,
+        mut solve_columns: impl FnMut(&mut [f64], usize),
+    ) {
+        let (m, n) = (patch.points.len(), self.correction.len());
+        if self.cols.len() < m * n {
+            self.cols.resize(m * n, 0.0);
+        }
+        let cols = &mut self.cols[..m * n];
+        cols.fill(0.0);
+        for (k, col) in cols.chunks_exact_mut(n).enumerate() {
+            spread(patch, k, 1.0, first_dof, col);
+        }
+        solve_columns(cols, m);
+        let a = self.lcp.matrix();
+        for (k, col) in cols.chunks_exact(n).enumerate() {
+            for j in 0..m {
+                a[k * m + j] = scale * project(patch, j, first_dof, col);
+            }
+        }
+    }
+
+    /// Adds the tool spring's compliance and solves for `λ`; false if it cannot be solved.
+    pub(crate) fn solve(&mut self, patch: &ToolPatch<'_>) -> bool {
+        patch.add_tool_compliance(self.lcp.matrix());
+        self.lcp.solve()
+    }
+
+    /// After [`PatchSolve::matrix_by_solves`] and [`PatchSolve::solve`]: `correction =
+    /// scale · K⁻¹ C λ` from the solved columns; false if it is not finite.
+    pub(crate) fn correction_by_solves(&mut self, scale: f64) -> bool {
+        let n = self.correction.len();
+        let m = self.lcp.lambda().len();
+        self.correction.fill(0.0);
+        for (col, &l) in self.cols[..m * n].chunks_exact(n).zip(self.lcp.lambda()) {
+            if l != 0.0 {
+                let f = scale * l;
+                self.correction
+                    .iter_mut()
+                    .zip(col)
+                    .for_each(|(t, c)| *t += f * c);
+            }
+        }
+        self.correction.iter().all(|d| d.is_finite())
     }
 }
 
@@ -260,7 +355,7 @@ pub(crate) fn report(patch: &ToolPatch<'_>, lambda: &[f64]) -> ContactReport {
 
 /// Adds `scale · c_j` (point `j`'s direction spread over its nodes with their weights) to the
 /// DOF vector `out`; `first_dof(node)` is the node's first DOF, `None` if it is held.
-pub(crate) fn spread(
+fn spread(
     patch: &ToolPatch<'_>,
     j: usize,
     scale: f64,
@@ -281,7 +376,7 @@ pub(crate) fn spread(
 }
 
 /// `c_jᵀ z` for a DOF vector `z` (see [`spread`]).
-pub(crate) fn project(
+fn project(
     patch: &ToolPatch<'_>,
     j: usize,
     first_dof: impl Fn(u32) -> Option<usize>,
@@ -462,9 +557,10 @@ impl Lcp {
 mod tests {
     use super::*;
 
-    /// The LCP against brute force over every active set, on small random SPD problems.
+    /// On small random positive definite problems the solution meets every condition that
+    /// defines it (feasible, non-negative, complementary), which makes it the unique one.
     #[test]
-    fn lcp_matches_enumeration() {
+    fn lcp_solutions_meet_the_complementarity_conditions() {
         let mut seed = 7u64;
         let mut rnd = || {
             seed = seed

@@ -33,7 +33,9 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
+use glam::DVec3;
 use lop_sim::mesh::TetMesh;
+use nalgebra::{DMatrix, DVector};
 
 /// No degree of freedom (a fixed node).
 const NONE: u32 = u32::MAX;
@@ -77,15 +79,15 @@ struct Tet {
 impl Tet {
     fn new(nodes: [u32; 4], x: [[f64; 3]; 4]) -> Option<Tet> {
         let e = [1, 2, 3].map(|k| [0, 1, 2].map(|c| x[k][c] - x[0][c]));
-        let c12 = cross(e[1], e[2]);
-        let det = dot(e[0], c12);
+        let c12 = v(e[1]).cross(v(e[2]));
+        let det = v(e[0]).dot(c12);
         if !(det > 0.0) {
             return None;
         }
         // Rows of the inverse of the edge matrix [e0 e1 e2] (as columns).
-        let b1 = scale(c12, 1.0 / det);
-        let b2 = scale(cross(e[2], e[0]), 1.0 / det);
-        let b3 = scale(cross(e[0], e[1]), 1.0 / det);
+        let b1 = (c12 / det).to_array();
+        let b2 = (v(e[2]).cross(v(e[0])) / det).to_array();
+        let b3 = (v(e[0]).cross(v(e[1])) / det).to_array();
         let b0 = [0, 1, 2].map(|c| -(b1[c] + b2[c] + b3[c]));
         Some(Tet {
             nodes,
@@ -97,7 +99,7 @@ impl Tet {
     /// The 3×3 block `K_ij`.
     fn block(&self, i: usize, j: usize, lambda: f64, mu: f64) -> [[f64; 3]; 3] {
         let (bi, bj) = (self.grad[i], self.grad[j]);
-        let d = mu * dot(bi, bj);
+        let d = mu * v(bi).dot(v(bj));
         let mut k = [[0.0; 3]; 3];
         for a in 0..3 {
             for b in 0..3 {
@@ -287,7 +289,7 @@ impl Stiffness {
                     let k = t.block(i, j, self.lambda, self.mu);
                     let uj = u[t.nodes[j] as usize];
                     for a in 0..3 {
-                        f[a] += dot(k[a], uj);
+                        f[a] += v(k[a]).dot(v(uj));
                     }
                 }
                 let o = &mut out[t.nodes[i] as usize];
@@ -439,7 +441,7 @@ impl ContactReference {
     pub fn equilibrium_residual(&self, contact: &Contact) -> f64 {
         let r = self.support_reaction(contact);
         let f = contact.force_on_tool;
-        norm(sub(r, f)) / norm(f)
+        (v(r) - v(f)).length() / v(f).length()
     }
 
     /// The mean point stiffness of the candidates, `1 / C_zz`, N/m: the scale for a penalty.
@@ -474,10 +476,10 @@ impl ContactReference {
         let rel: Vec<[f64; 3]> = self
             .candidates
             .iter()
-            .map(|&i| sub(self.nodes[i as usize], s))
+            .map(|&i| (v(self.nodes[i as usize]) - v(s)).to_array())
             .collect();
-        let mut normal: Vec<[f64; 3]> = rel.iter().map(|&r| scale(r, 1.0 / norm(r))).collect();
-        let mut active: Vec<bool> = rel.iter().map(|&r| norm(r) < self.radius).collect();
+        let mut normal: Vec<[f64; 3]> = rel.iter().map(|&r| v(r).normalize().to_array()).collect();
+        let mut active: Vec<bool> = rel.iter().map(|&r| v(r).length() < self.radius).collect();
         let mut lambda = vec![0.0; m];
         let mut u = vec![0.0; m3];
         let tolerance = 1e-4 * depth;
@@ -494,7 +496,7 @@ impl ContactReference {
                 let mut a = vec![0.0; na * na];
                 let mut g = vec![0.0; na];
                 for (p, &j) in set.iter().enumerate() {
-                    g[p] = self.radius - dot(normal[j], rel[j]);
+                    g[p] = self.radius - v(normal[j]).dot(v(rel[j]));
                     for (q, &k) in set.iter().enumerate().skip(p) {
                         let mut v = 0.0;
                         for x in 0..3 {
@@ -509,9 +511,10 @@ impl ContactReference {
                     }
                     a[p * na + p] += reg;
                 }
-                if !cholesky_solve(&mut a, na, &mut g) {
+                let Some(chol) = nalgebra::Cholesky::new(DMatrix::from_vec(na, na, a)) else {
                     bail!("depth {depth}: the contact system is singular");
-                }
+                };
+                let g = chol.solve(&DVector::from_vec(g));
                 for (p, &j) in set.iter().enumerate() {
                     lambda[j] = g[p];
                 }
@@ -530,8 +533,8 @@ impl ContactReference {
             let mut deepest: f64 = 0.0;
             for j in 0..m {
                 let p = [0, 1, 2].map(|c| rel[j][c] + u[3 * j + c]);
-                let r = norm(p);
-                let n = scale(p, 1.0 / r);
+                let r = v(p).length();
+                let n = (v(p) / r).to_array();
                 for c in 0..3 {
                     change = change.max((n[c] - normal[j][c]).abs());
                 }
@@ -549,7 +552,7 @@ impl ContactReference {
                 let mut nodal_forces = vec![[0.0; 3]; self.nodes.len()];
                 let mut total = [0.0; 3];
                 for (j, &i) in self.candidates.iter().enumerate() {
-                    let fj = scale(normal[j], lambda[j]);
+                    let fj = (v(normal[j]) * lambda[j]).to_array();
                     nodal_forces[i as usize] = fj;
                     total = [0, 1, 2].map(|c| total[c] - fj[c]);
                 }
@@ -604,12 +607,12 @@ impl ContactReference {
                 continue;
             }
             let p = [0, 1, 2].map(|c| self.nodes[i as usize][c] + u[i as usize][c] - s[c]);
-            if norm(p) < self.radius - tol {
+            if v(p).length() < self.radius - tol {
                 bail!(
                     "depth {}: node {i} outside the candidates penetrates the sphere by {:e} m: \
                      widen the candidate radius",
                     contact.depth,
-                    self.radius - norm(p)
+                    self.radius - v(p).length()
                 );
             }
         }
@@ -617,62 +620,9 @@ impl ContactReference {
     }
 }
 
-/// Solves `A x = b` in place (`b` becomes `x`) for a dense SPD `A` (n × n, row-major,
-/// overwritten by its Cholesky factor). `false` if `A` is not positive definite.
-fn cholesky_solve(a: &mut [f64], n: usize, b: &mut [f64]) -> bool {
-    for j in 0..n {
-        let mut d = a[j * n + j];
-        for k in 0..j {
-            d -= a[j * n + k] * a[j * n + k];
-        }
-        if !(d > 0.0) {
-            return false;
-        }
-        let d = d.sqrt();
-        a[j * n + j] = d;
-        for i in j + 1..n {
-            let mut v = a[i * n + j];
-            for k in 0..j {
-                v -= a[i * n + k] * a[j * n + k];
-            }
-            a[i * n + j] = v / d;
-        }
-    }
-    for i in 0..n {
-        let mut v = b[i];
-        for k in 0..i {
-            v -= a[i * n + k] * b[k];
-        }
-        b[i] = v / a[i * n + i];
-    }
-    for i in (0..n).rev() {
-        let mut v = b[i];
-        for k in i + 1..n {
-            v -= a[k * n + i] * b[k];
-        }
-        b[i] = v / a[i * n + i];
-    }
-    true
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    a.map(|v| v * s)
-}
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
+/// A point as a glam vector.
+fn v(a: [f64; 3]) -> DVec3 {
+    DVec3::from_array(a)
 }
 
 #[cfg(test)]

@@ -124,14 +124,12 @@ impl Fem {
             },
             inv_used: vec![0; INVERSE_SLOTS],
             inv_clock: 0,
-            patch_tmp: vec![0.0; n_dof],
-            patch_cols: Vec::new(),
-            pc_slot_of: Vec::new(),
+            patch: crate::patch::PatchSolve::new(n_dof),
+            pc_slot_of: vec![NONE; n],
             pc_node: Vec::new(),
             pc_used: Vec::new(),
             pc_cols: Vec::new(),
             pc_clock: 0,
-            lcp: crate::patch::Lcp::new(),
         });
         let mut fem = Fem {
             params,

@@ -286,15 +286,11 @@ struct Scratch {
     inv_key: Vec<u32>,
     inv_used: Vec<u64>,
     inv_clock: u64,
-    /// Per DOF: the correction `K̃⁻¹ C λ` of a contact patch (`patch_correct` only).
-    patch_tmp: Vec<f64>,
-    /// Per patch point, per DOF: its column `c_j`, then `K̃⁻¹ c_j`; grown to the largest
-    /// patch on first use (`patch_correct` only).
-    patch_cols: Vec<f64>,
-    /// The patch's complementarity problem, sized once.
-    lcp: crate::patch::Lcp,
+    /// The contact patch's solve (`patch_correct` only).
+    patch: crate::patch::PatchSolve,
     /// Linear mode: the patch's cache of `K̃⁻¹` columns, three per node (`patch::patch_slot`):
-    /// per node its slot or `NONE`, per slot its node and last use, the columns.
+    /// per node its slot or `NONE`, per slot its node and last use (grown to
+    /// `PATCH_CACHE_NODES` on use), the columns.
     pc_slot_of: Vec<u32>,
     pc_node: Vec<u32>,
     pc_used: Vec<u64>,

@@ -5,155 +5,163 @@
 use super::system::NONE;
 use super::{Factor, Fem, FemMode};
 use crate::interaction::ContactReport;
-use crate::patch::{project, report, spread, ToolPatch, MAX_PATCH};
+use crate::patch::{report, PatchSolve, ToolPatch};
 
 impl Fem {
     /// With `sol` the increment of the step without the tool: solves the patch with the
-    /// current factor of `K̃` (one blocked solve for the points' columns, kept for the correction) and adds its
-    /// response to `sol`. In the lagged-factor CG mode the factor is the lagged one, so the
-    /// gaps close to its accuracy; the forces still balance the tool spring exactly. A patch
-    /// that cannot be solved (non-finite data) applies no force.
+    /// current factor of `K̃` and adds its response to `sol`. A linear body keeps `K̃⁻¹`'s
+    /// columns of the patch's nodes across steps (`patch_slot`); otherwise the points' columns
+    /// are solved together each step. In the lagged-factor CG mode the factor is the lagged
+    /// one, so the gaps close to its accuracy; the forces still balance the tool spring
+    /// exactly. A patch that cannot be solved (non-finite data) applies no force.
     pub(super) fn patch_correct(&mut self, patch: &ToolPatch<'_>) -> ContactReport {
-        let m = patch.points.len().min(MAX_PATCH);
-        if m == 0 || !(patch.stiffness > 0.0 && patch.stiffness.is_finite()) {
+        let Some(patch) = PatchSolve::limit(patch) else {
             return ContactReport::default();
-        }
-        let patch = ToolPatch {
-            points: &patch.points[..m],
-            ..*patch
         };
-        self.s.lcp.reset(m);
-        let s = &mut *self.s;
         {
-            let (dof, x, sol) = (&self.system.dof, &self.x, &s.sol);
-            let predicted = |k: u32| {
+            let (dof, x, sol) = (&self.system.dof, &self.x, &self.s.sol);
+            self.s.patch.begin(&patch, |k| {
                 let i = k as usize;
-                match dof.get(i) {
-                    Some(&d) if d != NONE => {
-                        let d = d as usize;
-                        [x[i][0] + sol[d], x[i][1] + sol[d + 1], x[i][2] + sol[d + 2]]
-                    }
-                    _ => x.get(i).copied().unwrap_or([f64::NAN; 3]),
+                match first_dof(dof, k) {
+                    Some(d) => [x[i][0] + sol[d], x[i][1] + sol[d + 1], x[i][2] + sol[d + 2]],
+                    None => x.get(i).copied().unwrap_or([f64::NAN; 3]),
                 }
-            };
-            patch.free_gaps(predicted, s.lcp.q());
+            });
         }
-        let n = self.system.n_dof;
-        let cached = self.factor == Factor::RestDynamic && self.params.mode == FemMode::Linear;
+        let cached = self.factor == Factor::RestDynamic
+            && self.params.mode == FemMode::Linear
+            && self.cache_patch_nodes(&patch);
         if cached {
-            // Linear body, fixed factor: K̃⁻¹'s columns for each node of the patch, kept
-            // while the node stays in reach (the patch on a fine mesh holds a hundred nodes
-            // for many steps; one blocked solve per step would redo them all).
-            self.s.pc_clock += 1;
-            for j in 0..m {
-                let p = patch.points[j];
-                for k in 0..3 {
-                    if p.weights[k] != 0.0 {
-                        if let Some(&d) = self.system.dof.get(p.nodes[k] as usize) {
-                            if d != NONE {
-                                self.patch_slot(p.nodes[k], d);
-                            }
-                        }
-                    }
-                }
-            }
-            let s = &mut *self.s;
-            let dof = &self.system.dof;
-            let a = s.lcp.matrix();
-            for (k, pk) in patch.points.iter().enumerate() {
-                for (j, pj) in patch.points.iter().enumerate().take(k + 1) {
-                    let mut sum = 0.0;
-                    for kb in 0..3 {
-                        let (wb, nb) = (pk.weights[kb], pk.nodes[kb] as usize);
-                        if wb == 0.0 || dof.get(nb).is_none_or(|&d| d == NONE) {
-                            continue;
-                        }
-                        let slot = s.pc_slot_of[nb] as usize;
-                        for ja in 0..3 {
-                            let (wa, na) = (pj.weights[ja], pj.nodes[ja] as usize);
-                            let Some(&da) = dof.get(na).filter(|&&d| wa != 0.0 && d != NONE) else {
-                                continue;
-                            };
-                            // n_jᵀ G(a, b) n_k with G's column c of node b at node a's rows.
-                            for c in 0..3 {
-                                let col = &s.pc_cols[(3 * slot + c) * n..(3 * slot + c + 1) * n];
-                                let r = da as usize;
-                                let g = pj.normal[0] * col[r]
-                                    + pj.normal[1] * col[r + 1]
-                                    + pj.normal[2] * col[r + 2];
-                                sum += wa * wb * g * pk.normal[c];
-                            }
-                        }
-                    }
-                    a[k * m + j] = sum;
-                    a[j * m + k] = sum;
-                }
-            }
+            self.cached_matrix(&patch);
         } else {
-            // A = Cᵀ K̃⁻¹ C: the columns c_k solved together.
-            let s = &mut *self.s;
-            if s.patch_cols.len() < m * n {
-                s.patch_cols.resize(m * n, 0.0);
-            }
-            let cols = &mut s.patch_cols[..m * n];
-            cols.fill(0.0);
-            for (k, col) in cols.chunks_exact_mut(n).enumerate() {
-                spread(&patch, k, 1.0, |i| first_dof(&self.system.dof, i), col);
-            }
-            self.system.solve_columns(cols, m);
-            let a = s.lcp.matrix();
-            for (k, col) in cols.chunks_exact(n).enumerate() {
-                for j in 0..m {
-                    a[k * m + j] = project(&patch, j, |i| first_dof(&self.system.dof, i), col);
-                }
-            }
+            // The DOF map is borrowed while the system solves: held aside meanwhile.
+            let dof = std::mem::take(&mut self.system.dof);
+            let system = &mut self.system;
+            self.s.patch.matrix_by_solves(
+                &patch,
+                |i| first_dof(&dof, i),
+                1.0,
+                |b, m| system.solve_columns(b, m),
+            );
+            self.system.dof = dof;
         }
         let s = &mut *self.s;
-        patch.add_tool_compliance(s.lcp.matrix());
-        if !s.lcp.solve() {
+        if !s.patch.solve(&patch) {
             return ContactReport::default();
         }
-        // d += K̃⁻¹ C λ = Σ λ_j (K̃⁻¹ c_j).
-        s.patch_tmp.fill(0.0);
-        if cached {
-            for (p, &l) in patch.points.iter().zip(s.lcp.lambda()) {
-                if l == 0.0 {
-                    continue;
-                }
-                for k in 0..3 {
-                    let node = p.nodes[k] as usize;
-                    if p.weights[k] == 0.0 || self.system.dof.get(node).is_none_or(|&d| d == NONE) {
-                        continue;
-                    }
-                    let slot = s.pc_slot_of[node] as usize;
-                    for c in 0..3 {
-                        let f = l * p.weights[k] * p.normal[c];
-                        let col = &s.pc_cols[(3 * slot + c) * n..(3 * slot + c + 1) * n];
-                        s.patch_tmp
-                            .iter_mut()
-                            .zip(col)
-                            .for_each(|(t, g)| *t += f * g);
-                    }
-                }
-            }
+        let finite = if cached {
+            self.cached_correction(&patch)
         } else {
-            for (col, &l) in s.patch_cols[..m * n].chunks_exact(n).zip(s.lcp.lambda()) {
-                if l != 0.0 {
-                    s.patch_tmp
-                        .iter_mut()
-                        .zip(col)
-                        .for_each(|(t, c)| *t += l * c);
-                }
-            }
-        }
-        if !s.patch_tmp.iter().all(|d| d.is_finite()) {
+            self.s.patch.correction_by_solves(1.0)
+        };
+        if !finite {
             return ContactReport::default();
         }
+        let s = &mut *self.s;
         s.sol
             .iter_mut()
-            .zip(&s.patch_tmp)
+            .zip(&s.patch.correction)
             .for_each(|(d, c)| *d += c);
-        report(&patch, s.lcp.lambda())
+        report(&patch, s.patch.lcp.lambda())
+    }
+
+    /// Puts every free node of the patch in the column cache; false if they do not all fit.
+    fn cache_patch_nodes(&mut self, patch: &ToolPatch<'_>) -> bool {
+        self.s.pc_clock += 1;
+        for p in patch.points {
+            for k in 0..3 {
+                if p.weights[k] != 0.0 {
+                    if let Some(d) = first_dof(&self.system.dof, p.nodes[k]) {
+                        if !self.patch_slot(p.nodes[k], d) {
+                            return false;
+                        }
+                    }
+                }
+            }
+        }
+        true
+    }
+
+    /// `A = Cᵀ K̃⁻¹ C` from the cached columns: `n_jᵀ G(a, b) n_k` summed over the points'
+    /// nodes with their weights, `G(a, b)` the 3×3 block of `K̃⁻¹` at node `a`'s rows and
+    /// node `b`'s columns.
+    fn cached_matrix(&mut self, patch: &ToolPatch<'_>) {
+        let m = patch.points.len();
+        let (dof, n) = (&self.system.dof, self.system.n_dof);
+        let s = &mut *self.s;
+        let cache = ColumnCache {
+            cols: &s.pc_cols,
+            slot_of: &s.pc_slot_of,
+            n,
+        };
+        let a = s.patch.lcp.matrix();
+        for (k, pk) in patch.points.iter().enumerate() {
+            for (j, pj) in patch.points.iter().enumerate().take(k + 1) {
+                let mut sum = 0.0;
+                for kb in 0..3 {
+                    if pk.weights[kb] == 0.0 || first_dof(dof, pk.nodes[kb]).is_none() {
+                        continue;
+                    }
+                    for ja in 0..3 {
+                        let Some(r) =
+                            first_dof(dof, pj.nodes[ja]).filter(|_| pj.weights[ja] != 0.0)
+                        else {
+                            continue;
+                        };
+                        for c in 0..3 {
+                            let col = cache.column(pk.nodes[kb], c);
+                            let g = pj.normal[0] * col[r]
+                                + pj.normal[1] * col[r + 1]
+                                + pj.normal[2] * col[r + 2];
+                            sum += pj.weights[ja] * pk.weights[kb] * g * pk.normal[c];
+                        }
+                    }
+                }
+                a[k * m + j] = sum;
+                a[j * m + k] = sum;
+            }
+        }
+    }
+
+    /// `correction = K̃⁻¹ C λ` from the cached columns; false if it is not finite.
+    fn cached_correction(&mut self, patch: &ToolPatch<'_>) -> bool {
+        let (dof, n) = (&self.system.dof, self.system.n_dof);
+        let s = &mut *self.s;
+        let cache = ColumnCache {
+            cols: &s.pc_cols,
+            slot_of: &s.pc_slot_of,
+            n,
+        };
+        let out = &mut s.patch.correction;
+        out.fill(0.0);
+        for (p, &l) in patch.points.iter().zip(s.patch.lcp.lambda()) {
+            for k in 0..3 {
+                if l == 0.0 || p.weights[k] == 0.0 || first_dof(dof, p.nodes[k]).is_none() {
+                    continue;
+                }
+                for c in 0..3 {
+                    let f = l * p.weights[k] * p.normal[c];
+                    let col = cache.column(p.nodes[k], c);
+                    out.iter_mut().zip(col).for_each(|(t, g)| *t += f * g);
+                }
+            }
+        }
+        out.iter().all(|d| d.is_finite())
+    }
+}
+
+/// The linear body's cached `K̃⁻¹` columns (see `Fem::patch_slot`).
+struct ColumnCache<'a> {
+    cols: &'a [f64],
+    slot_of: &'a [u32],
+    n: usize,
+}
+
+impl ColumnCache<'_> {
+    /// Column `c` (0–2) of node `node`'s block.
+    fn column(&self, node: u32, c: usize) -> &[f64] {
+        let slot = self.slot_of[node as usize] as usize;
+        &self.cols[(3 * slot + c) * self.n..(3 * slot + c + 1) * self.n]
     }
 }
 
@@ -171,18 +179,16 @@ pub(super) const PATCH_CACHE_NODES: usize = 256;
 impl Fem {
     /// Makes sure node `node` (first DOF `d`) has its three `K̃⁻¹` columns in the patch cache;
     /// three solves with the rest factor when it has not. The cache grows to
-    /// [`PATCH_CACHE_NODES`] slots, then reuses the least recently used one.
-    fn patch_slot(&mut self, node: u32, d: u32) {
+    /// [`PATCH_CACHE_NODES`] slots, then reuses the least recently used one; false if every
+    /// slot holds a node of this step's patch.
+    fn patch_slot(&mut self, node: u32, d: usize) -> bool {
         let n = self.system.n_dof;
         let s = &mut *self.s;
         let clock = s.pc_clock;
         let node = node as usize;
-        if s.pc_slot_of.len() != self.x.len() {
-            s.pc_slot_of = vec![NONE; self.x.len()];
-        }
         if s.pc_slot_of[node] != NONE {
             s.pc_used[s.pc_slot_of[node] as usize] = clock;
-            return;
+            return true;
         }
         let slot = if s.pc_node.len() < PATCH_CACHE_NODES {
             s.pc_node.push(NONE);
@@ -190,26 +196,31 @@ impl Fem {
             s.pc_cols.resize(s.pc_cols.len() + 3 * n, 0.0);
             s.pc_node.len() - 1
         } else {
-            // The least recently used slot, never one used this step.
-            let (slot, _) = s
+            // The least recently used slot, never one this step's patch uses.
+            let Some((slot, _)) = s
                 .pc_used
                 .iter()
                 .enumerate()
                 .filter(|(_, &u)| u != clock)
                 .min_by_key(|(_, &u)| u)
-                .expect("a patch holds fewer points than the cache has slots");
-            s.pc_slot_of[s.pc_node[slot] as usize] = NONE;
+            else {
+                return false;
+            };
+            if s.pc_node[slot] != NONE {
+                s.pc_slot_of[s.pc_node[slot] as usize] = NONE;
+            }
             slot
         };
         for c in 0..3 {
             let col = &mut s.pc_cols[(3 * slot + c) * n..(3 * slot + c + 1) * n];
             col.fill(0.0);
-            col[d as usize + c] = 1.0;
+            col[d + c] = 1.0;
             self.system.solve_in_place(col);
         }
         s.pc_node[slot] = node as u32;
         s.pc_used[slot] = clock;
         s.pc_slot_of[node] = slot as u32;
+        true
     }
 
     /// Forgets the patch cache (the factor changed).

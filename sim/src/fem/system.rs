@@ -386,7 +386,7 @@ impl System {
             return;
         }
         if self.matrix.current() == Some(Precision::Double) {
-            self.matrix.solve_columns_reusing(b, ncols);
+            self.matrix.solve_columns(b, ncols);
         } else {
             for col in b.chunks_exact_mut(self.n_dof).take(ncols) {
                 self.solve_in_place(col);

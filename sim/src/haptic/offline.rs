@@ -58,12 +58,8 @@ impl WorldProbe {
         });
         self.god.follow_surface(&self.set);
         // A press balanced as a contact patch: the proxy rests where the tissue put it.
-        if let Coupling::GodObject(Some((b, a))) = self.coupling {
-            if !a.grab {
-                if let Some(p) = world.bodies.get(b).and_then(|body| body.last_contact.proxy) {
-                    self.god.rest_at(&self.set, b, p);
-                }
-            }
+        if let Some((b, p)) = world.contact_proxy(self.coupling) {
+            self.god.rest_at(&self.set, b, p);
         }
     }
 

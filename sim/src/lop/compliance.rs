@@ -119,7 +119,7 @@ pub(super) fn matched_stiffness(
             }
         }
     }
-    k_ff.solve_columns_in_place(&mut x, m);
+    k_ff.solve_columns(&mut x, m);
     let mut c_r = DMatrix::zeros(m, m);
     for c in 0..m {
         for r in 0..m {

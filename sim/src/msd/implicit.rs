@@ -13,7 +13,7 @@ use faer::Side;
 use super::forces::{self, Loads, Network};
 use crate::contact::{add, dot, norm, scale, sub};
 use crate::interaction::ContactReport;
-use crate::patch::{project, spread, Lcp, ToolPatch, MAX_PATCH};
+use crate::patch::{PatchSolve, ToolPatch};
 use crate::solve::sparse::{Method, Ordering, Precision, SparseSpd};
 
 /// Marks an eliminated node or a block that is not stored.
@@ -40,10 +40,8 @@ pub(super) struct ImplicitSolver {
     kv: Vec<[f64; 3]>,
     /// Right-hand side `h (f − γv − hKv)` on entry to the solve, `Δv` on exit.
     rhs: Vec<f64>,
-    /// Per unknown: a contact patch's column, its solve, then the correction (`patch_correct`).
-    patch_tmp: Vec<f64>,
-    /// The patch's complementarity problem, sized once.
-    lcp: Lcp,
+    /// The contact patch's solve (`patch_correct`).
+    patch: PatchSolve,
     /// What the last step's patch did.
     patch_report: Option<ContactReport>,
 }
@@ -125,8 +123,7 @@ impl ImplicitSolver {
             force: vec![[0.0; 3]; n],
             kv: vec![[0.0; 3]; n],
             rhs: vec![0.0; dim],
-            patch_tmp: vec![0.0; dim],
-            lcp: Lcp::new(),
+            patch: PatchSolve::new(dim),
             patch_report: None,
         }
     }
@@ -252,9 +249,9 @@ impl ImplicitSolver {
     }
 
     /// With `rhs` holding `Δv` of the step without the tool: solves the contact patch (see
-    /// [`crate::patch`]) with this step's factor of `A` and adds its response. The contact
-    /// forces `λ` enter the right-hand side as `h C λ`, so the velocity changes by
-    /// `h A⁻¹ C λ` and the positions by `h² A⁻¹ C λ`.
+    /// [`crate::patch`]) with this step's factor of `A` (the points' columns solved together)
+    /// and adds its response. The contact forces `λ` enter the right-hand side as `h C λ`, so
+    /// the velocity changes by `h A⁻¹ C λ` and the positions by `h² A⁻¹ C λ`.
     fn patch_correct(
         &mut self,
         patch: &ToolPatch<'_>,
@@ -262,61 +259,31 @@ impl ImplicitSolver {
         v: &[[f64; 3]],
         h: f64,
     ) -> ContactReport {
-        let m = patch.points.len().min(MAX_PATCH);
-        let Some(a) = self.a.as_mut() else {
+        let (Some(a), Some(patch)) = (self.a.as_mut(), PatchSolve::limit(patch)) else {
             return ContactReport::default();
-        };
-        if m == 0 || !(patch.stiffness > 0.0 && patch.stiffness.is_finite()) {
-            return ContactReport::default();
-        }
-        let patch = ToolPatch {
-            points: &patch.points[..m],
-            ..*patch
         };
         let (dof, rhs) = (&self.dof, &self.rhs);
-        self.lcp.reset(m);
-        patch.free_gaps(
-            |k| {
-                let i = k as usize;
-                match dof.get(i) {
-                    Some(&d) if d != NONE => {
-                        let dv = [rhs[3 * d], rhs[3 * d + 1], rhs[3 * d + 2]];
-                        add(x[i], scale(add(v[i], dv), h))
-                    }
-                    _ => x.get(i).copied().unwrap_or([f64::NAN; 3]),
-                }
-            },
-            self.lcp.q(),
+        self.patch.begin(&patch, |k| {
+            let i = k as usize;
+            match unknown(dof, k) {
+                Some(d) => add(x[i], scale(add(v[i], [rhs[d], rhs[d + 1], rhs[d + 2]]), h)),
+                None => x.get(i).copied().unwrap_or([f64::NAN; 3]),
+            }
+        });
+        self.patch.matrix_by_solves(
+            &patch,
+            |i| unknown(dof, i),
+            h * h,
+            |b, m| a.solve_columns(b, m),
         );
-        let h2 = h * h;
-        for k in 0..m {
-            self.patch_tmp.fill(0.0);
-            spread(&patch, k, 1.0, |i| unknown(dof, i), &mut self.patch_tmp);
-            a.solve_in_place(&mut self.patch_tmp);
-            let am = self.lcp.matrix();
-            for j in 0..m {
-                am[k * m + j] = h2 * project(&patch, j, |i| unknown(dof, i), &self.patch_tmp);
-            }
-        }
-        patch.add_tool_compliance(self.lcp.matrix());
-        if !self.lcp.solve() {
-            return ContactReport::default();
-        }
-        self.patch_tmp.fill(0.0);
-        for (j, &l) in self.lcp.lambda().iter().enumerate() {
-            if l != 0.0 {
-                spread(&patch, j, h * l, |i| unknown(dof, i), &mut self.patch_tmp);
-            }
-        }
-        a.solve_in_place(&mut self.patch_tmp);
-        if !self.patch_tmp.iter().all(|d| d.is_finite()) {
+        if !(self.patch.solve(&patch) && self.patch.correction_by_solves(h)) {
             return ContactReport::default();
         }
         self.rhs
             .iter_mut()
-            .zip(&self.patch_tmp)
+            .zip(&self.patch.correction)
             .for_each(|(d, c)| *d += c);
-        crate::patch::report(&patch, self.lcp.lambda())
+        crate::patch::report(&patch, self.patch.lcp.lambda())
     }
 
     /// Numeric refactorisation into the reused buffers, then the solve: `rhs` becomes `Δv`.

@@ -154,7 +154,7 @@ pub(crate) struct SparseSpd {
     work: Workspace,
     /// Numeric factorisations attempted so far.
     factorizations: u64,
-    /// Scratch of [`SparseSpd::solve_columns_reusing`] and the columns it is sized for.
+    /// Scratch of [`SparseSpd::solve_columns`] and the columns it is sized for.
     cols_work: Option<(usize, MemBuffer)>,
 }
 
@@ -380,11 +380,11 @@ impl SparseSpd {
         }
     }
 
-    /// [`SparseSpd::solve_columns_in_place`] into scratch kept for the most columns asked so
-    /// far: allocation-free once it has grown to the widest call. For repeated solves with
-    /// many right-hand sides (a contact patch's columns), where faer's blocked solve beats one
-    /// solve per column.
-    pub fn solve_columns_reusing(&mut self, b: &mut [f64], ncols: usize) {
+    /// Solves `A X = B` in place for the `ncols` columns of `b` (column-major, `n` rows) with
+    /// the double-precision factor, in one blocked solve (faster than one per column: a
+    /// contact patch's columns, the cage's compliance). Its scratch is kept for the most
+    /// columns asked so far: allocation-free once it has grown to the widest call.
+    pub fn solve_columns(&mut self, b: &mut [f64], ncols: usize) {
         let n = self.n;
         if n == 0 || ncols == 0 {
             return;
@@ -406,27 +406,6 @@ impl SparseSpd {
             MatMut::from_column_major_slice_mut(b, n, ncols),
             Par::Seq,
             MemStack::new(mem),
-        );
-    }
-
-    /// Solves `A X = B` in place for the `ncols` columns of `b` (column-major, `n` rows) with
-    /// the double-precision factor. Allocates scratch for the columns: for set-up work.
-    pub fn solve_columns_in_place(&mut self, b: &mut [f64], ncols: usize) {
-        let n = self.n;
-        if n == 0 || ncols == 0 {
-            return;
-        }
-        assert_eq!(
-            self.current,
-            Some(Precision::Double),
-            "needs a double-precision factor"
-        );
-        let mut mem = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(ncols, Par::Seq));
-        LltRef::<u32, f64>::new(&self.symbolic, &self.l64).solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(b, n, ncols),
-            Par::Seq,
-            MemStack::new(&mut mem),
         );
     }
 }

@@ -337,6 +337,18 @@ impl World {
         b.time + b.model.dt() <= until + 1e-12
     }
 
+    /// Where the god-object's press (`coupling`) last balanced as a contact patch: the body
+    /// and the proxy of its last step (see [`crate::patch`]); `None` for a grab, no contact,
+    /// or a step that pressed at one point. The god-object rests its proxy there.
+    pub fn contact_proxy(&self, coupling: Coupling) -> Option<(usize, [f64; 3])> {
+        match coupling {
+            Coupling::GodObject(Some((b, a))) if !a.grab => {
+                Some((b, self.bodies.get(b)?.last_contact.proxy?))
+            }
+            _ => None,
+        }
+    }
+
     /// Advances body `i` by one of its steps with its current loads and, if given, the tool
     /// pressing on the surface nearest to it ([`Coupling::Nearest`]), outside any round: for
     /// tests and benchmarks of one model. See [`World::step_body_coupled`].
@@ -395,7 +407,7 @@ impl World {
         let mut patch = None;
         if let (Some(t), Some(a)) = (tool, anchor) {
             if !a.grab && t.law == ForceLaw::Linear {
-                if let Some(proxy) = anchor_proxy(&b.mesh.surface, b.model.positions(), &a) {
+                if let Some(proxy) = a.proxy(&b.mesh.surface, b.model.positions()) {
                     gather(
                         &b.mesh.surface,
                         &b.node_triangles,
@@ -408,7 +420,6 @@ impl World {
                     );
                     patch = Some(ToolPatch {
                         device: t.center,
-                        proxy,
                         stiffness: t.stiffness,
                         points: &b.patch_points,
                     });
@@ -445,21 +456,6 @@ impl World {
             }
         }
     }
-}
-
-/// The god-object's proxy at its anchor on positions `x`: the material point plus the offset.
-fn anchor_proxy(surface: &[[u32; 3]], x: &[[f64; 3]], a: &ToolAnchor) -> Option<[f64; 3]> {
-    let tri = surface.get(a.triangle as usize)?;
-    if tri.iter().any(|&k| k as usize >= x.len()) {
-        return None;
-    }
-    let mut p = a.offset;
-    for k in 0..3 {
-        for c in 0..3 {
-            p[c] += a.bary[k] * x[tri[k] as usize][c];
-        }
-    }
-    p.iter().all(|c| c.is_finite()).then_some(p)
 }
 
 /// Whether `p` is within `margin` of the bounding box of `positions`.
