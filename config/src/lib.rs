@@ -107,12 +107,15 @@
 //! ## `[tool]` (optional)
 //! The tool tip is a sphere driven by the device and rendered as a god-object: it stays on the
 //! tissue surface while the device penetrates, and the force pushes the device back out.
+//! Without the section a scene gets the defaults below; a `[tool]` section must give `radius`
+//! and `stiffness` itself (they decide what the hand feels, and `stiffness`' unit depends on
+//! `force_law`), or it is refused naming the missing key.
 //!
 //! | key | type | default | meaning |
 //! |---|---|---|---|
-//! | `radius` | float | `0.003` | tip radius, m (> 0) |
+//! | `radius` | float | required in `[tool]` (`0.003` without the section) | tip radius, m (> 0) |
 //! | `force_law` | `"linear"` \| `"quadratic"` | `"linear"` | `linear`: `F = k d N`; `quadratic`: thesis eq. 5.2, `F = k d² N` (`d` penetration depth, `N` surface normal) |
-//! | `stiffness` | float | `300` | `k`: N/m for `linear`, N/m² for `quadratic` (> 0) |
+//! | `stiffness` | float | required in `[tool]` (`300` without the section) | `k`: N/m for `linear`, N/m² for `quadratic` (> 0) |
 //! | `damping` | float | `0` | N·s/m on the penetration speed (>= 0) |
 //! | `max_force` | float | `3.0` | N, force clamp for this scene (> 0); the daemon clamps to the smallest of this, `haptic.max_force_n` and the device's limit |
 //! | `heat_power` | float | `20` | W delivered by the cautery button (>= 0), spread over the touched surface triangle's nodes by the contact point's barycentric weights (see `[heat]`) |

@@ -12,8 +12,8 @@ use crate::scene::{
 pub(crate) struct RawScene {
     #[serde(default)]
     pub scene: RawSceneMeta,
-    #[serde(default)]
-    pub tool: RawTool,
+    /// `None` when the scene has no `[tool]` section (the default tool).
+    pub tool: Option<RawTool>,
     #[serde(default)]
     pub workspace: RawWorkspace,
     #[serde(default)]

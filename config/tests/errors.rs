@@ -434,3 +434,45 @@ fn collision_keys_out_of_range() {
     assert!(!scene.collision.enabled);
     assert_eq!(scene.collision.stiffness, 20.0);
 }
+
+#[test]
+fn tool_radius_and_stiffness_missing_zero_negative_or_nan() {
+    let tool = |radius: &str, stiffness: &str| {
+        let mut t = String::from("[tool]\n");
+        if !radius.is_empty() {
+            t += &format!("radius = {radius}\n");
+        }
+        if !stiffness.is_empty() {
+            t += &format!("stiffness = {stiffness}\n");
+        }
+        format!("{t}{GOOD}")
+    };
+    for bad in ["", "0.0", "-0.003", "nan", "inf"] {
+        let value = if bad.is_empty() { "(missing)" } else { bad };
+        expect_err(&tool(bad, "300.0"), &["tool.radius", value]);
+        expect_err(&tool("0.003", bad), &["tool.stiffness", value]);
+    }
+    // The quadratic law has its own unit: the message says which.
+    expect_err(
+        &format!("[tool]\nradius = 0.003\nforce_law = \"quadratic\"\n{GOOD}"),
+        &["tool.stiffness", "(missing)", "N/m²"],
+    );
+    // Friction is not modelled (the tip is frictionless): the key is refused, not ignored.
+    expect_err(
+        &format!("[tool]\nradius = 0.003\nstiffness = 300.0\nfriction = 0.3\n{GOOD}"),
+        &["friction"],
+    );
+    // Per-body contact stiffness against the tool.
+    for bad in ["0.0", "-1.0", "nan"] {
+        expect_err(
+            &good_with(
+                "importance = \"important\"",
+                &format!("importance = \"important\"\ntool_stiffness = {bad}"),
+            ),
+            &["body[0].tool_stiffness", bad],
+        );
+    }
+    // Without a [tool] section the scene gets the default tool.
+    let scene = lop_config::parse_scene(GOOD, &scene_path()).unwrap();
+    assert_eq!(scene.tool, lop_config::ToolSpec::default());
+}

@@ -112,26 +112,46 @@ pub(super) fn check_name(
     Ok(())
 }
 
-pub(super) fn validate_tool(c: &Check<'_, '_>, raw: RawTool) -> Result<ToolSpec, ConfigError> {
+/// The tool. Without a `[tool]` section the scene gets the default tool; a `[tool]` section
+/// must state `radius` and `stiffness` itself: they decide what the hand feels, and a default
+/// stiffness in N/m would be meaningless for the quadratic law (N/m²).
+pub(super) fn validate_tool(
+    c: &Check<'_, '_>,
+    raw: Option<RawTool>,
+) -> Result<ToolSpec, ConfigError> {
     let k = KeyPath::top("tool");
     let d = ToolSpec::default();
+    let Some(raw) = raw else {
+        return Ok(d);
+    };
     let force_law = raw.force_law.unwrap_or(d.force_law);
     let unit = match force_law {
         ForceLaw::Linear => "tool stiffness (N/m, linear law)",
         ForceLaw::Quadratic => "tool stiffness (N/m², quadratic law)",
     };
+    let required = |key: &str, v: Option<f64>, what: &str| {
+        v.ok_or_else(|| {
+            c.invalid(
+                &k.key(key),
+                "(missing)",
+                format!("a [tool] section must give the {what}"),
+            )
+        })
+    };
+    let radius = c.positive(
+        &k.key("radius"),
+        required("radius", raw.radius, "tool radius (m)")?,
+        "tool radius (m)",
+    )?;
+    let stiffness = c.positive(
+        &k.key("stiffness"),
+        required("stiffness", raw.stiffness, unit)?,
+        unit,
+    )?;
     Ok(ToolSpec {
-        radius: c.positive(
-            &k.key("radius"),
-            raw.radius.unwrap_or(d.radius),
-            "tool radius (m)",
-        )?,
+        radius,
         force_law,
-        stiffness: c.positive(
-            &k.key("stiffness"),
-            raw.stiffness.unwrap_or(d.stiffness),
-            unit,
-        )?,
+        stiffness,
         damping: c.non_negative(
             &k.key("damping"),
             raw.damping.unwrap_or(d.damping),
