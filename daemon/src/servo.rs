@@ -107,6 +107,8 @@ impl<'a> ServoTask<'a> {
             }
         }
         self.last_wake_ns = clock.now_ns;
+        // Whether to record was decided once, in `new`; the wrapper itself is a value on this
+        // callback's stack because the vendor lends the device for one callback at a time.
         let outcome = match self.record.as_deref_mut() {
             Some(tap) => hl.tick(&mut Recorded { device, tap }, clock.now_ns, deadline),
             None => hl.tick(device, clock.now_ns, deadline),

@@ -323,31 +323,24 @@ impl Pressed {
     }
 }
 
-/// Solves the leading `m × m` block of `a x = b` (m ≤ 3) by Gaussian elimination with partial
-/// pivoting; `None` if singular or not finite.
-pub(super) fn solve_small(mut a: [[f64; 3]; 3], mut b: [f64; 3], m: usize) -> Option<[f64; 3]> {
-    for col in 0..m {
-        let piv = (col..m).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        if !(a[piv][col].abs() > 1e-300) {
-            return None;
-        }
-        a.swap(col, piv);
-        b.swap(col, piv);
-        for row in col + 1..m {
-            let f = a[row][col] / a[col][col];
-            for k in col..m {
-                a[row][k] -= f * a[col][k];
-            }
-            b[row] -= f * b[col];
-        }
-    }
+/// Solves the leading `m × m` block of `a x = b` (m ≤ 3) with nalgebra's LU (partial
+/// pivoting) on a fixed-size matrix, so nothing allocates; `None` if singular or not finite.
+pub(super) fn solve_small(a: [[f64; 3]; 3], b: [f64; 3], m: usize) -> Option<[f64; 3]> {
+    use nalgebra::{SMatrix, SVector};
     let mut x = [0.0; 3];
-    for row in (0..m).rev() {
-        let mut s = b[row];
-        for k in row + 1..m {
-            s -= a[row][k] * x[k];
-        }
-        x[row] = s / a[row][row];
+    macro_rules! solve {
+        ($m:literal) => {{
+            let am = SMatrix::<f64, $m, $m>::from_fn(|i, j| a[i][j]);
+            let bm = SVector::<f64, $m>::from_fn(|i, _| b[i]);
+            x[..$m].copy_from_slice(am.lu().solve(&bm)?.as_slice());
+        }};
+    }
+    match m {
+        0 => {}
+        1 => solve!(1),
+        2 => solve!(2),
+        3 => solve!(3),
+        _ => return None,
     }
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
