@@ -9,7 +9,7 @@ use lop_sim::fem::Fem;
 use lop_sim::lop::{
     CageDynamics, CageModel, CageShape, GcParameters, LopPolicy, PrecisionController,
 };
-use lop_sim::model::{Model, ModelKind, ToolContact};
+use lop_sim::model::{ContactSpring, Model, ModelKind, ToolContact};
 use lop_sim::patch::{PatchPoint, ToolPatch};
 use lop_sim::world::World;
 use lop_test_support::alloc::{self, Counting};
@@ -173,4 +173,35 @@ fn a_cage_with_a_patch_is_allocation_free() {
     // The soft cylinder swings away from the fixed sphere and back.
     assert!(touched >= 10, "in contact in only {touched} steps");
     assert_eq!(n, 0, "{n} allocations in 100 steps");
+    // With an organ contact spring pushing the other side too, the patch is solved with the
+    // springs' factor.
+    let far = (0..mesh.nodes.len())
+        .min_by(|&a, &b| mesh.nodes[a][0].total_cmp(&mesh.nodes[b][0]))
+        .unwrap();
+    let spring = ContactSpring {
+        nodes: [far as u32; 3],
+        weights: [1.0, 0.0, 0.0],
+        normal: [1.0, 0.0, 0.0],
+        target: mesh.nodes[far][0] + 1e-3,
+        stiffness: 300.0,
+    };
+    let springs = [spring];
+    gc.step_colliding(gravity, &[], Some(&contact), &springs)
+        .unwrap();
+    let mut touched = 0;
+    let n = alloc::this_thread(|| {
+        for _ in 0..100 {
+            let r = gc
+                .step_colliding(gravity, &[], Some(&contact), &springs)
+                .unwrap();
+            assert!(r.proxy.is_some(), "{r:?}");
+            touched += (r.depth > 0.0) as usize;
+        }
+    })
+    .allocations;
+    assert!(
+        touched >= 10,
+        "with a spring: in contact in only {touched} steps"
+    );
+    assert_eq!(n, 0, "with a spring: {n} allocations in 100 steps");
 }
