@@ -475,7 +475,9 @@ fn resolve_springs(
 /// `c_j = Gᵀ (n_j` spread over the point's nodes with their weights`)` and `K̃⁻¹` the step's
 /// compliance: `A⁻¹` (`a_inv`), or, when contact springs were resolved this step (`factored`), the factor
 /// of `A + Σ k c cᵀ` they left in `r.sys`, so the patch's forces meet the springs' stiffness
-/// as one linear system would. Adds `K̃⁻¹ C λ` to `d`; a patch that cannot be solved
+/// as one linear system would. (Right after a hand-over the displayed `x` carries the fading
+/// offset, whose fade over the step, at most `residual · dt / blend`, the prediction leaves
+/// out.) Adds `K̃⁻¹ C λ` to `d`; a patch that cannot be solved
 /// (non-finite data) applies no force. Allocation-free once the columns have grown to the
 /// largest patch.
 fn patch_correct(
