@@ -27,7 +27,8 @@ pub struct ToolContact<'a> {
     pub anchor: Option<ToolAnchor>,
     /// The god-object's press as a contact patch over the tool's footprint (see
     /// [`crate::patch`]): when given, a model that resolves patches uses it instead of the
-    /// anchor's point (FEM and mass-spring do; the cage keeps the anchor's point).
+    /// anchor's point (FEM, mass-spring with every integrator and the projected cage do; the
+    /// thesis' mass-spring cage keeps the anchor's point).
     pub patch: Option<ToolPatch<'a>>,
 }
 

@@ -30,6 +30,18 @@
 //! solves exactly by principal pivoting (block pivoting first, then Murty's least-index rule,
 //! which terminates for every positive definite `A`). The model then adds `K̃⁻¹ C λ`.
 //!
+//! Which models resolve the patch, and with what compliance in place of `K̃⁻¹`:
+//! - FEM (`fem/patch.rs`): its step's factor of `K̃` (a linear body keeps the columns);
+//! - implicit mass-spring (`msd/implicit.rs`): its step's factor of `M + hγI + h²K`, scaled to
+//!   positions by `h²`;
+//! - explicit mass-spring (`msd/explicit.rs`): after every sub-step without the tool, the
+//!   sub-step's lumped compliance `h² M⁻¹` (`PatchSolve::matrix_lumped`), the forces moving
+//!   positions by `h² M⁻¹ C λ` and velocities by `h M⁻¹ C λ`;
+//! - projected cage (`lop/cage_dynamics.rs`): the reduced step's `A⁻¹` in the cage's unknowns,
+//!   each point's column `Gᵀ` of its spread normal (`PatchSolve::matrix_by_columns`).
+//!
+//! The thesis' mass-spring cage keeps the anchor's one-point press (see [`crate::lop`]).
+//!
 //! Why not a penalty per node: its stiffness is one more parameter to tune against the mesh
 //! (too soft and the tool sinks, too stiff and the step needs a new factor every time the set
 //! of touching nodes changes); the hard constraint needs neither, keeps the rest factor of a
@@ -126,6 +138,8 @@ pub(crate) struct PatchSolve {
     cols: Vec<f64>,
     /// Per unknown: the displacement the contact forces add, `scale · K⁻¹ C λ`.
     pub(crate) correction: Vec<f64>,
+    /// Per unknown: one point's column, rebuilt for projection (`PatchSolve::matrix_by_columns`).
+    col: Vec<f64>,
 }
 
 impl PatchSolve {
@@ -135,6 +149,7 @@ impl PatchSolve {
             lcp: Lcp::new(),
             cols: Vec::new(),
             correction: vec![0.0; n],
+            col: vec![0.0; n],
         }
     }
 
@@ -179,6 +194,71 @@ impl PatchSolve {
         for (k, col) in cols.chunks_exact(n).enumerate() {
             for j in 0..m {
                 a[k * m + j] = scale * project(patch, j, first_dof, col);
+            }
+        }
+    }
+
+    /// Fills `A = scale · Cᵀ K⁻¹ C` for a model whose columns are dense vectors of its `n`
+    /// unknowns rather than spread over node DOFs (a reduced model): `column(j, out)` adds
+    /// `c_j` to `out` (zeroed); `solve_columns(b, m)` as in [`PatchSolve::matrix_by_solves`].
+    /// Each `c_j` is built twice (once to be solved, once to be projected) rather than kept.
+    pub(crate) fn matrix_by_columns(
+        &mut self,
+        m: usize,
+        column: impl Fn(usize, &mut [f64]),
+        scale: f64,
+        mut solve_columns: impl FnMut(&mut [f64], usize),
+    ) {
+        let n = self.correction.len();
+        if n == 0 {
+            return;
+        }
+        if self.cols.len() < m * n {
+            self.cols.resize(m * n, 0.0);
+        }
+        let cols = &mut self.cols[..m * n];
+        cols.fill(0.0);
+        for (j, col) in cols.chunks_exact_mut(n).enumerate() {
+            column(j, col);
+        }
+        solve_columns(cols, m);
+        let c = &mut self.col;
+        let a = self.lcp.matrix();
+        for j in 0..m {
+            c.fill(0.0);
+            column(j, c);
+            for (k, z) in cols.chunks_exact(n).enumerate() {
+                a[k * m + j] = scale * c.iter().zip(z).map(|(c, z)| c * z).sum::<f64>();
+            }
+        }
+    }
+
+    /// Fills `A = scale · Cᵀ M⁻¹ C` for a lumped (diagonal) `M⁻¹`, `inv_mass(node)` zero for a
+    /// held node: two points couple only through the nodes they share.
+    pub(crate) fn matrix_lumped(
+        &mut self,
+        patch: &ToolPatch<'_>,
+        inv_mass: impl Fn(u32) -> f64,
+        scale: f64,
+    ) {
+        let m = patch.points.len();
+        let a = self.lcp.matrix();
+        for (k, pk) in patch.points.iter().enumerate() {
+            for (j, pj) in patch.points.iter().enumerate().take(k + 1) {
+                let mut sum = 0.0;
+                for (&nk, &wk) in pk.nodes.iter().zip(&pk.weights) {
+                    if wk == 0.0 {
+                        continue;
+                    }
+                    for (&nj, &wj) in pj.nodes.iter().zip(&pj.weights) {
+                        if wj != 0.0 && nj == nk {
+                            sum += wj * wk * inv_mass(nk);
+                        }
+                    }
+                }
+                let entry = scale * sum * v(pj.normal).dot(v(pk.normal));
+                a[k * m + j] = entry;
+                a[j * m + k] = entry;
             }
         }
     }
@@ -590,6 +670,73 @@ mod tests {
                     assert!(l[j] >= 0.0 && w >= -1e-9, "m {m}: λ {l:?}, w_{j} {w}");
                     assert!((l[j] * w).abs() < 1e-9, "complementarity");
                 }
+            }
+        }
+    }
+
+    /// With a diagonal `K⁻¹`, the three ways of filling `A` agree: solving the points' spread
+    /// columns, the lumped form, and dense columns built by the caller.
+    #[test]
+    fn the_ways_of_filling_the_matrix_agree() {
+        let normal = |a: f64| [a.cos() * 0.6, a.sin() * 0.6, -0.8];
+        let points = [
+            PatchPoint {
+                nodes: [1; 3],
+                weights: [1.0, 0.0, 0.0],
+                normal: normal(0.3),
+                reach: 1.0,
+            },
+            PatchPoint {
+                nodes: [0, 1, 3],
+                weights: [0.2, 0.5, 0.3],
+                normal: normal(1.9),
+                reach: 1.0,
+            },
+            PatchPoint {
+                nodes: [3, 2, 0],
+                weights: [0.6, 0.1, 0.3],
+                normal: normal(4.0),
+                reach: 1.0,
+            },
+        ];
+        let patch = ToolPatch {
+            device: [0.0; 3],
+            stiffness: 1.0,
+            points: &points,
+        };
+        // Node 2 is held.
+        let inv_mass = |k: u32| [2.0, 0.5, 0.0, 4.0][k as usize];
+        let first_dof = |k: u32| (k != 2).then_some(3 * k as usize);
+        let scale = 0.25;
+        let m = points.len();
+        let mut by_solves = PatchSolve::new(12);
+        by_solves.lcp.reset(m);
+        by_solves.matrix_by_solves(&patch, first_dof, scale, |b, _| {
+            for (i, x) in b.iter_mut().enumerate() {
+                *x *= inv_mass((i % 12 / 3) as u32);
+            }
+        });
+        let mut lumped = PatchSolve::new(0);
+        lumped.lcp.reset(m);
+        lumped.matrix_lumped(&patch, inv_mass, scale);
+        let mut by_columns = PatchSolve::new(12);
+        by_columns.lcp.reset(m);
+        by_columns.matrix_by_columns(
+            m,
+            |j, out| spread(&patch, j, 1.0, first_dof, out),
+            scale,
+            |b, _| {
+                for (i, x) in b.iter_mut().enumerate() {
+                    *x *= inv_mass((i % 12 / 3) as u32);
+                }
+            },
+        );
+        let a = by_solves.lcp.matrix().to_vec();
+        assert!(a.iter().any(|x| x.abs() > 0.01));
+        for (name, other) in [("lumped", &mut lumped), ("by columns", &mut by_columns)] {
+            let b = other.lcp.matrix().to_vec();
+            for (x, y) in a.iter().zip(&b) {
+                assert!((x - y).abs() < 1e-14, "{name}: {a:?} vs {b:?}");
             }
         }
     }

@@ -11,12 +11,13 @@
 //! [`CageModel`]: super::CageModel
 
 use crate::solve::dense::spd_solve_in_place;
-use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
+use nalgebra::{Cholesky, DMatrix, DMatrixView, DVector, DVectorViewMut, Dyn};
 
 use crate::gc::{Cage, GcBinding};
 use crate::interaction::{BlowUp, ContactReport, ContactSpring, Touch};
 use crate::mesh::TetMesh;
 use crate::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
+use crate::patch::{self, PatchSolve, ToolPatch};
 use crate::vec3::{add, dot, scale};
 
 use super::cage_model::{CageModelError, Damping, PreciseOperators};
@@ -67,6 +68,8 @@ pub(super) struct Reduced {
     pub(super) rhs: Vec<f64>,
     /// The tool's `c`, kept to report the force it left.
     pub(super) c_tool: Vec<f64>,
+    /// The tool's contact patch (`patch_correct`), in the cage's 3V unknowns.
+    pub(super) patch: PatchSolve,
 }
 
 impl Reduced {
@@ -100,8 +103,10 @@ pub(super) struct StepLoads<'a> {
     pub touch: Option<&'a Touch>,
     /// Organ-to-organ contact springs.
     pub springs: &'a [ContactSpring],
-    /// Whether any external load or the tool acts.
+    /// Whether any external load or the tool's `touch` acts.
     pub has_loads: bool,
+    /// The god-object's press as a contact patch (projected dynamics; `touch` is then `None`).
+    pub patch: Option<ToolPatch<'a>>,
 }
 
 impl Reduced {
@@ -236,6 +241,7 @@ impl Reduced {
             c: vec![0.0; m],
             rhs: vec![0.0; m],
             c_tool: vec![0.0; m],
+            patch: PatchSolve::new(m),
         })
     }
 
@@ -290,9 +296,11 @@ impl Reduced {
         gemv_acc(&r.gravity, &gravity, &mut r.d);
         gemv_acc(&r.response, &r.state, &mut r.d);
         r.d.iter_mut().zip(&r.correction).for_each(|(d, c)| *d += c);
+        let mut factored = false;
         if implicit_tool.is_some() || springs.iter().any(|sp| sp.touch(x).is_some()) {
-            let gap = resolve_springs(r, jacobian_t, x, springs, implicit_tool.as_ref());
-            if let (Some(t), Some(gap), Some(orig)) = (&implicit_tool, gap, touch) {
+            let resolved = resolve_springs(r, jacobian_t, x, springs, implicit_tool.as_ref());
+            factored = resolved.is_some();
+            if let (Some(t), Some(gap), Some(orig)) = (&implicit_tool, resolved.flatten(), touch) {
                 // The force the step applied and the depth it left.
                 let g = gap.max(0.0);
                 report = Some(ContactReport {
@@ -301,6 +309,9 @@ impl Reduced {
                     proxy: None,
                 });
             }
+        }
+        if let Some(p) = &loads.patch {
+            report = Some(patch_correct(r, p, x, jacobian_t, factored));
         }
         let m = r.d.len();
         let (q, qd) = r.state.split_at_mut(m);
@@ -400,15 +411,17 @@ pub(super) fn mass_spring_cage(
 /// `d₀` (in `r.d`) the increment without them, the increment with them solves
 /// `(A + Σ k c cᵀ) d = A d₀ + Σ c k g`, `g` each spring's gap at the start of the step and
 /// `c = Gᵀ (w ⊗ n)`; i.e. `d = d₀ + Δ` with `(A + Σ k c cᵀ) Δ = Σ c k (g − cᵀ d₀)`.
-/// Allocation-free; leaves `d₀` if the matrix cannot be factorised (non-finite input). Returns
-/// the tool's gap at the end of the step (`g − cᵀ d`), if it was given and the solve ran.
+/// Allocation-free; leaves `d₀` and returns `None` if the matrix cannot be factorised
+/// (non-finite input). Otherwise `r.sys` holds the Cholesky factor of `A + Σ k c cᵀ` (lower
+/// triangle) and the result is the tool's gap at the end of the step (`g − cᵀ d`), if it was
+/// given.
 fn resolve_springs(
     r: &mut Reduced,
     jacobian_t: &DMatrix<f64>,
     x: &[[f64; 3]],
     springs: &[ContactSpring],
     tool: Option<&Touch>,
-) -> Option<f64> {
+) -> Option<Option<f64>> {
     let m = r.d.len();
     r.sys.copy_from_slice(&r.a);
     r.rhs.fill(0.0);
@@ -452,7 +465,92 @@ fn resolve_springs(
     r.d.iter_mut()
         .zip(&r.rhs)
         .for_each(|(d, delta)| *d += delta);
-    tool.map(|t| t.depth - r.c_tool.iter().zip(&r.d).map(|(c, d)| c * d).sum::<f64>())
+    Some(tool.map(|t| t.depth - r.c_tool.iter().zip(&r.d).map(|(c, d)| c * d).sum::<f64>()))
+}
+
+/// The tool's contact patch (see [`crate::patch`]) on the reduced step: with `d` (in `r.d`) the
+/// increment without it, a point's position after the step is linearised as `x + G d` (`G` the
+/// cage's Jacobian at rest, as the contact springs take it), so its gap is linear in the
+/// points' forces through the step's compliance: `w = q + (Cᵀ K̃⁻¹ C + Nᵀ N / k) λ`, with
+/// `c_j = Gᵀ (n_j` spread over the point's nodes with their weights`)` and `K̃⁻¹` the step's
+/// compliance: `A⁻¹` (`a_inv`), or, when contact springs were resolved this step (`factored`), the factor
+/// of `A + Σ k c cᵀ` they left in `r.sys`, so the patch's forces meet the springs' stiffness
+/// as one linear system would. (Right after a hand-over the displayed `x` carries the fading
+/// offset, whose fade over the step, at most `residual · dt / blend`, the prediction leaves
+/// out.) Adds `K̃⁻¹ C λ` to `d`; a patch that cannot be solved
+/// (non-finite data) applies no force. Allocation-free once the columns have grown to the
+/// largest patch.
+fn patch_correct(
+    r: &mut Reduced,
+    patch: &ToolPatch<'_>,
+    x: &[[f64; 3]],
+    jacobian_t: &DMatrix<f64>,
+    factored: bool,
+) -> ContactReport {
+    let Some(patch) = PatchSolve::limit(patch) else {
+        return ContactReport::default();
+    };
+    let Reduced {
+        a_inv,
+        d,
+        sys,
+        rhs,
+        patch: solve,
+        ..
+    } = r;
+    let (a_inv, sys): (&[f64], &[f64]) = (a_inv, sys);
+    let m = d.len();
+    let dofs = jacobian_t.ncols();
+    // Node k's three columns of `Gᵀ`, if it is a node of the body.
+    let node_cols = |k: u32| Some(3 * k as usize).filter(|&c| c + 2 < dofs);
+    solve.begin(&patch, |k| match (x.get(k as usize), node_cols(k)) {
+        (Some(&xk), Some(c)) => {
+            let mut p = xk;
+            for (b, pb) in p.iter_mut().enumerate() {
+                let g = jacobian_t.column(c + b);
+                *pb += g.iter().zip(d.iter()).map(|(g, d)| g * d).sum::<f64>();
+            }
+            p
+        }
+        _ => [f64::NAN; 3],
+    });
+    let points = patch.points;
+    let column = |j: usize, out: &mut [f64]| {
+        let p = &points[j];
+        for (&k, &w) in p.nodes.iter().zip(&p.weights) {
+            let Some(c) = node_cols(k).filter(|_| w != 0.0) else {
+                continue;
+            };
+            for b in 0..3 {
+                let s = w * p.normal[b];
+                if s != 0.0 {
+                    let g = jacobian_t.column(c + b);
+                    out.iter_mut().zip(g.iter()).for_each(|(o, g)| *o += s * g);
+                }
+            }
+        }
+    };
+    solve.matrix_by_columns(points.len(), column, 1.0, |b, _| {
+        for col in b.chunks_exact_mut(m) {
+            if factored {
+                let l = DMatrixView::from_slice(sys, m, m);
+                let mut z = DVectorViewMut::from_slice(col, m);
+                l.solve_lower_triangular_mut(&mut z);
+                l.tr_solve_lower_triangular_mut(&mut z);
+            } else {
+                rhs.fill(0.0);
+                gemv_acc(a_inv, col, &mut rhs[..]);
+                col.copy_from_slice(&rhs[..]);
+            }
+        }
+    });
+    if !(solve.solve(&patch) && solve.correction_by_solves(1.0)) {
+        return ContactReport::default();
+    }
+    d.iter_mut()
+        .zip(&solve.correction)
+        .for_each(|(d, c)| *d += c);
+    patch::report(&patch, solve.lcp.lambda())
 }
 
 /// Calls `add` with every non-zero nodal load: the first `n` of `external`, then the tool's

@@ -513,6 +513,10 @@ impl CageModel {
     /// 3V × 3V Cholesky factorisation, only in steps with contact), so the contact is implicit
     /// as in the precise models. Mass-spring cage (the thesis' way): the springs' forces at the
     /// start of the step are loads mapped to the cage vertices by φ, explicitly.
+    ///
+    /// A contact patch in `contact` (the god-object's press) is resolved by the projected
+    /// dynamics on top of the springs, and its report carries the proxy; the mass-spring cage
+    /// keeps the anchor's one-point press (see the [module docs](super)).
     pub fn step_colliding(
         &mut self,
         gravity: [f64; 3],
@@ -521,9 +525,18 @@ impl CageModel {
         springs: &[ContactSpring],
     ) -> Result<ContactReport, BlowUp> {
         let dt = self.params.dt;
-        // The tool, as a load on the current shape (explicit: a body pinned to GC is the cheap
-        // level; a touched body normally switches to its precise model first).
-        let touch = contact.and_then(|c| touch(c, &self.x));
+        // The god-object's press as a contact patch, resolved by the projected dynamics in
+        // their implicit step; the mass-spring cage keeps the anchor's point (module docs).
+        let patch = match self.dynamics {
+            Dynamics::Projected(_) => contact.and_then(|c| c.patch),
+            Dynamics::MassSpring(_) => None,
+        };
+        // Otherwise the tool, as a load on the current shape (explicit: a body pinned to GC is
+        // the cheap level; a touched body normally switches to its precise model first).
+        let touch = match patch {
+            Some(_) => None,
+            None => contact.and_then(|c| touch(c, &self.x)),
+        };
         let has_loads = touch.is_some() || external.iter().any(|f| *f != [0.0; 3]);
         let mut report = touch.map_or_else(ContactReport::default, |t| ContactReport {
             force_on_tissue: t.on_tissue,
@@ -536,6 +549,7 @@ impl CageModel {
             touch: touch.as_ref(),
             springs,
             has_loads,
+            patch,
         };
         match &mut self.dynamics {
             Dynamics::Projected(r) => {

@@ -45,6 +45,25 @@
 //!   3V × 3V solve in contact steps only): a cage as soft as its body would ring under an
 //!   explicit 300 N/m tool.
 //!
+//! # The tool's contact patch on a cage
+//!
+//! The god-object's press with the linear law comes as a contact patch over the tool's
+//! footprint ([`crate::patch`]). The projected (and Galerkin) cage resolves it in its implicit
+//! step: a point's position after the step is linearised as `x + G d`, its column in the cage's
+//! unknowns is `c_j = Gᵀ (n_j` spread over its nodes with their weights`)`, the step's
+//! compliance is `A⁻¹`, and the complementarity problem's forces add `A⁻¹ C λ` to the
+//! increment; the report carries the proxy the god-object rests at, so the hand feels what the
+//! cage receives. When organ contact springs act in the same step they are resolved first
+//! (their stiffness joins `A`) and the patch is solved with the factor of that same matrix, so
+//! the two meet as in one linear system (the springs' active set is the one at the start of
+//! the step, as without a patch).
+//!
+//! Decision: the thesis' mass-spring cage keeps the anchor's one-point press. Its loads reach
+//! the cage vertices explicitly through φ and its own step is a separate mass-spring body on
+//! the cage vertices, so there is no step compliance from nodes to cage to build the patch's
+//! problem on; it is the hand-tuned comparison model, not the one a touched body runs (that
+//! switches to its precise model, which resolves the patch).
+//!
 //! - **Under gravity** ([`CageModel::from_precise_under`], what `lopd` builds): a corotational
 //!   FEM body is first solved to its static equilibrium under the scene's gravity, and the
 //!   projected cage is linearised about *that* shape, with the FEM's tangent stiffness there

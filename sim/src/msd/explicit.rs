@@ -1,10 +1,13 @@
 //! The explicit integrators: `substeps` sub-steps of size `h` each, allocation-free (every
 //! buffer comes from [`Scratch`]). Fixed and massless nodes have zero inverse mass, so their
-//! acceleration is zero and, starting at rest, they never move.
+//! acceleration is zero and, starting at rest, they never move. With the tool's contact patch
+//! ([`ExplicitPatch`]) every sub-step is followed by the patch's hard constraints.
 
 use super::forces::{Loads, Network};
 use super::Scratch;
 use crate::contact::{add, scale};
+use crate::interaction::ContactReport;
+use crate::patch::{self, PatchSolve, ToolPatch, MAX_PATCH};
 
 /// An explicit integrator: `substeps` sub-steps of size `h` of the body `State` under `Loads`.
 pub(super) type Integrate = fn(&Network, State<'_>, &mut Scratch, &Loads<'_, '_>, f64, usize);
@@ -171,5 +174,96 @@ pub(super) fn rk4(
             s.x[i] = add(s.x[i], scale(dx, h / 6.0));
             s.v[i] = add(s.v[i], scale(dv, h / 6.0));
         }
+    }
+}
+
+/// The tool's contact patch (see [`crate::patch`]) in the explicit integrators: each sub-step
+/// first advances without the tool, then holds the patch as hard unilateral constraints on the
+/// positions. Over a sub-step `h` a force `C λ` on the lumped masses moves the nodes by
+/// `h² M⁻¹ C λ` and changes their velocities by `h M⁻¹ C λ` (the impulse `h C λ` of a
+/// sub-step's constant force, taken at its end as symplectic Euler takes every force), so
+/// the gaps after the sub-step are `w = q + A λ` with `A = h² Cᵀ M⁻¹ C + Nᵀ N / k`, `q` the
+/// gaps of the sub-step without the tool. Held nodes have no inverse mass: they add no
+/// compliance and are not corrected. `A`'s mass part is the same for every sub-step of a step
+/// (same points, same `h`), so it is built once per step and copied into each sub-step's
+/// problem. What the last sub-step's forces did is the step's report.
+#[derive(Debug, Clone)]
+pub(super) struct ExplicitPatch {
+    /// The complementarity problem (no unknowns of its own: the correction is applied node by
+    /// node here).
+    solve: PatchSolve,
+    /// `h² Cᵀ M⁻¹ C` of this step's patch, column-major; sized for [`MAX_PATCH`] points.
+    a: Vec<f64>,
+    /// What the last step's patch did.
+    pub report: Option<ContactReport>,
+}
+
+impl ExplicitPatch {
+    pub fn new() -> ExplicitPatch {
+        ExplicitPatch {
+            solve: PatchSolve::new(0),
+            a: Vec::with_capacity(MAX_PATCH * MAX_PATCH),
+            report: None,
+        }
+    }
+
+    /// `substeps` sub-steps of `integrate` under `loads` (which must not carry the tool), each
+    /// followed by the patch's correction. An unusable patch (no points, a bad spring) applies
+    /// no force, as in the implicit step.
+    #[allow(clippy::too_many_arguments)]
+    pub fn step(
+        &mut self,
+        integrate: Integrate,
+        net: &Network,
+        s: State<'_>,
+        scratch: &mut Scratch,
+        loads: &Loads<'_, '_>,
+        patch: &ToolPatch<'_>,
+        h: f64,
+        substeps: usize,
+    ) {
+        let State { x, v } = s;
+        let Some(patch) = PatchSolve::limit(patch) else {
+            integrate(net, State { x, v }, scratch, loads, h, substeps);
+            self.report = Some(ContactReport::default());
+            return;
+        };
+        let m = patch.points.len();
+        let inv_mass = |k: u32| net.inv_mass.get(k as usize).copied().unwrap_or(0.0);
+        self.solve.lcp.reset(m);
+        self.solve.matrix_lumped(&patch, inv_mass, h * h);
+        self.a.clear();
+        self.a.extend_from_slice(self.solve.lcp.matrix());
+        let mut report = ContactReport::default();
+        for _ in 0..substeps {
+            let s = State {
+                x: &mut *x,
+                v: &mut *v,
+            };
+            integrate(net, s, scratch, loads, h, 1);
+            self.solve.begin(&patch, |k| {
+                x.get(k as usize).copied().unwrap_or([f64::NAN; 3])
+            });
+            self.solve.lcp.matrix().copy_from_slice(&self.a);
+            if !self.solve.solve(&patch) {
+                report = ContactReport::default();
+                continue;
+            }
+            let lambda = self.solve.lcp.lambda();
+            for (p, &l) in patch.points.iter().zip(lambda) {
+                if l == 0.0 {
+                    continue;
+                }
+                for (&k, &w) in p.nodes.iter().zip(&p.weights) {
+                    let dv = scale(p.normal, h * inv_mass(k) * w * l);
+                    if let (Some(xk), Some(vk)) = (x.get_mut(k as usize), v.get_mut(k as usize)) {
+                        *vk = add(*vk, dv);
+                        *xk = add(*xk, scale(dv, h));
+                    }
+                }
+            }
+            report = patch::report(&patch, lambda);
+        }
+        self.report = Some(report);
     }
 }

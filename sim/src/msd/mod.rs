@@ -74,8 +74,18 @@
 //!   semi-definite) is added to the system matrix over the three nodes of the touched triangle;
 //!   they are joined by mesh edges, so the sparsity pattern already has their blocks.
 //!
-//! The [`ContactReport`] is evaluated on the positions at the end of the step, the same surface
-//! the haptic loop renders against.
+//! The god-object's press with the linear law comes as a contact patch over the tool's
+//! footprint ([`crate::patch`]) instead of the anchor's one point; then the tool acts through
+//! the patch alone, as hard unilateral constraints:
+//! - explicit integrators: after every sub-step without the tool, the points' gaps are linear
+//!   in their forces through the sub-step's compliance `h² M⁻¹` (lumped, diagonal), and the
+//!   complementarity problem's forces move the nodes by `h² M⁻¹ C λ` and change their
+//!   velocities by `h M⁻¹ C λ` (`explicit::ExplicitPatch`); the report is the last sub-step's;
+//! - implicit Euler: the same with the step's factor of `A` (`implicit.rs`).
+//!
+//! Either way the report carries the proxy where the patch balanced, which the god-object rests
+//! at. The [`ContactReport`] of a point contact is evaluated on the positions at the end of the
+//! step, the same surface the haptic loop renders against.
 //!
 //! # Implicit Euler: matrix and solver
 //! `K(x)` is assembled per spring from `k [u uᵀ + max(0, 1 − L/l) (I − u uᵀ)]` (`u` the unit
@@ -266,6 +276,7 @@ enum Stepper {
     Explicit {
         integrate: explicit::Integrate,
         scratch: Scratch,
+        patch: Box<explicit::ExplicitPatch>,
     },
     /// The implicit Euler system and its factorisation.
     Implicit(Box<ImplicitSolver>),
@@ -362,8 +373,11 @@ impl MassSpring {
         };
         let auto_substeps = auto_substeps(&params, &net);
         let zero = || vec![[0.0; 3]; n];
-        let explicit =
-            |integrate: explicit::Integrate, scratch| Stepper::Explicit { integrate, scratch };
+        let explicit = |integrate: explicit::Integrate, scratch| Stepper::Explicit {
+            integrate,
+            scratch,
+            patch: Box::new(explicit::ExplicitPatch::new()),
+        };
         let with_force = || Scratch {
             force: zero(),
             ..Scratch::default()
@@ -562,9 +576,30 @@ impl MassSpring {
             v: &mut self.v,
         };
         match &mut self.stepper {
-            Stepper::Explicit { integrate, scratch } => {
-                integrate(&self.net, state, scratch, &loads, h, self.substeps);
-            }
+            Stepper::Explicit {
+                integrate,
+                scratch,
+                patch,
+            } => match contact.and_then(|c| c.patch) {
+                // The tool acts through its patch alone, after every sub-step.
+                Some(p) => {
+                    let free = forces::Loads {
+                        contact: None,
+                        ..loads
+                    };
+                    patch.step(
+                        *integrate,
+                        &self.net,
+                        state,
+                        scratch,
+                        &free,
+                        &p,
+                        h,
+                        self.substeps,
+                    );
+                }
+                None => integrate(&self.net, state, scratch, &loads, h, self.substeps),
+            },
             Stepper::Implicit(solver) => {
                 let solved =
                     (0..self.substeps).all(|_| solver.step(&self.net, state.x, state.v, &loads, h));
@@ -575,10 +610,12 @@ impl MassSpring {
             }
         }
         self.check()?;
-        if let (Some(c), Stepper::Implicit(solver)) = (contact, &self.stepper) {
-            if c.patch.is_some() {
-                return Ok(solver.patch_report().unwrap_or_default());
-            }
+        if contact.is_some_and(|c| c.patch.is_some()) {
+            let report = match &self.stepper {
+                Stepper::Implicit(solver) => solver.patch_report(),
+                Stepper::Explicit { patch, .. } => patch.report,
+            };
+            return Ok(report.unwrap_or_default());
         }
         Ok(contact.map_or_else(ContactReport::default, |c| {
             forces::touch(c, &self.x).map_or_else(ContactReport::default, |t| ContactReport {
