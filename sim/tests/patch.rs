@@ -2,9 +2,10 @@
 //! runs them: the force the hand feels equals what the tissue receives (flat and curved
 //! surfaces; FEM, mass-spring with the implicit and an explicit integrator, and the projected
 //! cage), it is steady and has no sideways part on a flat block, it grows with depth as an
-//! elastic indentation does, the sphere stays out of the surface (to a face's allowance), and
-//! broken input gives no force. (The thesis' mass-spring cage
-//! keeps the anchor's one-point press and is not checked here.)
+//! elastic indentation does, the sphere stays out of the surface (to a face's allowance),
+//! driving the tool through a thin plate gives no runaway force, and the cautery heats under
+//! the patch. (The thesis' mass-spring cage keeps the anchor's one-point press and is not
+//! checked here.)
 
 use lop_sim::contact::{closest_on_surface, ForceLaw, ToolSphere};
 use lop_sim::fem::{box_mesh, Fem, FemMode, FemParameters};
@@ -372,4 +373,64 @@ fn tool_driven_through_a_thin_plate_gives_no_runaway_force() {
             "{mode:?}: the proxy went only {deepest} m deep"
         );
     }
+}
+
+/// The cautery still heats where the tool presses now that the press is a patch: a round with
+/// the heat button down warms the block under the tool, not elsewhere, while the patch holds
+/// the tool (the step reports where it balanced).
+#[test]
+fn cautery_heats_under_the_pressing_patch() {
+    use lop_sim::heat::{HeatBody, HeatParameters, HeatWorld};
+    use lop_sim::world::{Round, RoundTool};
+    let mesh = block(8);
+    let mut world = World::new([0.0; 3]);
+    world.add_model("body", mesh.clone(), fem(&mesh, 30e3, FemMode::Linear));
+    let heat = HeatBody::new(&mesh, HeatParameters::default()).unwrap();
+    world.set_heat(HeatWorld::new(vec![heat]).unwrap());
+    let mut probe = WorldProbe::new(&world, R);
+    let law = ToolSphere {
+        center: [0.0; 3],
+        radius: R,
+        stiffness: 600.0,
+        law: ForceLaw::Linear,
+    };
+    let laws = [law];
+    let initial = world.heat().unwrap().bodies()[0].temperatures().to_vec();
+    // 0.3 mm into the top, then 1 s with the cautery on at 20 W.
+    let device = add(TOP, [0.0, 0.0, R - 0.3e-3]);
+    for step in 0..1000 {
+        probe.tick(&world, device, false);
+        let tool = RoundTool {
+            center: device,
+            laws: &laws,
+            coupling: probe.coupling(),
+            heat_power: if step >= 200 { 20.0 } else { 0.0 },
+        };
+        let round = Round {
+            drop_lag: false,
+            ..Round::to((step + 1) as f64 * 1e-3, 4).with_tool(Some(tool))
+        };
+        world.round(&round, || 0);
+    }
+    assert!(
+        world.bodies[0].last_contact.proxy.is_some(),
+        "the patch holds the tool"
+    );
+    let t = world.heat().unwrap().bodies()[0].temperatures();
+    let rise = |i: usize| t[i] - initial[i];
+    let nodes = &world.bodies[0].mesh.nodes;
+    let (hottest, _) = (0..t.len())
+        .map(|i| (i, rise(i)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap();
+    assert!(
+        rise(hottest) > 1.0,
+        "hottest node warmed by {} K",
+        rise(hottest)
+    );
+    assert!(
+        norm(sub(nodes[hottest], TOP)) < 2e-3,
+        "the hottest node {:?} is not under the tool at {TOP:?}",
+        nodes[hottest]
+    );
 }
