@@ -15,6 +15,7 @@
 
 mod block;
 mod hertz;
+mod liver;
 mod press;
 mod reference;
 mod transparency;
@@ -24,12 +25,13 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use serde::Serialize;
 
 /// Options of `lop-bench haptics`.
 #[derive(Args, Debug)]
 pub struct HapticsArgs {
     /// Small and fast (for the smoke test): the 0.8 and 0.4 mm meshes, four reference depths, no
-    /// converged reference.
+    /// converged reference; the liver held at 1 and 3 mm only.
     #[arg(long)]
     quick: bool,
     /// Where the CSV and SVG files go (created if missing).
@@ -40,11 +42,24 @@ pub struct HapticsArgs {
     json: Option<PathBuf>,
 }
 
+/// Everything `--json` writes: part 1's figures at the top level, part 2's under `liver`.
+#[derive(Debug, Serialize)]
+struct Report {
+    #[serde(flatten)]
+    transparency: transparency::Report,
+    liver: liver::LiverReport,
+}
+
 /// Runs the benchmark.
 pub fn run(a: HapticsArgs) -> Result<()> {
     let clock = Instant::now();
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let report = transparency::run(a.quick, &a.out)?;
+    let transparency = transparency::run(a.quick, &a.out)?;
+    let liver = liver::run(a.quick, &a.out)?;
+    let report = Report {
+        transparency,
+        liver,
+    };
     println!(
         "\nlop-bench haptics{} took {:.1} s",
         if a.quick { " --quick" } else { "" },
