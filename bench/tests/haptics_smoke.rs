@@ -51,7 +51,10 @@ fn haptics_quick_reports_every_mesh_and_target() {
     // Part 2, the abdomen scene's liver: a light press (two holds), every figure present.
     let liver = &report["liver"];
     assert_eq!(liver["fem_mode"].as_str(), Some("linear"), "{liver}");
-    assert!(liver["target_distance_mm"].as_f64().unwrap() < 1.0, "{liver}");
+    assert!(
+        liver["target_distance_mm"].as_f64().unwrap() < 1.0,
+        "{liver}"
+    );
     let rows = liver["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 2, "{liver}");
     for r in rows {

@@ -9,12 +9,16 @@
 //! Omni's clamp: linear 300 N/m).
 //!
 //! The contact point is the poke script's target (`config/scripts/abdomen-poke.toml`: node 435
-//! of `liver.node`, on the liver's front, +z): the surface node nearest to it, with the
-//! area-weighted outward normal of the triangles around it. The liver's surface edges near it
-//! are 10–20 mm long, far coarser than the 3 mm tool, so a reference that presses nodes only is
-//! right there only at a node; the faces around it are checked (`face pen`: how deep the
-//! reference's deformed faces cut into the sphere; lop's contact patch also presses faces, with
-//! an allowance of `min(h²/6r, r/20)` = 0.15 mm here).
+//! of `liver.node`, 1-based, on the liver's front, +z): the surface node nearest to it (434,
+//! 0-based), with the area-weighted outward normal of the triangles around it. The liver's
+//! surface edges there are 13 mm long, far coarser than the 3 mm tool, so the sphere soon rests
+//! on the faces around the node rather than on the node: the reference presses the nodes and
+//! 741 samples inside each face at the node (`face_samples` 40, see `reference.rs`), with a
+//! penalty 1000 × the candidates' point stiffness. The block's nodes-only reference is shown
+//! beside it (and how deep its faces cut into the sphere). lop's contact patch presses nodes
+//! and faces too, but lets a face into the sphere by `min(h²/6r, r/20)` (0.15 mm here, `h` the
+//! longest edge) so that face points do not fight the nodes of a fine mesh; `ref(d-a)` is the
+//! reference that much less deep — a diagnosis, not the target.
 //!
 //! The press (`press_in_steps`): the device descends along `−n` through the point `c + n R`,
 //! at 1 mm/s from 0.5 mm off the surface, stops each time the proxy's indentation
@@ -392,16 +396,9 @@ pub fn run(quick: bool, out: &Path) -> Result<LiverReport> {
         FACE_SAMPLES,
     )
     .context("the reference on the liver")?;
-    let nodes_only = ContactReference::new(
-        &mesh,
-        material,
-        r,
-        contact,
-        normal,
-        candidate_radius,
-        0,
-    )
-    .context("the nodes-only reference on the liver")?;
+    let nodes_only =
+        ContactReference::new(&mesh, material, r, contact, normal, candidate_radius, 0)
+            .context("the nodes-only reference on the liver")?;
     // Neighbouring face samples are nearly the same constraint (exact multipliers make the
     // contact system singular): a penalty 1000 times the candidates' point stiffness, which
     // lets the sphere in by ~ F / (active samples × k_p), micrometres.
@@ -690,7 +687,11 @@ fn plot_liver(out: &Path, r: &LiverReport, ticks: &[Tick]) -> Result<()> {
         .filter(|k| k.depth > 0.0)
         .map(|k| (k.depth * 1e3, v(k.force).dot(n) * 1e3))
         .collect();
-    let held: Vec<(f64, f64)> = r.rows.iter().map(|row| (row.depth_mm, row.lop_mn)).collect();
+    let held: Vec<(f64, f64)> = r
+        .rows
+        .iter()
+        .map(|row| (row.depth_mm, row.lop_mn))
+        .collect();
     let y_max = r
         .reference_curve
         .iter()

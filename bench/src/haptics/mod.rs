@@ -8,6 +8,14 @@
 //! (`reference.rs`) and against Hertz (`hertz.rs`); then the force's steadiness while the hand
 //! holds still. Targets: within 10 % of the same-mesh reference, the meshes within 15 % of each
 //! other, the finest within 20 % of Hertz; hold variation ≤ 5 %, sideways part < 10 %.
+//!
+//! Part 2, **the liver** (`liver.rs`): the same press on the `abdomen` scene's liver as
+//! `lop_scene` builds it (555 nodes, 13 mm surface edges at the contact, the posterior patch
+//! fixed, E 4.1 kPa, ν 0.45), alone and as linear FEM (the scene runs it corotational; the
+//! reference is linear), with the scene's tool (R 3 mm, 300 N/m): at the poke script's target
+//! along the inward normal, held at 0.5–3 mm (`--quick`: 1 and 3 mm), against the reference on
+//! the same mesh — there a curved surface, and the sphere resting on faces, not only on the
+//! node (`reference.rs`: face samples). Target: within 10 % at every hold.
 
 // `!(x > 0.0)` is how a check is written so that NaN fails it (as in lop-sim); 3×3 blocks read
 // best as index loops.

@@ -28,13 +28,20 @@
 //! `1e-4 d`. A final full solve `K u = f` checks that no surface node outside the candidates
 //! penetrates, and gives the support reactions (`Σ contact forces = −Σ reactions`).
 //!
-//! Only nodes touch the sphere: the faces between them may cut into it. On a mesh finer than
-//! the tool that is the usual node-to-surface discretisation (the cut is second order in the
-//! edge length); on a mesh coarser than the tool (the liver's 10–20 mm edges under a 3 mm tip)
-//! the contact point must be a node, and how deep the faces around it cut into the sphere
-//! decides how far the answer can be trusted (`lop-bench haptics` reports it: the faces, not
-//! the node, carry the sphere once that cut is large). Adding the faces' closest points as
-//! constraints was tried: near a node they repeat its constraint, and the active set cycles.
+//! **Faces.** Without samples only nodes touch the sphere and the faces between them may cut
+//! into it: on a mesh finer than the tool that is the usual node-to-surface discretisation (the
+//! block: the cut is second order in the edge length). On a mesh coarser than the tool (the
+//! liver's 13 mm edges under a 3 mm tip) the sphere pressed on a node soon rests on the faces
+//! around it; nodes alone let that node slip round the sphere (on the liver, past 1 mm). With
+//! `face_samples = k`, the candidate faces (those whose closest point to `c` is within the
+//! radius) contribute the material points `(i, j, k − i − j)/k` strictly inside them as further
+//! constraints, spread over their nodes by the barycentric weights (the columns of `N` become
+//! `G`'s). Neighbouring samples are nearly the same constraint, so: a penalty (exact multipliers
+//! make the system singular), one change of the active set per iteration (batches cycle), and
+//! the indentation in steps of `R/30` from the previous solution (at `d = R` the sphere's
+//! centre is the undeformed contact point, and the undeformed directions mean nothing).
+//! Tried first and dropped: the faces' closest points as constraints (near a node they repeat
+//! its constraint, and the active set cycles).
 
 use anyhow::{bail, Result};
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -429,8 +436,7 @@ impl ContactReference {
             .copied()
             .filter(|&i| {
                 let p = mesh.nodes[i as usize];
-                (v(p) - v(contact)).length() <= candidate_radius
-                    && !stiffness.is_fixed(i as usize)
+                (v(p) - v(contact)).length() <= candidate_radius && !stiffness.is_fixed(i as usize)
             })
             .collect();
         if candidates.is_empty() {
@@ -442,9 +448,8 @@ impl ContactReference {
             for t in &mesh.surface {
                 let corners = t.map(|i| v(mesh.nodes[i as usize]));
                 let w = closest_bary(v(contact), corners);
-                let near = (corners[0] * w[0] + corners[1] * w[1] + corners[2] * w[2]
-                    - v(contact))
-                .length()
+                let near = (corners[0] * w[0] + corners[1] * w[1] + corners[2] * w[2] - v(contact))
+                    .length()
                     <= candidate_radius;
                 if !near || t.iter().all(|&i| stiffness.is_fixed(i as usize)) {
                     continue;
@@ -631,9 +636,7 @@ impl ContactReference {
             })
             .collect();
         let mut active: Vec<bool> = (0..np)
-            .map(|j| {
-                v(deformed[j]).length() < self.radius || warm.is_some_and(|w| w.active[j])
-            })
+            .map(|j| v(deformed[j]).length() < self.radius || warm.is_some_and(|w| w.active[j]))
             .collect();
         let mut lambda = vec![0.0; np];
         let mut u = vec![0.0; m3];
@@ -763,13 +766,17 @@ impl ContactReference {
                         active[j] = true;
                     }
                 }
-            } else if let Some(&j) = pulling.iter().min_by(|&&a, &&b| lambda[a].total_cmp(&lambda[b])) {
+            } else if let Some(&j) = pulling
+                .iter()
+                .min_by(|&&a, &&b| lambda[a].total_cmp(&lambda[b]))
+            {
                 // Neighbouring samples are nearly the same constraint, and changing them in
                 // batches cycles: one at a time, the most pulling first, else the deepest.
                 active[j] = false;
-            } else if let Some(&j) = penetrating.iter().max_by(|&&a, &&b| {
-                gap_of(a).total_cmp(&gap_of(b))
-            }) {
+            } else if let Some(&j) = penetrating
+                .iter()
+                .max_by(|&&a, &&b| gap_of(a).total_cmp(&gap_of(b)))
+            {
                 active[j] = true;
             }
         }
@@ -991,7 +998,10 @@ mod tests {
             .find(|&i| (v(b.mesh.nodes[i]) - v(CONTACT)).length() < 1e-9)
             .expect("a node at the contact point") as u32;
         let flat_normal = vertex_normal(&b.mesh, node).unwrap();
-        assert!((v(flat_normal) - v(NORMAL)).length() < 1e-12, "{flat_normal:?}");
+        assert!(
+            (v(flat_normal) - v(NORMAL)).length() < 1e-12,
+            "{flat_normal:?}"
+        );
         let q = glam::DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 0.5).normalize(), 0.7);
         let mut mesh = b.mesh.clone();
         for p in mesh.nodes.iter_mut() {
