@@ -1,7 +1,7 @@
 //! Smoke test of `lop-bench haptics --quick`: both quick meshes are generated (gmsh), the
 //! reference and the presses give positive finite forces, the reference sits within a band of
-//! Hertz, the targets are all evaluated (PASS or FAIL, whichever contact model lop has), and
-//! the CSV and SVG exist. No wall-clock bound and no assertion on lop's own figures: they are
+//! Hertz, the targets are all evaluated (PASS or FAIL, whichever contact model lop has), the
+//! liver's light press and its reference give positive forces, and the CSV and SVG exist. No wall-clock bound and no assertion on lop's own figures: they are
 //! what the benchmark measures.
 
 mod common;
@@ -48,7 +48,26 @@ fn haptics_quick_reports_every_mesh_and_target() {
     // Hertz on the finest.
     let targets = report["targets"].as_array().unwrap();
     assert_eq!(targets.len(), 2 + 1 + 1 + 2 * 4, "{targets:?}");
+    // Part 2, the abdomen scene's liver: a light press (two holds), every figure present.
+    let liver = &report["liver"];
+    assert_eq!(liver["fem_mode"].as_str(), Some("linear"), "{liver}");
+    assert!(
+        liver["target_distance_mm"].as_f64().unwrap() < 1.0,
+        "{liver}"
+    );
+    let rows = liver["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 2, "{liver}");
+    for r in rows {
+        for key in ["lop_mn", "reference_mn"] {
+            let f = r[key].as_f64().unwrap();
+            assert!(f.is_finite() && f > 0.0, "{key}: {r}");
+        }
+    }
+    assert!(liver["pass"].is_boolean(), "{liver}");
     for f in [
+        "liver.csv",
+        "liver_press.csv",
+        "liver_force_vs_depth.svg",
         "reference.csv",
         "press_0.8mm_vertical.csv",
         "press_0.4mm_tilted.csv",

@@ -19,6 +19,8 @@ pub const HALF_WIDTH: f64 = 0.020;
 pub const HEIGHT: f64 = 0.020;
 /// The contact point: the top face's centre, m.
 pub const CONTACT: [f64; 3] = [0.0, 0.0, HEIGHT];
+/// The top face's outward normal: the tool presses along `−z`.
+pub const NORMAL: [f64; 3] = [0.0, 0.0, 1.0];
 /// Element size far from the contact, m.
 pub const COARSE_SIZE: f64 = 0.004;
 /// Radius around the contact point meshed at the fine size, m: covers the contact patch up to

@@ -199,7 +199,9 @@ pub fn run(quick: bool, out: &Path) -> Result<Report> {
             material,
             SETUP.radius,
             block::CONTACT,
+            block::NORMAL,
             candidate_radius(SETUP.radius, MAX_DEPTH),
+            0,
         )
         .with_context(|| format!("the reference on the {} mesh", b.label()))?;
         let setup_s = t0.elapsed().as_secs_f64();
