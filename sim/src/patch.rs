@@ -17,7 +17,9 @@
 //!   than the tool the tissue wraps the sphere node by node;
 //! - the closest point of every surface triangle in reach when it lies inside the triangle or
 //!   on an edge (a vertex is already a node point), target `r − a_t` with the allowance
-//!   `a_t = min(h_t² / (6 r), r / 20)` (`h_t` the longest edge): the depth the middle of a
+//!   `a_t = min(h_t² / (6 r), r / 20)` (`h_t` the longest edge) for a face whose three nodes
+//!   are in reach, fading to none as its farthest node lies up to one radius beyond reach (a
+//!   face larger than the tool carries the tool itself): the depth the middle of a
 //!   triangle whose nodes rest on the sphere reaches, so face points do not fight the node
 //!   points of a fine mesh, while on a mesh coarser than the tool (the sphere inside one face)
 //!   they keep the sphere from sinking between nodes.
@@ -388,7 +390,20 @@ pub fn gather(
             .length()
             .max((cc - b).length())
             .max((a - cc).length());
-        let allowance = (longest * longest / (6.0 * radius)).min(radius / 20.0);
+        // The allowance: how far the face may dip into the sphere between its nodes. A face
+        // within the tool's footprint sags between nodes that carry the tool, by about
+        // `h²/(6r)` where they rest on the sphere, so its face point must not hold the sphere
+        // up there. A face reaching beyond the tool (an organ meshed coarser than the tool)
+        // carries the tool itself and gets none, or the tool would sink into it. Between the
+        // two the allowance fades with the distance of the face's farthest node beyond reach,
+        // to nothing one tool radius further out: a function of the positions alone, so the
+        // force stays continuous as nodes come into reach.
+        let sag = (longest * longest / (6.0 * radius)).min(radius / 20.0);
+        let farthest = tri
+            .iter()
+            .map(|&k| (v(x[k as usize]) - c).length())
+            .fold(0.0f64, f64::max);
+        let allowance = sag * (1.0 - (farthest - reach) / radius).clamp(0.0, 1.0);
         if !on_vertex && dist < reach && out.len() < MAX_PATCH {
             let normal = if dist > 1e-9 * radius {
                 (p - c) / dist
