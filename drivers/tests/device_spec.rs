@@ -79,7 +79,12 @@ fn bad_values_are_quoted_and_the_forms_listed() {
         assert_eq!(error.value, bad);
         let message = error.to_string();
         assert!(message.contains(&format!("`{bad}`")), "{message}");
-        for form in ["mock:SCRIPT", "hand:SCRIPT", "replay:PATH", "openhaptics:NAME"] {
+        for form in [
+            "mock:SCRIPT",
+            "hand:SCRIPT",
+            "replay:PATH",
+            "openhaptics:NAME",
+        ] {
             assert!(message.contains(form), "{message}");
         }
     }

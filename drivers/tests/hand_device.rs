@@ -130,9 +130,9 @@ fn step_in_the_intent_follows_the_exact_linear_solution() {
         for tick in 1001..=20_000 {
             sample = d.read(tick as f64 * 1e-3).unwrap();
         }
-        for k in 0..3 {
+        for (k, intent) in INTENT_MM.iter().enumerate() {
             assert!(
-                (sample.position_mm[k] - INTENT_MM[k]).abs() < 1e-9,
+                (sample.position_mm[k] - intent).abs() < 1e-9,
                 "{label}: {sample:?}"
             );
             assert!(sample.velocity_mm_s[k].abs() < 1e-9, "{label}: {sample:?}");
@@ -148,11 +148,8 @@ fn with_friction_the_stylus_still_settles_on_the_intent() {
         sample = d.read(tick as f64 * 1e-3).unwrap();
         d.write_force([0.0; 3]).unwrap();
     }
-    for k in 0..3 {
-        assert!(
-            (sample.position_mm[k] - INTENT_MM[k]).abs() < 1e-9,
-            "{sample:?}"
-        );
+    for (position, intent) in sample.position_mm.iter().zip(INTENT_MM) {
+        assert!((position - intent).abs() < 1e-9, "{sample:?}");
     }
 }
 

@@ -106,7 +106,7 @@ fn the_hand_reads_and_writes_allocate_nothing() {
             let t = tick as f64 * 1e-3;
             let force = match device.read(t) {
                 Ok(sample) if tick % 1000 == 999 => [f64::NAN, sample.position_mm[1], 0.0],
-                Ok(sample) if tick % 1000 == 500 => [0.0, 5.0, 0.0],
+                Ok(_) if tick % 1000 == 500 => [0.0, 5.0, 0.0],
                 Ok(sample) => [0.0, (30.0 - sample.position_mm[1]).max(0.0) * 0.1, 0.0],
                 Err(_) => {
                     errors += 1;
@@ -124,5 +124,9 @@ fn the_hand_reads_and_writes_allocate_nothing() {
     assert_eq!((allocations, bytes), (0, 0), "hand RT path allocated");
     let (allocations, _) = measure(|| device.stop());
     assert_eq!(allocations, 0, "stop allocated");
-    assert_eq!(device.rejected_forces(), 20, "refused forces were exercised");
+    assert_eq!(
+        device.rejected_forces(),
+        20,
+        "refused forces were exercised"
+    );
 }

@@ -327,8 +327,10 @@ fn fault_windows_are_validated() {
 fn hand_table_overrides_defaults_and_is_validated_by_key() {
     use lop_drivers::hand::HandParameters;
     assert_eq!(parse(POKE).unwrap().hand(), None);
-    let script = parse(&format!("{POKE}\n[hand]\nhand_stiffness = 150.0\ngrip_damping = 0.0\n"))
-        .unwrap();
+    let script = parse(&format!(
+        "{POKE}\n[hand]\nhand_stiffness = 150.0\ngrip_damping = 0.0\n"
+    ))
+    .unwrap();
     let expected = HandParameters {
         hand_stiffness: 150.0,
         grip_damping: 0.0,

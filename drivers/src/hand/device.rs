@@ -3,7 +3,7 @@
 use std::io;
 use std::path::Path;
 
-use super::params::{HandParameters, HandParameterError, FRICTION_SMOOTHING_SPEED_M_S};
+use super::params::{HandParameterError, HandParameters, FRICTION_SMOOTHING_SPEED_M_S};
 use super::INTEGRATION_STEP_S;
 use crate::device::{
     DeviceError, DeviceLimits, DeviceOpenError, DeviceSample, HapticDevice, Pacing,
@@ -210,7 +210,9 @@ impl HandDevice {
         let from = self.t.max(t - MAX_CATCH_UP_S);
         let span = t - from;
         // The tiny allowance keeps a 1 ms read at 10 steps despite `1e-3 / 1e-4` rounding up.
-        let steps = ((span / INTEGRATION_STEP_S) * (1.0 - 1e-12)).ceil().max(1.0) as u64;
+        let steps = ((span / INTEGRATION_STEP_S) * (1.0 - 1e-12))
+            .ceil()
+            .max(1.0) as u64;
         let h = span / steps as f64;
         for i in 0..steps {
             self.state = self.rk4_step(from + i as f64 * h, h);
@@ -256,7 +258,8 @@ impl HandDevice {
                 + p.grip_damping * (y.hand_v[k] - y.stylus_v[k]);
             let arm = p.hand_stiffness * (intent_x - y.hand_x[k])
                 + p.hand_damping * (intent_v - y.hand_v[k]);
-            let stylus_force = self.force_n[k] - p.stylus_damping * y.stylus_v[k]
+            let stylus_force = self.force_n[k]
+                - p.stylus_damping * y.stylus_v[k]
                 - friction_per_speed * y.stylus_v[k]
                 + grip;
             d.stylus_x[k] = y.stylus_v[k];

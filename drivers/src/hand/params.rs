@@ -213,7 +213,8 @@ mod tests {
 
     #[test]
     fn bad_values_are_refused_by_key() {
-        let cases: [(&str, fn(&mut HandParameters)); 5] = [
+        type Spoil = fn(&mut HandParameters);
+        let cases: [(&str, Spoil); 5] = [
             ("stylus_mass", |p| p.stylus_mass = 0.0),
             ("hand_stiffness", |p| p.hand_stiffness = -1.0),
             ("grip_damping", |p| p.grip_damping = f64::NAN),
@@ -226,9 +227,11 @@ mod tests {
             let e = p.validate().unwrap_err();
             assert_eq!(e.key, key, "{e}");
         }
-        let mut zero_damping = HandParameters::default();
-        zero_damping.hand_damping = 0.0;
-        zero_damping.stylus_friction = 0.0;
+        let zero_damping = HandParameters {
+            hand_damping: 0.0,
+            stylus_friction: 0.0,
+            ..HandParameters::default()
+        };
         zero_damping.validate().unwrap();
     }
 

@@ -14,8 +14,8 @@ mod device;
 mod record;
 mod script;
 
-pub(crate) use device::FORCE_LIMIT_TOLERANCE;
 pub use device::MockDevice;
+pub(crate) use device::FORCE_LIMIT_TOLERANCE;
 pub(crate) use record::{write_force_csv, ForceRing};
 pub use record::{ForceEntry, ForceRecord, ForceRecordIter, FORCE_RECORD_CAPACITY};
 pub use script::{
