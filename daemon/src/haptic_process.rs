@@ -12,6 +12,7 @@ use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use lop_config::{DaemonConfig, Scene};
+use lop_drivers::hand::HandDevice;
 use lop_drivers::mock::MockDevice;
 use lop_drivers::openhaptics::OpenHapticsDevice;
 use lop_drivers::replay::ReplayDevice;
@@ -27,6 +28,8 @@ use crate::{rt, servo, signals, MEMORY_LOCKED};
 pub enum Device {
     /// `--device mock[:SCRIPT]`.
     Mock(MockDevice),
+    /// `--device hand[:SCRIPT]`.
+    Hand(Box<HandDevice>),
     /// `--device replay:PATH`.
     Replay(ReplayDevice),
     /// `--device openhaptics[:NAME]`.
@@ -38,6 +41,7 @@ impl Device {
     pub fn as_dyn(&mut self) -> &mut dyn HapticDevice {
         match self {
             Device::Mock(m) => m,
+            Device::Hand(h) => h.as_mut(),
             Device::Replay(r) => r,
             Device::OpenHaptics(o) => o.as_mut(),
         }
@@ -47,6 +51,7 @@ impl Device {
     pub fn as_ref_dyn(&self) -> &dyn HapticDevice {
         match self {
             Device::Mock(m) => m,
+            Device::Hand(h) => h.as_ref(),
             Device::Replay(r) => r,
             Device::OpenHaptics(o) => o.as_ref(),
         }
@@ -57,6 +62,25 @@ impl Device {
         match self {
             Device::Mock(m) => Some(m),
             _ => None,
+        }
+    }
+
+    /// The force last rendered, for the scripted devices that keep a record (mock, hand).
+    pub fn last_force(&self) -> Option<[f64; 3]> {
+        match self {
+            Device::Mock(m) => Some(m.last_force()),
+            Device::Hand(h) => Some(h.last_force()),
+            _ => None,
+        }
+    }
+
+    /// Writes the rendered-force record as CSV (`--force-log`), for the devices that keep one;
+    /// `Ok(false)` for the others.
+    pub fn write_force_csv(&self, path: &std::path::Path) -> std::io::Result<bool> {
+        match self {
+            Device::Mock(m) => m.write_force_csv(path).map(|()| true),
+            Device::Hand(h) => h.write_force_csv(path).map(|()| true),
+            _ => Ok(false),
         }
     }
 }
@@ -269,12 +293,11 @@ impl HapticProcessBuilder {
         }
         let summary = result?;
         if let Some(path) = &force_log {
-            if let Some(mock) = device.mock() {
-                mock.write_force_csv(path)
-                    .with_context(|| format!("writing {}", path.display()))?;
-            }
+            device
+                .write_force_csv(path)
+                .with_context(|| format!("writing {}", path.display()))?;
         }
-        let last = device.mock().map(|m| m.last_force());
+        let last = device.last_force();
         tracing::info!(
             "haptic loop stopped after {} ticks, {} overruns{}{}",
             summary.ticks,

@@ -13,6 +13,7 @@ use lop_config::{
 };
 use lop_daemon::haptic_process::{Device, HapticProcess};
 use lop_daemon::{deform, signals, supervisor};
+use lop_drivers::hand::HandDevice;
 use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::openhaptics::OpenHapticsDevice;
 use lop_drivers::replay::ReplayDevice;
@@ -62,7 +63,7 @@ struct DoctorArgs {
     /// Daemon configuration (default: /etc/lop/lopd.toml if it exists).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// The rig's device: openhaptics[:NAME] | mock[:SCRIPT] | replay:PATH.
+    /// The rig's device: openhaptics[:NAME] | mock[:SCRIPT] | hand[:SCRIPT] | replay:PATH.
     #[arg(long, default_value = "openhaptics")]
     device: String,
     /// Service prefix to look for stale services under.
@@ -128,10 +129,10 @@ struct CommonArgs {
 struct HapticArgs {
     #[command(flatten)]
     common: CommonArgs,
-    /// mock[:SCRIPT] | replay:PATH | openhaptics[:NAME]
+    /// mock[:SCRIPT] | hand[:SCRIPT] | replay:PATH | openhaptics[:NAME]
     #[arg(long, default_value = "mock")]
     device: String,
-    /// Write every force the device received as CSV at exit (mock device).
+    /// Write every force the device received as CSV at exit (mock and hand devices).
     #[arg(long)]
     force_log: Option<PathBuf>,
     /// Record the device stream (poses, buttons, ticks, times) for `--device replay:PATH`.
@@ -258,28 +259,55 @@ fn load_common(a: &CommonArgs) -> Result<(Scene, DaemonConfig, ServiceNames, Opt
     Ok((scene, config, names, duration))
 }
 
+/// The script a scripted device (`mock`, `hand`) plays: the one named, else the scene's default,
+/// else `None` (hold still at the device origin).
+fn device_script(script: Option<&str>, scene: &Scene) -> Result<Option<(MockScript, PathBuf)>> {
+    let path = match script {
+        Some(s) => bad(resolve_script(s))?,
+        None => match &scene.device.mock_script {
+            Some(p) => p.clone(),
+            None => return Ok(None),
+        },
+    };
+    let script = bad(MockScript::load(&path))?;
+    Ok(Some((script, path)))
+}
+
 fn open_device(spec: &DeviceSpec, scene: &Scene, config: &DaemonConfig) -> Result<Device> {
     match spec {
         DeviceSpec::Mock { script } => {
-            let path = match script {
-                Some(s) => bad(resolve_script(s))?,
-                None => match &scene.device.mock_script {
-                    Some(p) => p.clone(),
-                    None => {
-                        let script = MockScript::stationary([0.0, 0.0, 0.0]);
-                        return Ok(Device::Mock(MockDevice::new(
-                            script,
-                            MockDevice::omni_limits(),
-                        )));
-                    }
-                },
+            let script = match device_script(script.as_deref(), scene)? {
+                Some((script, path)) => {
+                    tracing::info!("mock device playing {}", path.display());
+                    script
+                }
+                None => MockScript::stationary([0.0, 0.0, 0.0]),
             };
-            let script = bad(MockScript::load(&path))?;
-            tracing::info!("mock device playing {}", path.display());
             Ok(Device::Mock(MockDevice::new(
                 script,
                 MockDevice::omni_limits(),
             )))
+        }
+        DeviceSpec::Hand { script } => {
+            let script = match device_script(script.as_deref(), scene)? {
+                Some((script, path)) => {
+                    tracing::info!(
+                        "simulated hand following {}{}",
+                        path.display(),
+                        if script.hand().is_some() {
+                            " (with its [hand] parameters)"
+                        } else {
+                            ""
+                        }
+                    );
+                    script
+                }
+                None => MockScript::stationary([0.0, 0.0, 0.0]),
+            };
+            Ok(Device::Hand(Box::new(HandDevice::new(
+                script,
+                MockDevice::omni_limits(),
+            ))))
         }
         DeviceSpec::Replay { path } => {
             let device = bad(ReplayDevice::open(path)

@@ -8,6 +8,9 @@
 //! Drivers:
 //! - [`mock`]: plays a TOML script of waypoints and records the forces it receives; deterministic,
 //!   for tests, benchmarks and demos.
+//! - [`hand`]: a stylus held by a simulated hand (two masses, springs and dampers) that follows
+//!   a mock script as its intent and yields to the rendered forces; integrated at 10 kHz inside
+//!   the device; the stand-in for a person.
 //! - [`replay`]: plays a session recording by tick index (deterministic); also the recording
 //!   file format and its writer.
 //! - [`openhaptics`]: a Phantom Omni / Touch through the proprietary OpenHaptics HD library,
@@ -18,6 +21,7 @@
 //! +z toward the user.
 
 mod device;
+pub mod hand;
 pub mod mock;
 pub mod openhaptics;
 pub mod replay;

@@ -1,8 +1,9 @@
 //! The `--device` flag: which driver to open, as text the user types.
 //!
-//! Accepted forms: `mock`, `mock:SCRIPT`, `replay:PATH`, `openhaptics`, `openhaptics:NAME`.
-//! `SCRIPT` is a script name in the scripts folder or a path to a script file (see
-//! [`crate::mock::resolve_script`]); `NAME` is the OpenHaptics device name as configured in the
+//! Accepted forms: `mock`, `mock:SCRIPT`, `hand`, `hand:SCRIPT`, `replay:PATH`, `openhaptics`,
+//! `openhaptics:NAME`. `SCRIPT` is a script name in the scripts folder or a path to a script file
+//! (see [`crate::mock::resolve_script`]); the mock plays it as the stylus' path, the simulated
+//! hand ([`crate::hand`]) as its intent; `NAME` is the OpenHaptics device name as configured in the
 //! vendor's setup tool (without it, the default device). Parsing and [`Display`](std::fmt::Display)
 //! round-trip.
 
@@ -12,13 +13,19 @@ use std::str::FromStr;
 
 /// The accepted forms, for error messages and `--help`.
 pub const DEVICE_SPEC_FORMS: &str =
-    "`mock`, `mock:SCRIPT`, `replay:PATH`, `openhaptics`, `openhaptics:NAME`";
+    "`mock`, `mock:SCRIPT`, `hand`, `hand:SCRIPT`, `replay:PATH`, `openhaptics`, `openhaptics:NAME`";
 
 /// Which device to open, parsed from `--device`.
 #[derive(Clone, Debug, PartialEq)]
 pub enum DeviceSpec {
     /// The scripted mock device; without a script it holds still.
     Mock {
+        /// Script name or path, as given.
+        script: Option<String>,
+    },
+    /// A stylus held by a simulated hand following a script; without a script the scene's
+    /// default one (else it holds still).
+    Hand {
         /// Script name or path, as given.
         script: Option<String>,
     },
@@ -63,6 +70,9 @@ impl FromStr for DeviceSpec {
             ("mock", script) => Ok(Self::Mock {
                 script: script.map(str::to_owned),
             }),
+            ("hand", script) => Ok(Self::Hand {
+                script: script.map(str::to_owned),
+            }),
             ("replay", Some(path)) => Ok(Self::Replay { path: path.into() }),
             ("replay", None) => Err(error("replay needs a recording path")),
             ("openhaptics", name) => Ok(Self::OpenHaptics {
@@ -80,6 +90,10 @@ impl fmt::Display for DeviceSpec {
             Self::Mock {
                 script: Some(script),
             } => write!(f, "mock:{script}"),
+            Self::Hand { script: None } => f.write_str("hand"),
+            Self::Hand {
+                script: Some(script),
+            } => write!(f, "hand:{script}"),
             Self::Replay { path } => write!(f, "replay:{}", path.display()),
             Self::OpenHaptics { name: None } => f.write_str("openhaptics"),
             Self::OpenHaptics { name: Some(name) } => write!(f, "openhaptics:{name}"),

@@ -21,6 +21,19 @@ fn every_form_parses_and_round_trips() {
                 script: Some("/tmp/my script.toml".into()),
             },
         ),
+        ("hand", DeviceSpec::Hand { script: None }),
+        (
+            "hand:abdomen-poke",
+            DeviceSpec::Hand {
+                script: Some("abdomen-poke".into()),
+            },
+        ),
+        (
+            "hand:/tmp/a b.toml",
+            DeviceSpec::Hand {
+                script: Some("/tmp/a b.toml".into()),
+            },
+        ),
         (
             "replay:runs/omni-1.csv",
             DeviceSpec::Replay {
@@ -59,12 +72,19 @@ fn bad_values_are_quoted_and_the_forms_listed() {
         "mock:",
         "openhaptics:",
         "replay:",
+        "hand:",
+        "Hand",
     ] {
         let error: DeviceSpecError = bad.parse::<DeviceSpec>().unwrap_err();
         assert_eq!(error.value, bad);
         let message = error.to_string();
         assert!(message.contains(&format!("`{bad}`")), "{message}");
-        for form in ["mock:SCRIPT", "replay:PATH", "openhaptics:NAME"] {
+        for form in [
+            "mock:SCRIPT",
+            "hand:SCRIPT",
+            "replay:PATH",
+            "openhaptics:NAME",
+        ] {
             assert!(message.contains(form), "{message}");
         }
     }

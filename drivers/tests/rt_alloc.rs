@@ -90,3 +90,43 @@ fn ten_thousand_reads_and_writes_allocate_nothing() {
     let (allocations, bytes) = measure(|| drop(std::hint::black_box(vec![0u8; 64])));
     assert_eq!((allocations, bytes), (1, 64));
 }
+
+/// The simulated hand's RT path allocates nothing either: 10,000 reads (each 10 Runge–Kutta
+/// steps sampling the script) and writes, refused forces, an injected fault and a loop wrap
+/// included.
+#[test]
+fn the_hand_reads_and_writes_allocate_nothing() {
+    use lop_drivers::hand::HandDevice;
+    let script = MockScript::parse(SCRIPT, Path::new("rt-alloc.toml")).unwrap();
+    let mut device = HandDevice::new(script, MockDevice::omni_limits());
+    device.start().unwrap();
+    let run = |device: &mut HandDevice, from: u64, ticks: u64| {
+        let mut errors = 0u64;
+        for tick in from..from + ticks {
+            let t = tick as f64 * 1e-3;
+            let force = match device.read(t) {
+                Ok(sample) if tick % 1000 == 999 => [f64::NAN, sample.position_mm[1], 0.0],
+                Ok(_) if tick % 1000 == 500 => [0.0, 5.0, 0.0],
+                Ok(sample) => [0.0, (30.0 - sample.position_mm[1]).max(0.0) * 0.1, 0.0],
+                Err(_) => {
+                    errors += 1;
+                    [0.0; 3]
+                }
+            };
+            if device.write_force(force).is_err() {
+                errors += 1;
+            }
+        }
+        std::hint::black_box(errors);
+    };
+    run(&mut device, 0, 100); // warm-up
+    let (allocations, bytes) = measure(|| run(&mut device, 100, 10_000));
+    assert_eq!((allocations, bytes), (0, 0), "hand RT path allocated");
+    let (allocations, _) = measure(|| device.stop());
+    assert_eq!(allocations, 0, "stop allocated");
+    assert_eq!(
+        device.rejected_forces(),
+        20,
+        "refused forces were exercised"
+    );
+}

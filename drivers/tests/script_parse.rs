@@ -324,6 +324,45 @@ fn fault_windows_are_validated() {
 }
 
 #[test]
+fn hand_table_overrides_defaults_and_is_validated_by_key() {
+    use lop_drivers::hand::HandParameters;
+    assert_eq!(parse(POKE).unwrap().hand(), None);
+    let script = parse(&format!(
+        "{POKE}\n[hand]\nhand_stiffness = 150.0\ngrip_damping = 0.0\n"
+    ))
+    .unwrap();
+    let expected = HandParameters {
+        hand_stiffness: 150.0,
+        grip_damping: 0.0,
+        ..HandParameters::default()
+    };
+    assert_eq!(script.hand(), Some(expected));
+    // An empty table is the defaults.
+    assert_eq!(
+        parse(&format!("{POKE}\n[hand]\n")).unwrap().hand(),
+        Some(HandParameters::default())
+    );
+    for (line, key, value) in [
+        ("hand_mass = 0.0", "hand.hand_mass", "0.0"),
+        ("hand_stiffness = -300.0", "hand.hand_stiffness", "-300.0"),
+        ("stylus_mass = nan", "hand.stylus_mass", "nan"),
+        ("hand_damping = inf", "hand.hand_damping", "inf"),
+        ("stylus_friction = -0.1", "hand.stylus_friction", "-0.1"),
+        // Too light for the 10 kHz step with the default grip on it.
+        ("stylus_mass = 0.00001", "hand.stylus_mass", "1e-5"),
+    ] {
+        assert_invalid(&format!("{POKE}\n[hand]\n{line}\n"), key, value);
+    }
+    let error = parse(&format!("{POKE}\n[hand]\nhand_stifness = 200.0\n")).unwrap_err();
+    let message = error.to_string();
+    assert!(matches!(error, ScriptError::Syntax { .. }), "{message}");
+    assert!(
+        message.contains("hand_stifness") && message.contains("test-script.toml"),
+        "{message}"
+    );
+}
+
+#[test]
 fn missing_file_names_the_path() {
     let error = MockScript::load(Path::new("/nonexistent/nowhere.toml")).unwrap_err();
     assert!(matches!(error, ScriptError::Read { .. }));

@@ -4,10 +4,10 @@
 //! between reads, so a run paced by tick index reproduces bit for bit. `new` allocates everything
 //! (the force ring); `read`, `write_force` and `stop` are pure memory operations.
 
-use std::io::{self, BufWriter, Write};
+use std::io;
 use std::path::Path;
 
-use super::record::{ForceRecord, ForceRing, FORCE_RECORD_CAPACITY};
+use super::record::{write_force_csv, ForceRecord, ForceRing, FORCE_RECORD_CAPACITY};
 use super::script::MockScript;
 use crate::device::{
     DeviceError, DeviceLimits, DeviceOpenError, DeviceSample, HapticDevice, Pacing,
@@ -15,7 +15,7 @@ use crate::device::{
 
 /// A force is over the limit only if it exceeds it by more than this relative margin, so a force
 /// the caller clamped to exactly the limit is not refused over a rounding error.
-const FORCE_LIMIT_TOLERANCE: f64 = 1e-9;
+pub(crate) const FORCE_LIMIT_TOLERANCE: f64 = 1e-9;
 
 /// Where the device is in its `new → start → stop` life.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -113,12 +113,7 @@ impl MockDevice {
     /// Writes the force record as CSV: a `t,fx,fy,fz` header, then one row per entry, oldest
     /// first, in seconds and newtons.
     pub fn write_force_csv(&self, path: &Path) -> io::Result<()> {
-        let mut out = BufWriter::new(std::fs::File::create(path)?);
-        writeln!(out, "t,fx,fy,fz")?;
-        for (t, [fx, fy, fz]) in self.force_record() {
-            writeln!(out, "{t},{fx},{fy},{fz}")?;
-        }
-        out.flush()
+        write_force_csv(self.force_record(), path)
     }
 
     /// Whether the device can render `force_n`: finite, and within the force limit.

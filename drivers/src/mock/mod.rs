@@ -4,12 +4,19 @@
 //! Shipped scripts live in `config/scripts/*.toml`, four per scene (`poke`, `drag`, `grab`,
 //! `heat`) and `cylinders-push` (cylinder A pushed sideways into cylinder B); `--device
 //! mock:beam-poke` plays `config/scripts/beam-poke.toml`.
+//!
+//! The same scripts drive the simulated hand ([`crate::hand`]): there the waypoints are the
+//! hand's intent, and an optional `[hand]` table sets the hand's parameters. The mock plays the
+//! waypoints directly and ignores that table (it still validates it, so a typo fails under
+//! either device).
 
 mod device;
 mod record;
 mod script;
 
 pub use device::MockDevice;
+pub(crate) use device::FORCE_LIMIT_TOLERANCE;
+pub(crate) use record::{write_force_csv, ForceRing};
 pub use record::{ForceEntry, ForceRecord, ForceRecordIter, FORCE_RECORD_CAPACITY};
 pub use script::{
     resolve_script, FaultWindow, Interpolation, MockScript, ScriptEnd, ScriptError, Waypoint,

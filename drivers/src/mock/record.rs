@@ -1,7 +1,9 @@
 //! The mock's record of rendered forces: a fixed-capacity ring that overwrites its oldest entry
 //! when full and never grows after construction, so recording is allocation-free on the RT path.
 
+use std::io::{self, BufWriter, Write};
 use std::iter::{Chain, Copied};
+use std::path::Path;
 use std::slice;
 
 /// Default ring capacity: 2 minutes at 1 kHz.
@@ -114,4 +116,15 @@ impl<'a> IntoIterator for ForceRecord<'a> {
     fn into_iter(self) -> Self::IntoIter {
         self.iter()
     }
+}
+
+/// Writes `record` as CSV: a `t,fx,fy,fz` header, then one row per entry, oldest first, in
+/// seconds and newtons.
+pub(crate) fn write_force_csv(record: ForceRecord<'_>, path: &Path) -> io::Result<()> {
+    let mut out = BufWriter::new(std::fs::File::create(path)?);
+    writeln!(out, "t,fx,fy,fz")?;
+    for (t, [fx, fy, fz]) in record {
+        writeln!(out, "{t},{fx},{fy},{fz}")?;
+    }
+    out.flush()
 }

@@ -15,7 +15,15 @@
 //! from = 2.0               # seconds of run time (not wrapped by `end = "loop"`)
 //! until = 2.5              # optional; without it the fault lasts for ever
 //! error = "communication"  # "fault" | "communication" | "force_limit" | "velocity_limit" | "motors_warm"
+//!
+//! [hand]                   # optional: the simulated hand's parameters (`--device hand:SCRIPT`)
+//! hand_stiffness = 150.0   # any of the keys of `HandParameters`, SI units; missing keys keep
+//! hand_damping = 2.0       # their defaults
 //! ```
+//!
+//! The `[hand]` table is for [`crate::hand::HandDevice`], which plays the waypoints as a hand's
+//! intent; the mock, which plays them as the stylus' position, ignores it. It is validated
+//! whoever reads the script, so an unknown key or a bad value fails under either device.
 //!
 //! Parsing is two-stage: TOML into raw structs with `deny_unknown_fields`, then validation into a
 //! [`MockScript`] whose errors name the file, the key (`waypoint[3].t`) and the bad value. Checks
@@ -28,6 +36,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use crate::device::{DeviceError, DeviceSample, BUTTON_GRAB, BUTTON_HEAT};
+use crate::hand::{HandParameters, RawHand};
 
 /// Waypoint coordinates must lie within ±this many mm: anything larger is a typo (metres vs mm),
 /// not a device position.
@@ -146,6 +155,8 @@ pub struct MockScript {
     /// Never empty; `waypoints[0].t == 0`, strictly increasing `t`.
     waypoints: Vec<Waypoint>,
     faults: Vec<FaultWindow>,
+    /// The `[hand]` table over the defaults, validated; `None` without one.
+    hand: Option<HandParameters>,
 }
 
 #[derive(Deserialize)]
@@ -162,6 +173,7 @@ struct RawScript {
     waypoint: Vec<RawWaypoint>,
     #[serde(default)]
     fault: Vec<RawFault>,
+    hand: Option<RawHand>,
 }
 
 #[derive(Deserialize)]
@@ -250,6 +262,7 @@ impl MockScript {
                 buttons: 0,
             }],
             faults: Vec::new(),
+            hand: None,
         }
     }
 
@@ -281,6 +294,12 @@ impl MockScript {
     /// The injected faults, in file order.
     pub fn faults(&self) -> &[FaultWindow] {
         &self.faults
+    }
+
+    /// The simulated hand's parameters from the `[hand]` table (defaults for the keys it
+    /// leaves out), or `None` if the script has no `[hand]` table. The mock ignores them.
+    pub fn hand(&self) -> Option<HandParameters> {
+        self.hand
     }
 
     /// Time of the last waypoint, seconds (0 for a single waypoint).
@@ -385,6 +404,16 @@ impl Validator<'_> {
                 .file_stem()
                 .map_or_else(|| "mock script".to_owned(), |s| s.to_string_lossy().into())
         });
+        let hand = match &raw.hand {
+            Some(table) => {
+                let params = table.over_defaults();
+                params.validate().map_err(|e| {
+                    self.invalid(format!("hand.{}", e.key), TomlFloat(e.value), e.reason)
+                })?;
+                Some(params)
+            }
+            None => None,
+        };
         Ok(MockScript {
             name,
             description: raw.description,
@@ -392,6 +421,7 @@ impl Validator<'_> {
             interpolation: raw.interpolation,
             waypoints,
             faults,
+            hand,
         })
     }
 
