@@ -155,8 +155,9 @@ pub struct LiverRow {
     pub nodes_only_face_penetration_mm: Option<f64>,
     /// `lop / reference − 1`.
     pub error: f64,
-    /// The reference at the held depth less lop's face allowance (where lop's faces stop the
-    /// sphere), mN, and lop against it: the diagnosis, not the target.
+    /// The reference at the held depth less the largest face allowance lop's patch could give
+    /// these faces by their size (it gives none to faces larger than the tool), mN, and lop
+    /// against it: the diagnosis of a tool sinking into the faces, not the target.
     pub shifted_mn: f64,
     pub shifted_error: f64,
 }
@@ -504,8 +505,9 @@ pub fn run(quick: bool, out: &Path) -> Result<LiverReport> {
     Ok(report)
 }
 
-/// The smallest face allowance of lop's contact patch (`sim/src/patch.rs`:
-/// `min(h²/(6r), r/20)`, `h` the longest edge) over the surface triangles at `node`, m.
+/// The smallest face allowance of lop's contact patch by face size alone (`sim/src/patch.rs`:
+/// `min(h²/(6r), r/20)`, `h` the longest edge; the patch fades it out for faces reaching
+/// beyond the tool) over the surface triangles at `node`, m.
 fn face_allowance(mesh: &TetMesh, node: u32, r: f64) -> f64 {
     mesh.surface
         .iter()
@@ -569,7 +571,8 @@ fn print_table(r: &LiverReport) {
          the measured hold (side: |F_t|/|F|; drift: change over the measured part; off: the \
          proxy's distance from the press line). ref: static FE reference on the same mesh at \
          lop's held depth, sphere against nodes and face samples (pts: points in contact / of \
-         which samples). ref(d-a): the same {:.3} mm less deep, lop's face allowance. \
+         which samples). ref(d-a): the same {:.3} mm less deep (a face allowance by size; lop \
+         gives none to faces larger than the tool). \
          nodes-only: the block's reference, sphere against nodes only, and how deep its faces \
          cut into the sphere",
         r.face_allowance_mm
