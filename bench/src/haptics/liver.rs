@@ -41,7 +41,7 @@ use lop_sim::mesh::TetMesh;
 use lop_sim::world::{Round, RoundTool, World};
 use serde::Serialize;
 
-use super::reference::{vertex_normal, Contact, ContactReference, Material, Penalty};
+use super::reference::{closest_bary, vertex_normal, Contact, ContactReference, Material, Penalty};
 use crate::models::workspace_root;
 use crate::plot::{self, Panel, Series};
 
@@ -751,45 +751,6 @@ fn plot_liver(out: &Path, r: &LiverReport, ticks: &[Tick]) -> Result<()> {
         1,
         (720, 480),
     )
-}
-
-/// Barycentric weights of the point of triangle `t` closest to `p` (Ericson, Real-Time
-/// Collision Detection §5.1.5).
-fn closest_bary(p: DVec3, t: [DVec3; 3]) -> [f64; 3] {
-    let [a, b, c] = t;
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return [1.0, 0.0, 0.0];
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return [0.0, 1.0, 0.0];
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let w = d1 / (d1 - d3);
-        return [1.0 - w, w, 0.0];
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return [0.0, 0.0, 1.0];
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return [1.0 - w, 0.0, w];
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return [0.0, 1.0 - w, w];
-    }
-    let denom = 1.0 / (va + vb + vc);
-    let (wb, wc) = (vb * denom, vc * denom);
-    [1.0 - wb - wc, wb, wc]
 }
 
 /// The point of triangle `t` with barycentric weights `w`.
