@@ -12,11 +12,16 @@
 //! - the **control** thread owns the one client of `PREFIX/control` and forwards the control
 //!   panel's requests to the daemon.
 //!
+//! Only the rig's user drives the daemon ([`access`]): the WebSocket handshake is refused
+//! (HTTP 403) to a page of another origin, and each control request must carry the run's
+//! control token, which only the printed URL holds (`http://127.0.0.1:8733/#token=…`); without
+//! it a connection is read-only. On a non-loopback bind control needs a token given explicitly.
+//!
 //! The page is plain WebGL 1 and a 2D canvas, no JavaScript library: nothing is fetched at run
 //! time.
 
 use std::io::{Read, Write};
-use std::net::{TcpListener, TcpStream, ToSocketAddrs};
+use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -24,6 +29,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use lop_client::{Attachment, ControlRequest, ControlResponse, ServiceNames};
 
+pub mod access;
 pub mod wire;
 
 /// Where `lop-view` listens unless told otherwise (same as `lopd run --view`): loopback only.
@@ -43,6 +49,11 @@ pub struct ViewOptions {
     pub prefix: String,
     /// Frames per second sent to each browser.
     pub fps: f64,
+    /// The control token (see [`access::control_token`]); `None`: every connection is
+    /// read-only.
+    pub token: Option<String>,
+    /// Origins accepted besides the viewer's own (`--allow-origin`).
+    pub allow_origins: Vec<String>,
 }
 
 /// What the hub last read, encoded for the browsers.
@@ -64,6 +75,8 @@ type ControlJob = (
 
 struct Shared {
     opts: ViewOptions,
+    /// Where the listener is bound (for the origin check).
+    local: SocketAddr,
     latest: Mutex<Latest>,
     control: Mutex<mpsc::Sender<ControlJob>>,
 }
@@ -81,9 +94,11 @@ pub fn bind(bind: &str) -> Result<TcpListener> {
 /// Serves the viewer on `listener` until the process ends.
 pub fn serve(listener: TcpListener, opts: ViewOptions) -> Result<()> {
     let names = ServiceNames::new(&opts.prefix).map_err(anyhow::Error::new)?;
+    let local = listener.local_addr().context("the listener's address")?;
     let (tx, rx) = mpsc::channel::<ControlJob>();
     let shared = Arc::new(Shared {
         opts,
+        local,
         latest: Mutex::new(Latest::default()),
         control: Mutex::new(tx),
     });
@@ -244,8 +259,38 @@ fn connection(mut stream: TcpStream, shared: &Shared) -> Result<()> {
 }
 
 fn websocket(stream: TcpStream, shared: &Shared) -> Result<()> {
+    use tungstenite::handshake::server::{ErrorResponse, Request, Response};
     use tungstenite::Message;
-    let mut ws = tungstenite::accept(stream.try_clone()?).context("websocket handshake")?;
+    let peer = stream
+        .peer_addr()
+        .map_or_else(|_| "?".to_string(), |a| a.to_string());
+    let check_origin = |req: &Request, resp: Response| -> Result<Response, ErrorResponse> {
+        let header = |name: &str| req.headers().get(name).map(|v| v.to_str().unwrap_or("?"));
+        let Some(origin) = header("origin") else {
+            // Not a browser page: accepted, read-only unless it brings the token.
+            return Ok(resp);
+        };
+        if access::origin_allowed(
+            origin,
+            header("host"),
+            shared.local,
+            &shared.opts.allow_origins,
+        ) {
+            return Ok(resp);
+        }
+        eprintln!(
+            "lop-view: refused WebSocket from {peer}: origin {origin:?} is not this viewer's \
+             (http://{}) nor an --allow-origin",
+            shared.local
+        );
+        let mut refusal = ErrorResponse::new(Some(format!(
+            "origin {origin:?} may not connect to this viewer\n"
+        )));
+        *refusal.status_mut() = tungstenite::http::StatusCode::FORBIDDEN;
+        Err(refusal)
+    };
+    let mut ws = tungstenite::accept_hdr(stream.try_clone()?, check_origin)
+        .map_err(|e| anyhow::anyhow!("websocket handshake with {peer}: {e}"))?;
     // Short reads so the loop can send frames; a browser that does not take a frame within the
     // write timeout is dropped (it reconnects and starts from the newest frame).
     stream.set_read_timeout(Some(Duration::from_millis(5)))?;
@@ -260,7 +305,7 @@ fn websocket(stream: TcpStream, shared: &Shared) -> Result<()> {
         // Control requests from the page.
         match ws.read() {
             Ok(Message::Text(t)) => {
-                let reply = handle_control(shared, t.as_str());
+                let reply = handle_control(shared, t.as_str(), &peer);
                 ws.send(Message::text(reply))?;
             }
             Ok(Message::Close(_)) => return Ok(()),
@@ -314,9 +359,25 @@ fn websocket(stream: TcpStream, shared: &Shared) -> Result<()> {
     }
 }
 
-/// Turns the page's JSON control request into a daemon request, forwards it, and returns the
-/// JSON answer (always a `{"type":"control",…}` object, errors included).
-fn handle_control(shared: &Shared, text: &str) -> String {
+/// Turns the page's JSON control request into a daemon request, forwards it if it carries the
+/// run's token, and returns the JSON answer (always a `{"type":"control",…}` object, errors and
+/// refusals included).
+fn handle_control(shared: &Shared, text: &str, peer: &str) -> String {
+    let (op, token) = wire::control_op_and_token(text);
+    let refusal = match (&shared.opts.token, token) {
+        (Some(expected), Some(given)) if access::token_matches(expected, &given) => None,
+        (None, _) => {
+            Some("control is disabled in this viewer (bound beyond loopback without --token)")
+        }
+        (Some(_), None) => Some("the request carries no control token"),
+        (Some(_), Some(_)) => Some("the request's control token is wrong"),
+    };
+    if let Some(why) = refusal {
+        eprintln!("lop-view: refused control request {op:?} from {peer}: {why}");
+        return wire::control_read_only_json(&format!(
+            "read-only: {why}; open the URL lopd printed to control"
+        ));
+    }
     let req = match wire::control_request(text) {
         Ok(r) => r,
         Err(e) => return wire::control_error_json(&e),

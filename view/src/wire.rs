@@ -8,7 +8,9 @@
 //! - `telemetry` `{rate_hz, overruns, stale_ticks, force, jitter_p99_us, compute_p99_us,
 //!   frame_age_p99_ms, history: {jitter, compute, age}}`, about 4 times a second;
 //! - `control` `{ok, status, status_name, message, body, body_index, pin, model, paused,
-//!   params: [{key, value, live}]}`, the answer to a control request.
+//!   params: [{key, value, live}]}`, the answer to a control request; a request refused for its
+//!   token is answered `{ok: false, status_name: "read-only", read_only: true, message}` and
+//!   never reaches the daemon.
 //!
 //! Binary messages start with a `u32` kind:
 //! - `1` triangles: `u32 1, u32 triangle_count`, then `3 × triangle_count` `u32` global node
@@ -21,7 +23,9 @@
 //!   `f32 temperature[N]`, `u8 flags[N]` (`NODE_FLAG_*`) padded to 4 bytes.
 //!
 //! The page sends control requests as JSON text: `{"op": "get"|"set"|"pin"|"release"|"reset"|
-//! "pause"|"resume", "body": NAME, "key": KEY, "value": NUMBER, "model": "gc"|"msd"|"fem"}`.
+//! "pause"|"resume", "body": NAME, "key": KEY, "value": NUMBER, "model": "gc"|"msd"|"fem",
+//! "token": TOKEN}`. `token` is the run's control token (the `#token=…` of the URL the viewer
+//! printed); every request, `get` included, needs it (see [`crate::access`]).
 
 use lop_client::*;
 use serde_json::{json, Value};
@@ -175,6 +179,15 @@ impl TelemetryHistory {
     }
 }
 
+/// The `op` (for logs, `"?"` if none) and the `token` of a control request, if any.
+pub fn control_op_and_token(text: &str) -> (String, Option<String>) {
+    let v: Value = serde_json::from_str(text).unwrap_or(Value::Null);
+    let op = v["op"].as_str().unwrap_or("?");
+    // Keep a log line short whatever the page sent.
+    let op: String = op.chars().take(32).collect();
+    (op, v["token"].as_str().map(str::to_string))
+}
+
 /// Parses the page's control request.
 pub fn control_request(text: &str) -> Result<ControlRequest, String> {
     let v: Value = serde_json::from_str(text).map_err(|e| format!("bad JSON: {e}"))?;
@@ -238,4 +251,11 @@ pub fn control_response_json(r: &ControlResponse) -> String {
 pub fn control_error_json(message: &str) -> String {
     json!({"type": "control", "ok": false, "status_name": "error", "message": message, "params": []})
         .to_string()
+}
+
+/// The answer to a control request refused for its token (the connection stays, read-only).
+pub fn control_read_only_json(message: &str) -> String {
+    json!({"type": "control", "ok": false, "status_name": "read-only", "read_only": true,
+           "message": message, "params": []})
+    .to_string()
 }

@@ -197,7 +197,17 @@ function plot(id, data, color) {
   g.fillText(`max ${(max / 1.15).toFixed(1)}`, w - 66, 10);
   g.fillText(`now ${data[data.length - 1].toFixed(1)}`, w - 66, h - 4);
 }
+// The control token comes from the URL lop-view printed (`#token=…`: a fragment, so it never
+// leaves the browser in an HTTP request). Without it, or once lop-view refused it, the panel
+// is read-only.
+const token = new URLSearchParams(location.hash.slice(1)).get("token") || "";
+function readOnly() {
+  $("ctl-ro").hidden = false;
+  $("ctl-panel").disabled = true;
+}
+if (!token) readOnly();
 function onControl(r) {
+  if (r.read_only) readOnly();
   const m = $("ctl-msg");
   m.className = r.ok ? "" : "err";
   let s = r.ok ? "ok" : `${r.status_name}`;
@@ -209,7 +219,8 @@ function onControl(r) {
     `<tr><td>${p.key}</td><td>${p.value}</td><td>${p.live ? "live" : ""}</td></tr>`).join("");
 }
 function send(req) {
-  if (ws && ws.readyState === 1) ws.send(JSON.stringify(req));
+  if (!token) { readOnly(); return; }
+  if (ws && ws.readyState === 1) ws.send(JSON.stringify({ ...req, token }));
   else onControl({ ok: false, status_name: "error", message: "not connected to lop-view" });
 }
 
