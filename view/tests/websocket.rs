@@ -47,7 +47,9 @@ fn json(m: &Message, kind: &str) -> Option<serde_json::Value> {
     (v["type"] == kind).then_some(v)
 }
 
-fn control(ws: &mut Ws, req: serde_json::Value) -> serde_json::Value {
+/// Sends `req` with the viewer's control token and waits for the answer.
+fn control(ws: &mut Ws, token: &str, mut req: serde_json::Value) -> serde_json::Value {
+    req["token"] = token.into();
     ws.send(Message::text(req.to_string())).unwrap();
     until(ws, Duration::from_secs(40), |m| json(m, "control"))
 }
@@ -105,8 +107,16 @@ fn websocket_streams_frames_forwards_control_and_survives_a_daemon_restart() {
     let t0 = f32::from_le_bytes(temps[..4].try_into().unwrap());
     assert!((20.0..=100.0).contains(&t0), "temperature {t0}");
 
-    // Control through the page's channel.
-    let r = control(&mut ws, serde_json::json!({"op": "get", "body": "spleen"}));
+    // Control through the page's channel, with the token of the printed URL.
+    let token = viewer
+        .token
+        .clone()
+        .expect("a loopback viewer prints a token");
+    let r = control(
+        &mut ws,
+        &token,
+        serde_json::json!({"op": "get", "body": "spleen"}),
+    );
     assert_eq!(r["ok"], true, "{r}");
     assert_eq!(r["body"], "spleen");
     let young = r["params"]
@@ -118,6 +128,7 @@ fn websocket_streams_frames_forwards_control_and_survives_a_daemon_restart() {
     assert_eq!(young["value"], 140.0);
     let r = control(
         &mut ws,
+        &token,
         serde_json::json!({"op": "set", "body": "spleen", "key": "fem.poisson", "value": 0.7}),
     );
     assert_eq!(r["status_name"], "bad value", "{r}");
@@ -127,16 +138,17 @@ fn websocket_streams_frames_forwards_control_and_survives_a_daemon_restart() {
     );
     let r = control(
         &mut ws,
+        &token,
         serde_json::json!({"op": "pin", "body": "kidney", "model": "fem"}),
     );
     assert_eq!(r["status_name"], "unknown body", "{r}");
-    let r = control(&mut ws, serde_json::json!({"op": "pause"}));
+    let r = control(&mut ws, &token, serde_json::json!({"op": "pause"}));
     assert_eq!(
         (r["ok"].clone(), r["paused"].clone()),
         (true.into(), true.into()),
         "{r}"
     );
-    let r = control(&mut ws, serde_json::json!({"op": "resume"}));
+    let r = control(&mut ws, &token, serde_json::json!({"op": "resume"}));
     assert_eq!(r["paused"], false, "{r}");
 
     // Stop the daemon and start another one under the same prefix: the viewer re-attaches and
