@@ -95,6 +95,10 @@ struct ViewArgs {
     /// Address and port the web viewer listens on.
     #[arg(long, default_value = lop_daemon::supervisor::VIEW_BIND_DEFAULT)]
     bind: String,
+    /// Another origin allowed to open the viewer's WebSocket; repeatable. (The control token
+    /// comes from LOP_VIEW_TOKEN.)
+    #[arg(long = "allow-origin", value_name = "URL")]
+    allow_origin: Vec<String>,
 }
 
 #[derive(Subcommand)]
@@ -181,6 +185,15 @@ struct RunArgs {
     /// Where the web viewer listens (with --view).
     #[arg(long, default_value = lop_daemon::supervisor::VIEW_BIND_DEFAULT)]
     view_bind: String,
+    /// The viewer's control token (16+ characters of A-Z a-z 0-9 . _ ~ -) instead of a
+    /// generated one; also read from LOP_VIEW_TOKEN. Required for control on a non-loopback
+    /// --view-bind.
+    #[arg(long)]
+    view_token: Option<String>,
+    /// Another origin allowed to open the viewer's WebSocket (e.g. http://rig.local:8733);
+    /// repeatable.
+    #[arg(long = "view-allow-origin", value_name = "URL")]
+    view_allow_origin: Vec<String>,
 }
 
 /// Bad input: exit code 2.
@@ -338,6 +351,23 @@ fn cmd_run(a: RunArgs) -> Result<i32> {
     let (scene, config, _names, duration) = load_common(&a.haptic.common)?;
     let spec: DeviceSpec = bad(a.haptic.device.parse())?;
     drop(open_device(&spec, &scene, &config)?);
+    let view_token = a.view_token.clone().or_else(|| {
+        std::env::var(supervisor::VIEW_TOKEN_ENV)
+            .ok()
+            .filter(|t| !t.is_empty())
+    });
+    if let Some(t) = &view_token {
+        bad(supervisor::check_view_token(t).map_err(|e| anyhow::anyhow!("--view-token: {e}")))?;
+    }
+    if let Some(o) = a
+        .view_allow_origin
+        .iter()
+        .find(|o| !(o.starts_with("http://") || o.starts_with("https://")))
+    {
+        bad(Err::<(), _>(anyhow::anyhow!(
+            "--view-allow-origin {o:?}: not an http:// or https:// origin"
+        )))?;
+    }
     supervisor::run(supervisor::RunOptions {
         scene: scene.path.clone(),
         device: a.haptic.device.clone(),
@@ -349,6 +379,8 @@ fn cmd_run(a: RunArgs) -> Result<i32> {
         status_interval: Duration::from_millis(config.status_interval_ms),
         status: !a.quiet,
         view: a.view.then(|| a.view_bind.clone()),
+        view_token,
+        view_allow_origins: a.view_allow_origin.clone(),
     })
 }
 
@@ -468,8 +500,11 @@ fn cmd_view(a: ViewArgs) -> Result<i32> {
             view.display()
         );
     }
-    let err = std::process::Command::new(&view)
-        .args(["--prefix", &a.prefix, "--bind", &a.bind])
-        .exec();
+    let mut cmd = std::process::Command::new(&view);
+    cmd.args(["--prefix", &a.prefix, "--bind", &a.bind]);
+    for o in &a.allow_origin {
+        cmd.args(["--allow-origin", o]);
+    }
+    let err = cmd.exec();
     Err(anyhow::Error::new(err).context(format!("starting {}", view.display())))
 }

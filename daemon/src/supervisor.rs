@@ -9,6 +9,10 @@
 //!   stepping), SIGKILL after 3 s if one hangs, then dead-node clean-up and a check that no
 //!   service under the prefix is left.
 //! - The children get SIGTERM if the supervisor itself dies (`PR_SET_PDEATHSIG`).
+//! - `--view`: the web viewer is a third child. Its control token is fixed here for the whole
+//!   run (given, or 128 random bits on a loopback bind) so the printed URL stays valid across
+//!   the viewer's restarts; it reaches the viewer through `LOP_VIEW_TOKEN`, not the command
+//!   line other users can read.
 
 use std::io::{IsTerminal, Write};
 use std::os::unix::process::CommandExt;
@@ -45,6 +49,49 @@ pub struct RunOptions {
     pub status: bool,
     /// `--view`: also run the web viewer (`lopd view`, which runs `lop-view`) bound here.
     pub view: Option<String>,
+    /// `--view-token` (or `LOP_VIEW_TOKEN`), already checked: the viewer's control token.
+    pub view_token: Option<String>,
+    /// `--view-allow-origin`: origins the viewer accepts besides its own.
+    pub view_allow_origins: Vec<String>,
+}
+
+/// Environment variable through which the viewer gets its control token.
+pub const VIEW_TOKEN_ENV: &str = "LOP_VIEW_TOKEN";
+
+/// Checks a user's viewer token (the viewer applies the same rule): 16 to 256 characters of
+/// `A-Z a-z 0-9 . _ ~ -`, so it fits in the URL's fragment unchanged.
+pub fn check_view_token(token: &str) -> std::result::Result<(), String> {
+    let ok_char = |c: char| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '~' | '-');
+    if token.len() < 16 || token.len() > 256 || !token.chars().all(ok_char) {
+        return Err(format!(
+            "token of {} characters: must be 16 to 256 of A-Z a-z 0-9 . _ ~ -",
+            token.chars().count()
+        ));
+    }
+    Ok(())
+}
+
+/// The viewer's token for this run: the given one; else, on a loopback bind, 128 bits from
+/// `/dev/urandom` in hex; else none (the viewer is read-only).
+fn view_control_token(bind: &str, given: Option<&str>) -> Result<Option<String>> {
+    use std::io::Read;
+    use std::net::ToSocketAddrs;
+    if let Some(t) = given {
+        return Ok(Some(t.to_string()));
+    }
+    let loopback = bind
+        .to_socket_addrs()
+        .ok()
+        .and_then(|mut a| a.next())
+        .is_some_and(|a| a.ip().is_loopback());
+    if !loopback {
+        return Ok(None);
+    }
+    let mut bytes = [0u8; 16];
+    std::fs::File::open("/dev/urandom")
+        .and_then(|mut f| f.read_exact(&mut bytes))
+        .context("reading /dev/urandom for the viewer's control token")?;
+    Ok(Some(bytes.iter().map(|b| format!("{b:02x}")).collect()))
 }
 
 /// Where `lopd run --view` and `lop-view` listen unless told otherwise: loopback only.
@@ -53,6 +100,8 @@ pub const VIEW_BIND_DEFAULT: &str = "127.0.0.1:8733";
 struct Supervised {
     role: &'static str,
     args: Vec<String>,
+    /// Environment set (`Some`) or removed (`None`) for the child.
+    env: Vec<(&'static str, Option<String>)>,
     child: Option<Child>,
     started: Instant,
     backoff: Duration,
@@ -70,6 +119,7 @@ impl Supervised {
         Supervised {
             role,
             args,
+            env: Vec::new(),
             child: None,
             started: Instant::now(),
             backoff: BACKOFF_MIN,
@@ -82,6 +132,12 @@ impl Supervised {
         let exe = std::env::current_exe().context("locating the lopd binary")?;
         let mut cmd = Command::new(exe);
         cmd.arg(self.role).args(&self.args);
+        for (k, v) in &self.env {
+            match v {
+                Some(v) => cmd.env(k, v),
+                None => cmd.env_remove(k),
+            };
+        }
         // SAFETY: prctl is async-signal-safe; nothing else runs between fork and exec.
         unsafe {
             cmd.pre_exec(|| {
@@ -184,16 +240,32 @@ pub fn run(opts: RunOptions) -> Result<i32> {
     let mut deform = Supervised::new("deform", common);
     // The web viewer, supervised like the other two (restarted if it dies; the daemon never
     // waits on it).
-    let mut view = opts.view.as_ref().map(|bind| {
-        println!("lop-view: http://{bind}/");
-        let args = vec![
-            "--prefix".to_string(),
-            opts.prefix.clone(),
-            "--bind".to_string(),
-            bind.clone(),
-        ];
-        Supervised::new("view", args)
-    });
+    let mut view = match &opts.view {
+        None => None,
+        Some(bind) => {
+            let token = view_control_token(bind, opts.view_token.as_deref())?;
+            match &token {
+                Some(t) => println!(
+                    "lop-view: http://{bind}/#token={t} (control with this URL; without its token a page is read-only)"
+                ),
+                None => println!(
+                    "lop-view: http://{bind}/ (read-only: bound beyond loopback; give --view-token to control)"
+                ),
+            }
+            let mut args = vec![
+                "--prefix".to_string(),
+                opts.prefix.clone(),
+                "--bind".to_string(),
+                bind.clone(),
+            ];
+            for o in &opts.view_allow_origins {
+                args.extend(["--allow-origin".to_string(), o.clone()]);
+            }
+            let mut v = Supervised::new("view", args);
+            v.env.push((VIEW_TOKEN_ENV, token));
+            Some(v)
+        }
+    };
 
     let mut monitor = StatusMonitor::new(&names)?;
     let tty = std::io::stdout().is_terminal();
