@@ -264,6 +264,8 @@ fn websocket(stream: TcpStream, shared: &Shared) -> Result<()> {
     let peer = stream
         .peer_addr()
         .map_or_else(|_| "?".to_string(), |a| a.to_string());
+    // The error type is tungstenite's, as its callback signature wants it.
+    #[allow(clippy::result_large_err)]
     let check_origin = |req: &Request, resp: Response| -> Result<Response, ErrorResponse> {
         let header = |name: &str| req.headers().get(name).map(|v| v.to_str().unwrap_or("?"));
         let Some(origin) = header("origin") else {

@@ -85,7 +85,10 @@ fn main() -> std::process::ExitCode {
     let url = lop_view::access::url(local, token.as_deref());
     let note = match &token {
         Some(_) => "control with this URL; without its token a page is read-only",
-        None => "read-only: bound beyond loopback; give --token to control",
+        None => {
+            "read-only: bound beyond loopback; control needs --token or LOP_VIEW_TOKEN \
+             (lopd run: --view-token)"
+        }
     };
     println!("lop-view: {url} (prefix {:?}; {note})", cli.prefix);
     let opts = lop_view::ViewOptions {
