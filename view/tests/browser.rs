@@ -205,3 +205,49 @@ fn browser_shows_the_organs_drawn_and_moving() {
     assert!(status.success(), "{}", daemon.log_text());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The page's DOM after it ran (headless Chromium's `--dump-dom`).
+fn dom(url: &str, profile: &Path) -> String {
+    let out = Command::new(chromium())
+        .args([
+            "--headless=new",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-dev-shm-usage",
+            "--virtual-time-budget=1000",
+            "--dump-dom",
+        ])
+        .arg(format!("--user-data-dir={}", profile.display()))
+        .arg(url)
+        .output()
+        .expect("run chromium");
+    assert!(
+        out.status.success(),
+        "chromium failed: {}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn browser_page_without_the_token_is_read_only() {
+    // No daemon needed: the panel's state depends on the URL alone.
+    let prefix = unique_prefix("view-browser-ro");
+    let viewer = Viewer::spawn(&prefix, Duration::from_secs(120));
+    let dir = std::env::temp_dir().join(format!("{prefix}-dom"));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bare = dom(&format!("http://{}/", viewer.addr), &dir.join("p0"));
+    assert!(bare.contains("read-only: open the URL lopd printed to control"));
+    assert!(
+        bare.contains(r#"<div id="ctl-ro">"#)
+            && bare.contains(r#"<fieldset id="ctl-panel" disabled="""#),
+        "without the token the notice shows and the panel is disabled:\n{bare}"
+    );
+    let with = dom(&viewer.url, &dir.join("p1"));
+    assert!(
+        with.contains(r#"<div id="ctl-ro" hidden="">"#)
+            && with.contains(r#"<fieldset id="ctl-panel">"#),
+        "with the printed URL the panel is enabled:\n{with}"
+    );
+}
