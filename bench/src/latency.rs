@@ -13,6 +13,7 @@
 //! | machine wake-up latency (cyclictest) | how late a bare `SCHED_FIFO` thread wakes on this machine, the floor under the row above | `cyclictest`, run concurrently during the window (see `cyclictest.rs`) |
 //! | haptic tick compute | wake-up → device written → tool state published, one tick | haptic loop (`total_compute`) |
 //! | frame age at haptic loop | how old the newest surface was when a tick rendered against it | haptic loop (`total_frame_age`) |
+//! | frame age in contact | the same over the ticks that rendered a contact (pressing or holding a body): how old the surface under the hand was | haptic loop (`total_frame_age_contact`) |
 //! | tool → deform latency | how old the tool state was when the deformation step read it (`tool_read_ns − tool_stamp_ns` of each frame header; frames with no tool state yet are skipped) | bench, from every frame received in the window |
 //! | deform → client latency | frame published → received by this bench (`received_ns − publish_ns`) | bench, from every frame received in the window; **includes the bench's polling interval** (it sleeps `--poll-us` between polls) |
 //!
@@ -267,6 +268,11 @@ pub fn run(a: LatencyArgs) -> Result<()> {
         "frame_age",
         "frame age at haptic loop",
         &tel.total_frame_age,
+    ));
+    rows.push(Row::from_percentiles(
+        "frame_age_contact",
+        "frame age in contact",
+        &tel.total_frame_age_contact,
     ));
     rows.push(Row::from_histogram_ns(
         "tool_to_deform",

@@ -53,6 +53,7 @@ fn latency_two_seconds_reports_every_row() {
         "haptic_jitter",
         "haptic_compute",
         "frame_age",
+        "frame_age_contact",
         "tool_to_deform",
         "deform_to_client",
     ] {

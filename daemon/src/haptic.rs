@@ -223,20 +223,23 @@ impl Drop for IndexFeed {
 /// Preallocated latency histograms: one window (reset at each telemetry sample) and one total
 /// (reset once, after warm-up) per quantity.
 struct Stats {
-    window: [Histogram<u64>; 3],
-    total: [Histogram<u64>; 3],
+    window: [Histogram<u64>; 4],
+    total: [Histogram<u64>; 4],
 }
 
 const JITTER: usize = 0;
 const COMPUTE: usize = 1;
 const FRAME_AGE: usize = 2;
+/// The frame age of ticks that rendered a contact (the tool pressing or holding a body): how
+/// old the surface under the hand was.
+const FRAME_AGE_CONTACT: usize = 3;
 
 impl Stats {
     fn new() -> Result<Stats> {
         let h = || Histogram::<u64>::new_with_bounds(1, 10_000_000_000, 2);
         Ok(Stats {
-            window: [h()?, h()?, h()?],
-            total: [h()?, h()?, h()?],
+            window: [h()?, h()?, h()?, h()?],
+            total: [h()?, h()?, h()?, h()?],
         })
     }
     #[inline]
@@ -487,6 +490,11 @@ impl HapticLoop {
             }
         }
 
+        let fresh = frame_age <= self.settings.stale_ns;
+        if fresh && state.flags & (TOOL_FLAG_CONTACT | TOOL_FLAG_GRAB) != 0 {
+            self.stats.record(FRAME_AGE_CONTACT, frame_age);
+        }
+
         // 4. Safety: finite, clamped, ramped, rate-limited. Then the device.
         let force = self.safety.condition(desired, healthy);
         if !healthy {
@@ -598,6 +606,8 @@ impl HapticLoop {
             total_frame_age: percentiles(&s.total[FRAME_AGE]),
             pinned_core: self.pinned_core,
             _pad: 0,
+            window_frame_age_contact: percentiles(&s.window[FRAME_AGE_CONTACT]),
+            total_frame_age_contact: percentiles(&s.total[FRAME_AGE_CONTACT]),
         };
         self.stats.window.iter_mut().for_each(|h| h.reset());
         self.window_start_ns = now;

@@ -22,7 +22,7 @@ import time
 
 import iceoryx2 as iox2
 
-CONTRACT_VERSION = 5
+CONTRACT_VERSION = 6
 MAX_BODIES = 16
 BODY_NAME_LEN = 32
 MODELS = {0: "GC", 1: "MSD", 2: "FEM"}

@@ -20,7 +20,7 @@
 extern "C" {
 #endif
 
-#define LOP_CONTRACT_VERSION 5u
+#define LOP_CONTRACT_VERSION 6u
 #define LOP_MAX_BODIES 16
 #define LOP_BODY_NAME_LEN 32
 #define LOP_MAX_SUBSCRIBERS 16
@@ -169,6 +169,8 @@ typedef struct lop_HapticTelemetry {
     lop_Percentiles total_frame_age;
     int32_t pinned_core;
     uint32_t _pad;
+    lop_Percentiles window_frame_age_contact;
+    lop_Percentiles total_frame_age_contact;
 } lop_HapticTelemetry;
 
 /* ---- control: request-response service PREFIX/control ---------------------------------- */
@@ -262,9 +264,11 @@ LOP_ASSERT(offsetof(lop_BodyTopology, importance) == 68, "BodyTopology.importanc
 LOP_ASSERT(sizeof(lop_TopologyHeader) == 32 + 72 * LOP_MAX_BODIES, "TopologyHeader size");
 LOP_ASSERT(offsetof(lop_TopologyHeader, bodies) == 32, "TopologyHeader.bodies");
 LOP_ASSERT(sizeof(lop_Percentiles) == 40, "Percentiles size");
-LOP_ASSERT(sizeof(lop_HapticTelemetry) == 312, "HapticTelemetry size");
+LOP_ASSERT(sizeof(lop_HapticTelemetry) == 392, "HapticTelemetry size");
 LOP_ASSERT(offsetof(lop_HapticTelemetry, window_jitter) == 64, "HapticTelemetry.window_jitter");
 LOP_ASSERT(offsetof(lop_HapticTelemetry, pinned_core) == 304, "HapticTelemetry.pinned_core");
+LOP_ASSERT(offsetof(lop_HapticTelemetry, total_frame_age_contact) == 352,
+           "HapticTelemetry.total_frame_age_contact");
 LOP_ASSERT(sizeof(lop_ControlRequest) == 88, "ControlRequest size");
 LOP_ASSERT(offsetof(lop_ControlRequest, body) == 16, "ControlRequest.body");
 LOP_ASSERT(offsetof(lop_ControlRequest, key) == 48, "ControlRequest.key");

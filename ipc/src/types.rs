@@ -362,4 +362,9 @@ pub struct HapticTelemetry {
     pub pinned_core: i32,
     /// Padding, zero.
     pub _pad: u32,
+    /// `window_frame_age` of the ticks that rendered a contact (pressing or holding a body):
+    /// how old the surface under the hand was (contract 6).
+    pub window_frame_age_contact: Percentiles,
+    /// Same as `window_frame_age_contact`, since warm-up.
+    pub total_frame_age_contact: Percentiles,
 }

@@ -50,7 +50,8 @@ fn c_header_matches_the_rust_layouts() {
         Percentiles { count, p50, p99, p999, max }
         HapticTelemetry { contract_version, rt_flags, stamp_ns, ticks, overruns, stale_ticks,
             device_faults, rate_hz, force_norm, window_jitter, window_compute, window_frame_age,
-            total_jitter, total_compute, total_frame_age, pinned_core, _pad }
+            total_jitter, total_compute, total_frame_age, pinned_core, _pad,
+            window_frame_age_contact, total_frame_age_contact }
         ControlRequest { contract_version, op, body_index, model, body, key, value }
         ControlParam { key, value, flags, _pad }
         ControlResponse { contract_version, status, body_index, pin, model, paused, _pad0,

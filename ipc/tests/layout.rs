@@ -9,8 +9,8 @@ use iceoryx2::prelude::ZeroCopySend;
 use lop_ipc::*;
 
 #[test]
-fn contract_version_is_one() {
-    assert_eq!(CONTRACT_VERSION, 5);
+fn contract_version_is_six() {
+    assert_eq!(CONTRACT_VERSION, 6);
 }
 
 #[test]
@@ -95,7 +95,7 @@ fn topology_layout() {
 #[test]
 fn telemetry_layout() {
     assert_eq!(size_of::<Percentiles>(), 40);
-    assert_eq!(size_of::<HapticTelemetry>(), 64 + 6 * 40 + 8);
+    assert_eq!(size_of::<HapticTelemetry>(), 64 + 6 * 40 + 8 + 2 * 40);
     assert_eq!(align_of::<HapticTelemetry>(), 8);
     assert_eq!(offset_of!(HapticTelemetry, stamp_ns), 8);
     assert_eq!(offset_of!(HapticTelemetry, ticks), 16);
@@ -107,6 +107,8 @@ fn telemetry_layout() {
     assert_eq!(offset_of!(HapticTelemetry, window_jitter), 64);
     assert_eq!(offset_of!(HapticTelemetry, total_frame_age), 64 + 5 * 40);
     assert_eq!(offset_of!(HapticTelemetry, pinned_core), 304);
+    assert_eq!(offset_of!(HapticTelemetry, window_frame_age_contact), 312);
+    assert_eq!(offset_of!(HapticTelemetry, total_frame_age_contact), 352);
 }
 
 #[test]
