@@ -1,5 +1,5 @@
-//! Mesh readers: mutated files of every format (TetGen, Gmsh 2.2 and 4.1, VTK) never panic a
-//! reader.
+//! Mesh readers: mutated files of every format (TetGen, Gmsh 1, 2.2 and 4.1, VTK) never panic
+//! a reader.
 
 mod mesh_text;
 
@@ -136,8 +136,8 @@ fn mutated_files_never_panic() {
     let dir = scratch("fuzz");
     let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
     let mut outcomes = [0usize; 2];
-    for round in 0..600 {
-        let which = round % 5;
+    for round in 0..720 {
+        let which = round % 6;
         let result = match which {
             0 | 1 => {
                 let (node, ele) = if which == 0 {
@@ -157,6 +157,10 @@ fn mutated_files_never_panic() {
             }
             3 => {
                 let path = write(&dir, "g.msh", mutate(&mut rng, MSH41.as_bytes()));
+                read_mesh(&path)
+            }
+            4 => {
+                let path = write(&dir, "h.msh", mutate(&mut rng, MSH1.as_bytes()));
                 read_mesh(&path)
             }
             _ => {

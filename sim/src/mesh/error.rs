@@ -79,9 +79,9 @@ pub enum MeshReadError {
         node_file: PathBuf,
     },
 
-    /// A Gmsh element or a boundary file refers to a node tag not defined in `$Nodes`.
+    /// A Gmsh element or a boundary file refers to a node tag not defined in `$Nodes` (`$NOD`).
     #[error(
-        "{}:{line}: node tag {tag} is not defined in the $Nodes section of {}",
+        "{}:{line}: node tag {tag} is not defined in the $Nodes section ($NOD in format 1) of {}",
         show(.path),
         file_name(.mesh_file)
     )]

@@ -14,7 +14,7 @@
 //! | path | format | reader |
 //! |---|---|---|
 //! | `X.node`, `X.ele`, or `X` with `X.node` beside it | TetGen | [`read_tetgen`] |
-//! | `*.msh` | Gmsh ASCII 2.2 or 4.1 | [`read_gmsh`] |
+//! | `*.msh` | Gmsh ASCII 1, 2.2 or 4.1 | [`read_gmsh`] |
 //! | `*.vtk` | legacy VTK ASCII `UNSTRUCTURED_GRID` (file versions up to 5.1) | [`read_vtk`] |
 //!
 //! Coordinates are taken as they are written: they are metres by convention, and no unit
@@ -43,12 +43,18 @@
 //!
 //! ## Gmsh (`*.msh`)
 //!
-//! ASCII files of format 2.x (`$MeshFormat 2.2 0 8`) and 4.1 are read. Of the elements, only
+//! ASCII files of format 2.x (`$MeshFormat 2.2 0 8`) and 4.1 are read, and so is the legacy
+//! format 1 (what `gmsh -format msh1` writes): no `$MeshFormat`, the nodes in `$NOD` ...
+//! `$ENDNOD` (`<count>`, then `<node number> <x> <y> <z>`), the elements in `$ELM` ...
+//! `$ENDELM` (`<count>`, then `<element number> <type> <physical region> <elementary region>
+//! <#nodes> <node numbers...>`; an element whose node list is not as long as it says is an
+//! error). Of the elements, only
 //! type 4 (4-node tetrahedron) is kept; all other element types (points, lines, triangles,
 //! quadratic tetrahedra, ...) are skipped, and an error for a file with no tetrahedra says how
 //! many were skipped. Sections other than `$MeshFormat`, `$Nodes` and `$Elements` (e.g.
-//! `$PhysicalNames`, `$Entities`, `$NodeData`) are skipped. Node tags may be sparse and in any
-//! order: node `i` of the mesh is the `i`-th node listed in `$Nodes`. Binary files and format
+//! `$PhysicalNames`, `$Entities`, `$NodeData`) are skipped. Node tags (format 1: node numbers)
+//! may be sparse and in any order: node `i` of the mesh is the `i`-th node listed in `$Nodes`
+//! (`$NOD`). Binary files and format
 //! 4.0 are rejected with [`MeshReadError::UnsupportedFormat`] (re-export with
 //! `gmsh -format msh22` or `msh41`, ASCII).
 //!

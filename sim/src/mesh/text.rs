@@ -87,6 +87,7 @@ impl<'a> Line<'a> {
 
 /// Iterates over the data lines of a text: blank lines (and, if enabled, `#` comments) are
 /// skipped.
+#[derive(Clone)]
 pub(crate) struct DataLines<'a> {
     lines: std::iter::Enumerate<std::str::Lines<'a>>,
     hash_comments: bool,
