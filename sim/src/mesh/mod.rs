@@ -9,13 +9,18 @@
 //!
 //! # Reading
 //!
-//! [`read_mesh`] dispatches on the path (extensions are compared case-insensitively):
+//! [`read_mesh`] recognises the format by the path for TetGen and by the file's content
+//! otherwise (extensions are compared case-insensitively):
 //!
-//! | path | format | reader |
+//! | recognised by | format | reader |
 //! |---|---|---|
-//! | `X.node`, `X.ele`, or `X` with `X.node` beside it | TetGen | [`read_tetgen`] |
-//! | `*.msh` | Gmsh ASCII 1, 2.2 or 4.1 | [`read_gmsh`] |
-//! | `*.vtk` | legacy VTK ASCII `UNSTRUCTURED_GRID` (file versions up to 5.1) | [`read_vtk`] |
+//! | path `X.node`, `X.ele`, or `X` with `X.node` beside it | TetGen | [`read_tetgen`] |
+//! | first line `$MeshFormat` or `$NOD` | Gmsh ASCII 1, 2.2 or 4.1 | [`read_gmsh`] |
+//! | first line `# vtk DataFile ...` | legacy VTK ASCII `UNSTRUCTURED_GRID` (file versions up to 5.1) | [`read_vtk`] |
+//! | otherwise the extension `*.msh` / `*.vtk` | (the reader then says what is wrong) | |
+//!
+//! So a Gmsh file named `liver.txt` or a VTK file named `liver.dat` reads. A file that is
+//! none of these is a [`MeshReadError::UnsupportedFormat`] that quotes its first line.
 //!
 //! Coordinates are taken as they are written: they are metres by convention, and no unit
 //! conversion is done.
@@ -321,34 +326,87 @@ pub fn smallest_extent(points: &[[f64; 3]]) -> f64 {
     extents(points).into_iter().fold(f64::INFINITY, f64::min)
 }
 
-/// Reads any supported mesh, dispatching on the path (see the [module docs](self)):
-/// `X.node` / `X.ele` / a base `X` with `X.node` beside it → TetGen; `*.msh` → Gmsh;
-/// `*.vtk` → VTK.
+/// Reads any supported mesh, recognising the format (see the [module docs](self)):
+/// `X.node` / `X.ele` / a base `X` with `X.node` beside it → TetGen; otherwise by the file's
+/// first line: `$MeshFormat` or `$NOD` → Gmsh, `# vtk DataFile` → VTK, whatever the extension;
+/// a file whose first line is neither falls back to its extension (`.msh`, `.vtk`), so that the
+/// reader for that format reports what is wrong with it.
 ///
 /// # Errors
 /// [`MeshReadError::Io`] if the file (or, for TetGen, `X.node`) does not exist,
-/// [`MeshReadError::UnsupportedFormat`] for an unknown extension, and whatever the reader for
-/// the format reports.
+/// [`MeshReadError::UnsupportedFormat`] for a file of no known format (the message quotes its
+/// first line), and whatever the reader for the format reports.
 pub fn read_mesh(path: &Path) -> Result<TetMesh, MeshReadError> {
-    match text::extension(path).as_deref() {
-        Some("node" | "ele" | "face") => read_tetgen(path),
-        Some("msh") => read_gmsh(path),
-        Some("vtk") => read_vtk(path),
-        _ if text::with_suffix(path, "node").is_file() => read_tetgen(path),
-        _ if !path.exists() => Err(MeshReadError::Io {
-            path: path.to_owned(),
-            source: std::io::Error::new(
-                std::io::ErrorKind::NotFound,
-                format!(
-                    "no such file, and no TetGen mesh {} beside it",
-                    text::with_suffix(path, "node").display()
+    let ext = text::extension(path);
+    match ext.as_deref() {
+        Some("node" | "ele" | "face") => return read_tetgen(path),
+        _ if text::with_suffix(path, "node").is_file() => return read_tetgen(path),
+        _ if !path.exists() => {
+            return Err(MeshReadError::Io {
+                path: path.to_owned(),
+                source: std::io::Error::new(
+                    std::io::ErrorKind::NotFound,
+                    format!(
+                        "no such file, and no TetGen mesh {} beside it",
+                        text::with_suffix(path, "node").display()
+                    ),
                 ),
-            ),
-        }),
-        _ => Err(MeshReadError::UnsupportedFormat {
-            path: path.to_owned(),
-            reason: "expected a TetGen mesh (.node/.ele), a Gmsh .msh or a legacy VTK .vtk file"
-                .to_owned(),
-        }),
+            })
+        }
+        _ => {}
+    }
+    let first = text::first_line(path)?;
+    match sniff(&first) {
+        Some(Format::Gmsh) => read_gmsh(path),
+        Some(Format::Vtk) => read_vtk(path),
+        None => match ext.as_deref() {
+            Some("msh") => read_gmsh(path),
+            Some("vtk") => read_vtk(path),
+            _ => {
+                let surface = matches!(ext.as_deref(), Some("stl" | "obj" | "ply"))
+                    || first == "ply"
+                    || first.starts_with("solid");
+                Err(MeshReadError::UnsupportedFormat {
+                    path: path.to_owned(),
+                    reason: format!(
+                        "expected a TetGen mesh (.node/.ele), a Gmsh .msh file (first line \
+                         `$MeshFormat` or `$NOD`) or a legacy VTK .vtk file (first line \
+                         `# vtk DataFile Version ...`), but the first line is {}{}",
+                        if first.is_empty() {
+                            "empty (or the file is)".to_owned()
+                        } else {
+                            text::quote(&first)
+                        },
+                        if surface {
+                            " (this looks like a triangle surface: it has no tetrahedra; \
+                             mesh its inside, e.g. with TetGen or gmsh)"
+                        } else {
+                            ""
+                        }
+                    ),
+                })
+            }
+        },
+    }
+}
+
+/// Volume mesh formats recognised by their first line.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Format {
+    Gmsh,
+    Vtk,
+}
+
+/// The format a file's first non-blank line announces, if any.
+fn sniff(first: &str) -> Option<Format> {
+    match first {
+        "$MeshFormat" | "$NOD" => Some(Format::Gmsh),
+        t if t
+            .get(..14)
+            .is_some_and(|head| head.eq_ignore_ascii_case("# vtk DataFile")) =>
+        {
+            Some(Format::Vtk)
+        }
+        _ => None,
     }
 }
