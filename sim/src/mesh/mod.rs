@@ -22,6 +22,10 @@
 //! So a Gmsh file named `liver.txt` or a VTK file named `liver.dat` reads. A file that is
 //! none of these is a [`MeshReadError::UnsupportedFormat`] that quotes its first line.
 //!
+//! Triangle surfaces (STL ASCII and binary, OBJ, PLY ASCII and binary) are read by
+//! [`read_surface`] into a [`SurfaceMesh`]; see there for what is read of each. They are not
+//! volume meshes: `read_mesh` does not read them.
+//!
 //! Coordinates are taken as they are written: they are metres by convention, and no unit
 //! conversion is done.
 //!
@@ -123,6 +127,7 @@ mod error;
 mod gmsh;
 mod quality;
 mod surface;
+mod surface_io;
 mod tetgen;
 mod text;
 mod validate;
@@ -134,6 +139,7 @@ use std::path::{Path, PathBuf};
 pub use bnd::write_bnd;
 pub use error::MeshReadError;
 pub use gmsh::read_gmsh;
+pub use surface_io::{read_surface, SurfaceMesh};
 pub use tetgen::{read_tetgen, write_tetgen, write_tetgen_numbered};
 pub use vtk::{read_vtk, write_vtk};
 
