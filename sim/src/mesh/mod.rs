@@ -50,24 +50,25 @@
 //!   nodes: the surface is always extracted from the tetrahedra, which cannot disagree with them.
 //! - `.bnd` (optional): the fixed nodes, see below.
 //!
-//! ## Gmsh (`*.msh`)
+//! ## Gmsh (`*.msh`, or any name with Gmsh content)
 //!
 //! ASCII files of format 2.x (`$MeshFormat 2.2 0 8`) and 4.1 are read, and so is the legacy
 //! format 1 (what `gmsh -format msh1` writes): no `$MeshFormat`, the nodes in `$NOD` ...
 //! `$ENDNOD` (`<count>`, then `<node number> <x> <y> <z>`), the elements in `$ELM` ...
 //! `$ENDELM` (`<count>`, then `<element number> <type> <physical region> <elementary region>
 //! <#nodes> <node numbers...>`; an element whose node list is not as long as it says is an
-//! error). Of the elements, only
-//! type 4 (4-node tetrahedron) is kept; all other element types (points, lines, triangles,
-//! quadratic tetrahedra, ...) are skipped, and an error for a file with no tetrahedra says how
-//! many were skipped. Sections other than `$MeshFormat`, `$Nodes` and `$Elements` (e.g.
-//! `$PhysicalNames`, `$Entities`, `$NodeData`) are skipped. Node tags (format 1: node numbers)
-//! may be sparse and in any order: node `i` of the mesh is the `i`-th node listed in `$Nodes`
-//! (`$NOD`). Binary files and format
-//! 4.0 are rejected with [`MeshReadError::UnsupportedFormat`] (re-export with
-//! `gmsh -format msh22` or `msh41`, ASCII).
+//! error).
 //!
-//! ## VTK (`*.vtk`)
+//! Of the elements, only type 4 (4-node tetrahedron) is kept; all other element types (points,
+//! lines, triangles, quadratic tetrahedra, ...) are skipped, and an error for a file with no
+//! tetrahedra says how many were skipped. Sections other than `$MeshFormat`, `$Nodes` and
+//! `$Elements` (e.g. `$PhysicalNames`, `$Entities`, `$NodeData`) are skipped. Node tags
+//! (format 1: node numbers) may be sparse and in any order: node `i` of the mesh is the `i`-th
+//! node listed in `$Nodes` (`$NOD`). Binary files and format 4.0 are rejected with
+//! [`MeshReadError::UnsupportedFormat`] (re-export with `gmsh -format msh22` or `msh41`,
+//! ASCII).
+//!
+//! ## VTK (`*.vtk`, or any name with VTK content)
 //!
 //! Legacy ASCII `DATASET UNSTRUCTURED_GRID`, with `POINTS`, `CELLS` (either the classic
 //! `<count> <ids...>` list or the 5.1 `OFFSETS`/`CONNECTIVITY` arrays) and `CELL_TYPES`. Only
