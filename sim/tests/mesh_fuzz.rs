@@ -1,11 +1,11 @@
-//! Mesh readers: mutated files of every format (TetGen, Gmsh 2.2 and 4.1, VTK) never panic a
-//! reader.
+//! Mesh readers: mutated files of every format (TetGen, Gmsh 1, 2.2 and 4.1, VTK; STL, OBJ,
+//! PLY surfaces) never panic a reader.
 
 mod mesh_text;
 
 use std::fs;
 
-use lop_sim::mesh::{read_mesh, TetMesh};
+use lop_sim::mesh::{read_mesh, read_surface, MeshReadError, SurfaceMesh, TetMesh};
 use mesh_text::*;
 
 // ---------------------------------------------------------------------------------------------
@@ -136,8 +136,8 @@ fn mutated_files_never_panic() {
     let dir = scratch("fuzz");
     let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
     let mut outcomes = [0usize; 2];
-    for round in 0..600 {
-        let which = round % 5;
+    for round in 0..720 {
+        let which = round % 6;
         let result = match which {
             0 | 1 => {
                 let (node, ele) = if which == 0 {
@@ -157,6 +157,11 @@ fn mutated_files_never_panic() {
             }
             3 => {
                 let path = write(&dir, "g.msh", mutate(&mut rng, MSH41.as_bytes()));
+                read_mesh(&path)
+            }
+            4 => {
+                // Format 1, under a name that does not say Gmsh.
+                let path = write(&dir, "h.dat", mutate(&mut rng, MSH1.as_bytes()));
                 read_mesh(&path)
             }
             _ => {
@@ -185,4 +190,107 @@ fn mutated_files_never_panic() {
     // The mutations must exercise both paths.
     println!("ok: {}, errors: {}", outcomes[0], outcomes[1]);
     assert!(outcomes[0] >= 20 && outcomes[1] >= 300, "{outcomes:?}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// surfaces
+
+/// A tetrahedron's surface in each surface format: (file name, contents).
+fn surface_fixtures() -> Vec<(&'static str, Vec<u8>)> {
+    let p: [[f32; 3]; 4] = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    let tris = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+    let mut ascii = String::from("solid t\n");
+    let mut binary = vec![b' '; 80];
+    binary.extend_from_slice(&4u32.to_le_bytes());
+    for t in tris {
+        ascii.push_str("facet normal 0 0 0\nouter loop\n");
+        binary.extend_from_slice(&[0; 12]);
+        for i in t {
+            let [x, y, z] = p[i];
+            ascii.push_str(&format!("vertex {x} {y} {z}\n"));
+            for c in [x, y, z] {
+                binary.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        ascii.push_str("endloop\nendfacet\n");
+        binary.extend_from_slice(&[0; 2]);
+    }
+    ascii.push_str("endsolid t\n");
+    let mut obj = String::from("# t\n");
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+         property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    let mut ply_bin = ply.replace("ascii", "binary_big_endian").into_bytes();
+    for [x, y, z] in p {
+        obj.push_str(&format!("v {x} {y} {z}\n"));
+        ply.push_str(&format!("{x} {y} {z}\n"));
+        for c in [x, y, z] {
+            ply_bin.extend_from_slice(&c.to_be_bytes());
+        }
+    }
+    for [a, b, c] in tris {
+        obj.push_str(&format!("f {}/1 -{} {}//2\n", a + 1, 4 - b, c + 1));
+        ply.push_str(&format!("3 {a} {b} {c}\n"));
+        ply_bin.push(3);
+        for i in [a, b, c] {
+            ply_bin.extend_from_slice(&(i as i32).to_be_bytes());
+        }
+    }
+    vec![
+        ("a.stl", ascii.into_bytes()),
+        ("b.stl", binary),
+        ("c.obj", obj.into_bytes()),
+        ("d.ply", ply.into_bytes()),
+        ("e.ply", ply_bin),
+    ]
+}
+
+fn check_surface(s: &SurfaceMesh) {
+    let n = s.vertices.len() as u32;
+    assert!(s.triangles.iter().flatten().all(|&v| v < n));
+    assert!(s.vertices.iter().flatten().all(|v| v.is_finite()));
+}
+
+#[test]
+fn mutated_surfaces_never_panic() {
+    let dir = scratch("fuzz-surface");
+    let fixtures = surface_fixtures();
+    for (name, bytes) in &fixtures {
+        let s = read_surface(&write(&dir, name, bytes)).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((s.vertices.len(), s.triangles.len()), (4, 4), "{name}");
+    }
+    let mut rng = Rng(0x2545_f491_4f6c_dd1d);
+    let mut outcomes = [0usize; 2];
+    for round in 0..1000 {
+        let (name, bytes) = &fixtures[round % fixtures.len()];
+        // Half of the rounds under a name that says nothing about the format.
+        let name = if round % 2 == 0 { name } else { "x.dat" };
+        let path = write(&dir, name, mutate(&mut rng, bytes));
+        match read_surface(&path) {
+            Ok(s) => {
+                check_surface(&s);
+                outcomes[0] += 1;
+            }
+            Err(err) => {
+                let msg = err.to_string();
+                if std::env::var_os("LOP_MESH_FUZZ_LOG").is_some() {
+                    eprintln!("{msg}");
+                }
+                assert!(msg.contains(name), "message does not name the file: {msg}");
+                let located = err.line().is_some()
+                    || err.offset().is_some()
+                    || matches!(err, MeshReadError::UnsupportedFormat { .. });
+                assert!(located, "no line or offset: {msg}");
+                outcomes[1] += 1;
+            }
+        }
+    }
+    println!("ok: {}, errors: {}", outcomes[0], outcomes[1]);
+    assert!(outcomes[0] >= 50 && outcomes[1] >= 300, "{outcomes:?}");
 }

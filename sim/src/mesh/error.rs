@@ -39,6 +39,18 @@ pub enum MeshReadError {
         found: String,
     },
 
+    /// Like [`MeshReadError::Parse`], in a binary file (or its binary part): `offset` is the
+    /// 0-based byte offset of the offending value from the start of the file.
+    #[error("{}: byte {offset}: expected {expected}, found {found}", show(.path))]
+    BinaryParse {
+        path: PathBuf,
+        offset: u64,
+        /// What the reader expected, e.g. "the x coordinate of vertex 3 of triangle 7".
+        expected: String,
+        /// What it found: the value, or "end of file".
+        found: String,
+    },
+
     /// The file is not in a format this module reads (unknown extension, binary Gmsh or VTK,
     /// Gmsh 4.0, a VTK dataset other than an unstructured grid, ...).
     #[error("{}: unsupported mesh format: {reason}", show(.path))]
@@ -79,9 +91,9 @@ pub enum MeshReadError {
         node_file: PathBuf,
     },
 
-    /// A Gmsh element or a boundary file refers to a node tag not defined in `$Nodes`.
+    /// A Gmsh element or a boundary file refers to a node tag not defined in `$Nodes` (`$NOD`).
     #[error(
-        "{}:{line}: node tag {tag} is not defined in the $Nodes section of {}",
+        "{}:{line}: node tag {tag} is not defined in the $Nodes section ($NOD in format 1) of {}",
         show(.path),
         file_name(.mesh_file)
     )]
@@ -217,6 +229,7 @@ impl MeshReadError {
         match self {
             Self::Io { path, .. }
             | Self::Parse { path, .. }
+            | Self::BinaryParse { path, .. }
             | Self::UnsupportedFormat { path, .. }
             | Self::CountMismatch { path, .. }
             | Self::IndexOutOfRange { path, .. }
@@ -230,6 +243,14 @@ impl MeshReadError {
             | Self::NoTets { path, .. }
             | Self::BadBoundary { path, .. }
             | Self::TooManyNodes { path, .. } => path,
+        }
+    }
+
+    /// The 0-based byte offset the error is about, if it is about a value in a binary file.
+    pub fn offset(&self) -> Option<u64> {
+        match self {
+            Self::BinaryParse { offset, .. } => Some(*offset),
+            _ => None,
         }
     }
 
@@ -248,6 +269,7 @@ impl MeshReadError {
             | Self::NonManifoldFace { line, .. }
             | Self::BadBoundary { line, .. } => *line,
             Self::Io { .. }
+            | Self::BinaryParse { .. }
             | Self::UnsupportedFormat { .. }
             | Self::NoTets { .. }
             | Self::TooManyNodes { .. } => None,

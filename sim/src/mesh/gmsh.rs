@@ -1,4 +1,4 @@
-//! Gmsh `.msh` files, ASCII format 2.x and 4.1: reading.
+//! Gmsh `.msh` files, ASCII: the legacy format 1 (`$NOD` / `$ELM`), format 2.x and 4.1.
 
 use std::collections::hash_map::{Entry, HashMap};
 use std::path::Path;
@@ -15,11 +15,13 @@ const REEXPORT: &str =
 
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 enum Version {
+    /// The legacy format: no `$MeshFormat`, nodes in `$NOD`, elements in `$ELM`.
+    V1,
     V2,
     V41,
 }
 
-/// Reads a Gmsh ASCII mesh (format 2.x or 4.1) and the fixed nodes from a sibling
+/// Reads a Gmsh ASCII mesh (legacy format 1, format 2.x or 4.1) and the fixed nodes from a sibling
 /// `<stem>.bnd` (Gmsh node tags) if there is one. See the [module docs](super).
 ///
 /// # Errors
@@ -50,57 +52,66 @@ pub fn read_gmsh(path: &Path) -> Result<TetMesh, MeshReadError> {
         skipped: 0,
     };
     let version = reader.mesh_format()?;
+    // Format 1 names its sections differently and closes them with `$END<NAME>`.
+    let (nodes, elements) = match version {
+        Version::V1 => ("$NOD", "$ELM"),
+        Version::V2 | Version::V41 => ("$Nodes", "$Elements"),
+    };
     let mut have_nodes = false;
     let mut have_elements = false;
     while let Some(line) = reader.lines.next() {
         match line.text {
-            "$Nodes" if have_nodes => {
+            t if t == nodes && have_nodes => {
                 return Err(text::parse_error(
                     path,
                     line.no,
-                    "a single `$Nodes` section",
+                    format!("a single `{nodes}` section"),
                     "a second one",
                 ))
             }
-            "$Nodes" => {
+            t if t == nodes => {
                 match version {
-                    Version::V2 => reader.nodes_v2()?,
+                    Version::V1 => reader.nodes_v2("$ENDNOD")?,
+                    Version::V2 => reader.nodes_v2("$EndNodes")?,
                     Version::V41 => reader.nodes_v41()?,
                 }
                 have_nodes = true;
             }
-            "$Elements" if !have_nodes => {
+            t if t == elements && !have_nodes => {
                 return Err(text::parse_error(
                     path,
                     line.no,
-                    "the `$Nodes` section before `$Elements`",
-                    "`$Elements`",
+                    format!("the `{nodes}` section before `{elements}`"),
+                    text::quote(t),
                 ))
             }
-            "$Elements" if have_elements => {
+            t if t == elements && have_elements => {
                 return Err(text::parse_error(
                     path,
                     line.no,
-                    "a single `$Elements` section",
+                    format!("a single `{elements}` section"),
                     "a second one",
                 ))
             }
-            "$Elements" => {
+            t if t == elements => {
                 match version {
+                    Version::V1 => reader.elements_v1()?,
                     Version::V2 => reader.elements_v2()?,
                     Version::V41 => reader.elements_v41()?,
                 }
                 have_elements = true;
             }
             other => match other.strip_prefix('$') {
-                Some(name) if !name.is_empty() && !name.starts_with("End") => {
-                    reader.skip_section(name)?
+                Some(name)
+                    if !name.is_empty() && !name.starts_with("End") && !name.starts_with("END") =>
+                {
+                    reader.skip_section(name, version)?
                 }
                 _ => {
                     return Err(text::parse_error(
                         path,
                         line.no,
-                        "a section such as `$Nodes` or `$Elements`",
+                        format!("a section such as `{nodes}` or `{elements}`"),
                         text::quote(other),
                     ))
                 }
@@ -232,18 +243,25 @@ impl<'a> Reader<'a> {
     /// `$MeshFormat` / `<version> <file-type> <data-size>` / `$EndMeshFormat`.
     fn mesh_format(&mut self) -> Result<Version, MeshReadError> {
         let path = self.path;
+        let before = self.lines.clone();
         let Some(first) = self.lines.next() else {
             return Err(text::eof_error(
                 path,
                 self.lines.eof_line(),
-                "`$MeshFormat`",
+                "`$MeshFormat` (or `$NOD` for the legacy format 1)",
             ));
         };
+        if first.text == "$NOD" {
+            // Format 1 has no header: its first section is the nodes, read by the caller.
+            self.lines = before;
+            return Ok(Version::V1);
+        }
         if first.text != "$MeshFormat" {
             return Err(MeshReadError::UnsupportedFormat {
                 path: path.to_owned(),
                 reason: format!(
-                    "not a Gmsh 2.2 or 4.1 file: the first line is {} instead of `$MeshFormat`",
+                    "not a Gmsh file: the first line is {} instead of `$MeshFormat` (formats 2.2 \
+                     and 4.1) or `$NOD` (format 1)",
                     text::quote(first.text)
                 ),
             });
@@ -294,9 +312,12 @@ impl<'a> Reader<'a> {
         }
     }
 
-    /// Skips an unknown section `$name` ... `$Endname`.
-    fn skip_section(&mut self, name: &str) -> Result<(), MeshReadError> {
-        let end = format!("$End{name}");
+    /// Skips an unknown section `$name` ... `$Endname` (format 1: `$ENDNAME`).
+    fn skip_section(&mut self, name: &str, version: Version) -> Result<(), MeshReadError> {
+        let end = match version {
+            Version::V1 => format!("$END{}", name.to_ascii_uppercase()),
+            Version::V2 | Version::V41 => format!("$End{name}"),
+        };
         for line in self.lines.by_ref() {
             if line.text == end {
                 return Ok(());
@@ -412,19 +433,20 @@ impl<'a> Reader<'a> {
         Ok(())
     }
 
-    /// Format 2: `<count>` then `<tag> <x> <y> <z>` lines.
-    fn nodes_v2(&mut self) -> Result<(), MeshReadError> {
-        let (header, h) = self.header("$EndNodes", 1, "the number of nodes")?;
+    /// Formats 1 and 2: `<count>` then `<tag> <x> <y> <z>` lines, up to `end` (`$ENDNOD` in
+    /// format 1, `$EndNodes` in format 2).
+    fn nodes_v2(&mut self, end: &str) -> Result<(), MeshReadError> {
+        let (header, h) = self.header(end, 1, "the number of nodes")?;
         let declared = h[0];
         for i in 0..declared {
-            let line = self.section_line("$EndNodes", header.no, declared, i, "nodes")?;
+            let line = self.section_line(end, header.no, declared, i, "nodes")?;
             let fields = line.fields(false);
             text::expect_fields(self.path, &line, &fields, 4, "`<node tag> <x> <y> <z>`")?;
             let tag = text::parse_i64(self.path, line.no, fields[0], "the node tag")?;
             let p = self.coordinates(&line, &fields[1..], tag)?;
             self.add_node(line.no, tag, p)?;
         }
-        self.expect_end("$EndNodes", header.no, declared, "nodes")
+        self.expect_end(end, header.no, declared, "nodes")
     }
 
     /// Format 4.1: `<#blocks> <#nodes> <min tag> <max tag>`, then per block
@@ -472,6 +494,50 @@ impl<'a> Reader<'a> {
             });
         }
         self.expect_end("$EndNodes", header.no, blocks, "entity blocks")
+    }
+
+    /// Format 1: `<count>` then
+    /// `<element number> <type> <physical region> <elementary region> <#nodes> <nodes...>` lines,
+    /// up to `$ENDELM`. The node count is part of the line, so every element is checked to have
+    /// as many node numbers as it says; a tetrahedron must say 4.
+    fn elements_v1(&mut self) -> Result<(), MeshReadError> {
+        const END: &str = "$ENDELM";
+        const LAYOUT: &str =
+            "`<element number> <type> <physical> <elementary> <#nodes> <node numbers...>`";
+        let (header, h) = self.header(END, 1, "the number of elements")?;
+        let declared = h[0];
+        for i in 0..declared {
+            let line = self.section_line(END, header.no, declared, i, "elements")?;
+            let fields = line.fields(false);
+            if fields.len() < 5 {
+                return Err(self.parse_error(line.no, LAYOUT, text::quote(line.text)));
+            }
+            let tag = text::parse_i64(self.path, line.no, fields[0], "the element number")?;
+            let kind = text::parse_i64(self.path, line.no, fields[1], "the element type")?;
+            text::parse_i64(self.path, line.no, fields[2], "the physical region")?;
+            text::parse_i64(self.path, line.no, fields[3], "the elementary region")?;
+            let n = text::parse_count(self.path, line.no, fields[4], "the number of nodes")?;
+            text::expect_fields(
+                self.path,
+                &line,
+                &fields,
+                n.saturating_add(5),
+                format_args!("element {tag} says it has {n} nodes"),
+            )?;
+            if kind != TETRAHEDRON {
+                self.skipped += 1;
+                continue;
+            }
+            if n != 4 {
+                return Err(self.parse_error(
+                    line.no,
+                    format!("4 nodes for element {tag} of type 4 (tetrahedron)"),
+                    text::quote(fields[4]),
+                ));
+            }
+            self.tet(&line, fields[0], &fields[5..])?;
+        }
+        self.expect_end(END, header.no, declared, "elements")
     }
 
     /// Format 2: `<count>` then `<tag> <type> <#tags> <tags...> <nodes...>` lines.

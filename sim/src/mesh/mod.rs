@@ -9,13 +9,22 @@
 //!
 //! # Reading
 //!
-//! [`read_mesh`] dispatches on the path (extensions are compared case-insensitively):
+//! [`read_mesh`] recognises the format by the path for TetGen and by the file's content
+//! otherwise (extensions are compared case-insensitively):
 //!
-//! | path | format | reader |
+//! | recognised by | format | reader |
 //! |---|---|---|
-//! | `X.node`, `X.ele`, or `X` with `X.node` beside it | TetGen | [`read_tetgen`] |
-//! | `*.msh` | Gmsh ASCII 2.2 or 4.1 | [`read_gmsh`] |
-//! | `*.vtk` | legacy VTK ASCII `UNSTRUCTURED_GRID` (file versions up to 5.1) | [`read_vtk`] |
+//! | path `X.node`, `X.ele`, or `X` with `X.node` beside it | TetGen | [`read_tetgen`] |
+//! | first line `$MeshFormat` or `$NOD` | Gmsh ASCII 1, 2.2 or 4.1 | [`read_gmsh`] |
+//! | first line `# vtk DataFile ...` | legacy VTK ASCII `UNSTRUCTURED_GRID` (file versions up to 5.1) | [`read_vtk`] |
+//! | otherwise the extension `*.msh` / `*.vtk` | (the reader then says what is wrong) | |
+//!
+//! So a Gmsh file named `liver.txt` or a VTK file named `liver.dat` reads. A file that is
+//! none of these is a [`MeshReadError::UnsupportedFormat`] that quotes its first line.
+//!
+//! Triangle surfaces (STL ASCII and binary, OBJ, PLY ASCII and binary) are read by
+//! [`read_surface`] into a [`SurfaceMesh`]; see there for what is read of each. They are not
+//! volume meshes: `read_mesh` does not read them.
 //!
 //! Coordinates are taken as they are written: they are metres by convention, and no unit
 //! conversion is done.
@@ -41,18 +50,25 @@
 //!   nodes: the surface is always extracted from the tetrahedra, which cannot disagree with them.
 //! - `.bnd` (optional): the fixed nodes, see below.
 //!
-//! ## Gmsh (`*.msh`)
+//! ## Gmsh (`*.msh`, or any name with Gmsh content)
 //!
-//! ASCII files of format 2.x (`$MeshFormat 2.2 0 8`) and 4.1 are read. Of the elements, only
-//! type 4 (4-node tetrahedron) is kept; all other element types (points, lines, triangles,
-//! quadratic tetrahedra, ...) are skipped, and an error for a file with no tetrahedra says how
-//! many were skipped. Sections other than `$MeshFormat`, `$Nodes` and `$Elements` (e.g.
-//! `$PhysicalNames`, `$Entities`, `$NodeData`) are skipped. Node tags may be sparse and in any
-//! order: node `i` of the mesh is the `i`-th node listed in `$Nodes`. Binary files and format
-//! 4.0 are rejected with [`MeshReadError::UnsupportedFormat`] (re-export with
-//! `gmsh -format msh22` or `msh41`, ASCII).
+//! ASCII files of format 2.x (`$MeshFormat 2.2 0 8`) and 4.1 are read, and so is the legacy
+//! format 1 (what `gmsh -format msh1` writes): no `$MeshFormat`, the nodes in `$NOD` ...
+//! `$ENDNOD` (`<count>`, then `<node number> <x> <y> <z>`), the elements in `$ELM` ...
+//! `$ENDELM` (`<count>`, then `<element number> <type> <physical region> <elementary region>
+//! <#nodes> <node numbers...>`; an element whose node list is not as long as it says is an
+//! error).
 //!
-//! ## VTK (`*.vtk`)
+//! Of the elements, only type 4 (4-node tetrahedron) is kept; all other element types (points,
+//! lines, triangles, quadratic tetrahedra, ...) are skipped, and an error for a file with no
+//! tetrahedra says how many were skipped. Sections other than `$MeshFormat`, `$Nodes` and
+//! `$Elements` (e.g. `$PhysicalNames`, `$Entities`, `$NodeData`) are skipped. Node tags
+//! (format 1: node numbers) may be sparse and in any order: node `i` of the mesh is the `i`-th
+//! node listed in `$Nodes` (`$NOD`). Binary files and format 4.0 are rejected with
+//! [`MeshReadError::UnsupportedFormat`] (re-export with `gmsh -format msh22` or `msh41`,
+//! ASCII).
+//!
+//! ## VTK (`*.vtk`, or any name with VTK content)
 //!
 //! Legacy ASCII `DATASET UNSTRUCTURED_GRID`, with `POINTS`, `CELLS` (either the classic
 //! `<count> <ids...>` list or the 5.1 `OFFSETS`/`CONNECTIVITY` arrays) and `CELL_TYPES`. Only
@@ -112,6 +128,7 @@ mod error;
 mod gmsh;
 mod quality;
 mod surface;
+mod surface_io;
 mod tetgen;
 mod text;
 mod validate;
@@ -123,6 +140,7 @@ use std::path::{Path, PathBuf};
 pub use bnd::write_bnd;
 pub use error::MeshReadError;
 pub use gmsh::read_gmsh;
+pub use surface_io::{read_surface, SurfaceMesh};
 pub use tetgen::{read_tetgen, write_tetgen, write_tetgen_numbered};
 pub use vtk::{read_vtk, write_vtk};
 
@@ -315,34 +333,87 @@ pub fn smallest_extent(points: &[[f64; 3]]) -> f64 {
     extents(points).into_iter().fold(f64::INFINITY, f64::min)
 }
 
-/// Reads any supported mesh, dispatching on the path (see the [module docs](self)):
-/// `X.node` / `X.ele` / a base `X` with `X.node` beside it → TetGen; `*.msh` → Gmsh;
-/// `*.vtk` → VTK.
+/// Reads any supported mesh, recognising the format (see the [module docs](self)):
+/// `X.node` / `X.ele` / a base `X` with `X.node` beside it → TetGen; otherwise by the file's
+/// first line: `$MeshFormat` or `$NOD` → Gmsh, `# vtk DataFile` → VTK, whatever the extension;
+/// a file whose first line is neither falls back to its extension (`.msh`, `.vtk`), so that the
+/// reader for that format reports what is wrong with it.
 ///
 /// # Errors
 /// [`MeshReadError::Io`] if the file (or, for TetGen, `X.node`) does not exist,
-/// [`MeshReadError::UnsupportedFormat`] for an unknown extension, and whatever the reader for
-/// the format reports.
+/// [`MeshReadError::UnsupportedFormat`] for a file of no known format (the message quotes its
+/// first line), and whatever the reader for the format reports.
 pub fn read_mesh(path: &Path) -> Result<TetMesh, MeshReadError> {
-    match text::extension(path).as_deref() {
-        Some("node" | "ele" | "face") => read_tetgen(path),
-        Some("msh") => read_gmsh(path),
-        Some("vtk") => read_vtk(path),
-        _ if text::with_suffix(path, "node").is_file() => read_tetgen(path),
-        _ if !path.exists() => Err(MeshReadError::Io {
-            path: path.to_owned(),
-            source: std::io::Error::new(
-                std::io::ErrorKind::NotFound,
-                format!(
-                    "no such file, and no TetGen mesh {} beside it",
-                    text::with_suffix(path, "node").display()
+    let ext = text::extension(path);
+    match ext.as_deref() {
+        Some("node" | "ele" | "face") => return read_tetgen(path),
+        _ if text::with_suffix(path, "node").is_file() => return read_tetgen(path),
+        _ if !path.exists() => {
+            return Err(MeshReadError::Io {
+                path: path.to_owned(),
+                source: std::io::Error::new(
+                    std::io::ErrorKind::NotFound,
+                    format!(
+                        "no such file, and no TetGen mesh {} beside it",
+                        text::with_suffix(path, "node").display()
+                    ),
                 ),
-            ),
-        }),
-        _ => Err(MeshReadError::UnsupportedFormat {
-            path: path.to_owned(),
-            reason: "expected a TetGen mesh (.node/.ele), a Gmsh .msh or a legacy VTK .vtk file"
-                .to_owned(),
-        }),
+            })
+        }
+        _ => {}
+    }
+    let first = text::first_line(path)?;
+    match sniff(&first) {
+        Some(Format::Gmsh) => read_gmsh(path),
+        Some(Format::Vtk) => read_vtk(path),
+        None => match ext.as_deref() {
+            Some("msh") => read_gmsh(path),
+            Some("vtk") => read_vtk(path),
+            _ => {
+                let surface = matches!(ext.as_deref(), Some("stl" | "obj" | "ply"))
+                    || first == "ply"
+                    || first.starts_with("solid");
+                Err(MeshReadError::UnsupportedFormat {
+                    path: path.to_owned(),
+                    reason: format!(
+                        "expected a TetGen mesh (.node/.ele), a Gmsh .msh file (first line \
+                         `$MeshFormat` or `$NOD`) or a legacy VTK .vtk file (first line \
+                         `# vtk DataFile Version ...`), but the first line is {}{}",
+                        if first.is_empty() {
+                            "empty (or the file is)".to_owned()
+                        } else {
+                            text::quote(&first)
+                        },
+                        if surface {
+                            " (this looks like a triangle surface: it has no tetrahedra; \
+                             mesh its inside, e.g. with TetGen or gmsh)"
+                        } else {
+                            ""
+                        }
+                    ),
+                })
+            }
+        },
+    }
+}
+
+/// Volume mesh formats recognised by their first line.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Format {
+    Gmsh,
+    Vtk,
+}
+
+/// The format a file's first non-blank line announces, if any.
+fn sniff(first: &str) -> Option<Format> {
+    match first {
+        "$MeshFormat" | "$NOD" => Some(Format::Gmsh),
+        t if t
+            .get(..14)
+            .is_some_and(|head| head.eq_ignore_ascii_case("# vtk DataFile")) =>
+        {
+            Some(Format::Vtk)
+        }
+        _ => None,
     }
 }

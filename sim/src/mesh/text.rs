@@ -50,6 +50,31 @@ pub(crate) fn bytes_to_text(path: &Path, bytes: Vec<u8>) -> Result<String, MeshR
     }
 }
 
+/// The first non-blank line of a file, trimmed (a byte-order mark dropped, invalid UTF-8
+/// replaced), looked at in the first 4 KiB only: enough to recognise a format without reading a
+/// large file twice. Empty if the file is blank there.
+pub(crate) fn first_line(path: &Path) -> Result<String, MeshReadError> {
+    use std::io::Read as _;
+    let io = |source| MeshReadError::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let mut head = Vec::with_capacity(4096);
+    std::fs::File::open(path)
+        .map_err(io)?
+        .take(4096)
+        .read_to_end(&mut head)
+        .map_err(io)?;
+    let head = String::from_utf8_lossy(&head);
+    let head = head.strip_prefix('\u{feff}').unwrap_or(&head);
+    Ok(head
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty())
+        .unwrap_or("")
+        .to_owned())
+}
+
 /// `base` with `.ext` appended (not replacing an existing extension: `liver.v2` -> `liver.v2.node`).
 pub(crate) fn with_suffix(base: &Path, ext: &str) -> PathBuf {
     let mut s = base.as_os_str().to_owned();
@@ -87,6 +112,7 @@ impl<'a> Line<'a> {
 
 /// Iterates over the data lines of a text: blank lines (and, if enabled, `#` comments) are
 /// skipped.
+#[derive(Clone)]
 pub(crate) struct DataLines<'a> {
     lines: std::iter::Enumerate<std::str::Lines<'a>>,
     hash_comments: bool,

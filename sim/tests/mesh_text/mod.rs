@@ -4,6 +4,7 @@
 
 use std::fs;
 use std::path::{Path, PathBuf};
+use std::process::Command;
 
 use lop_sim::mesh::{read_gmsh, read_tetgen, read_vtk, MeshReadError};
 
@@ -180,6 +181,31 @@ $Elements
 $EndElements
 ";
 
+/// The same cube in the legacy format 1, nodes numbered from 101 (node 100 + n on line n + 2),
+/// with a point and a triangle to skip; element k sits on line k + 13.
+pub const MSH1: &str = "$NOD
+8
+101 0 0 0
+102 1 0 0
+103 0 1 0
+104 1 1 0
+105 0 0 1
+106 1 0 1
+107 0 1 1
+108 1 1 1
+$ENDNOD
+$ELM
+7
+1 15 0 1 1 101
+2 2 0 1 3 101 102 104
+3 4 1 1 4 101 102 104 106
+4 4 1 1 4 103 101 104 107
+5 4 1 1 4 101 105 106 107
+6 4 1 1 4 108 104 106 107
+7 4 1 1 4 104 101 106 107
+$ENDELM
+";
+
 pub fn read_msh(name: &str, text: impl AsRef<[u8]>) -> (Scratch, MeshReadError) {
     let dir = scratch(name);
     let path = write(&dir, "m.msh", text);
@@ -225,4 +251,32 @@ pub fn read_vtk_text(name: &str, text: impl AsRef<[u8]>) -> (Scratch, MeshReadEr
         dir,
         read_vtk(&path).expect_err("the mesh should be rejected"),
     )
+}
+
+/// Runs gmsh on `geo`, writing `out` in `format` (`-3` for a volume mesh). Fails the test,
+/// saying how to install gmsh, if gmsh is missing.
+pub fn gmsh(dim: &str, geo: &Path, format: &str, extra: &[&str], out: &Path) {
+    let result = Command::new("gmsh")
+        .arg(dim)
+        .arg(geo)
+        .arg("-format")
+        .arg(format)
+        .args(extra)
+        .arg("-o")
+        .arg(out)
+        .output();
+    let output = match result {
+        Ok(output) => output,
+        Err(e) => panic!(
+            "cannot run gmsh ({e}): these tests need the real gmsh; install it with \
+             `scripts/setup.sh` (or `apt-get install gmsh`)"
+        ),
+    };
+    assert!(
+        output.status.success() && out.is_file(),
+        "gmsh {dim} {} -format {format} failed: {}\n{}",
+        geo.display(),
+        output.status,
+        String::from_utf8_lossy(&output.stderr)
+    );
 }
