@@ -50,7 +50,10 @@
 //!
 //! `tests/flood.rs` holds 1,000 idle, half-open and non-reading connections open and checks
 //! that a real client still gets the page and a WebSocket, the thread count and the resident
-//! memory.
+//! memory. Measured: 3 threads before and during the flood, resident memory from 6 MB to
+//! 18 MB, the page after 3 to 5 s: the flood fills all 512 slots, so a newcomer is refused
+//! until the first of them time out ([`REQUEST_TIMEOUT`]); below 512 it is served at once.
+//! Refusing the newcomer (not an older idle connection) is the simple rule kept for now.
 //!
 //! Nothing here can touch the haptic loop: it runs in the daemon, another process, on its own
 //! real-time thread. The viewer only maps the daemon's shared-memory services read-only and

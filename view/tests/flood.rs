@@ -87,7 +87,7 @@ fn raise_open_files(want: u64) -> u64 {
             libc::getrlimit(libc::RLIMIT_NOFILE, &mut lim);
         }
     }
-    lim.rlim_cur as u64
+    u64::from(lim.rlim_cur)
 }
 
 /// A number field (`Threads:`, `VmRSS:` in kB) of `/proc/PID/status`.
@@ -246,4 +246,54 @@ fn a_flood_of_1000_connections_leaves_the_page_and_the_websocket_served() {
     assert!(proc_status(pid, "Threads:") <= MAX_THREADS);
     drop(slow);
     drop(viewer);
+}
+
+#[test]
+fn websockets_beyond_the_bound_get_503_and_a_freed_slot_is_taken_again() {
+    let viewer = spawn_viewer();
+    let addr = viewer.addr.clone();
+    let mut open = Vec::new();
+    for i in 0..MAX_WEBSOCKETS {
+        let (ws, _) = tungstenite::connect(format!("ws://{addr}/ws"))
+            .unwrap_or_else(|e| panic!("WebSocket {i} of {MAX_WEBSOCKETS}: {e}"));
+        open.push(ws);
+    }
+    match tungstenite::connect(format!("ws://{addr}/ws")) {
+        Err(tungstenite::Error::Http(resp)) => assert_eq!(resp.status().as_u16(), 503),
+        Err(e) => panic!("expected HTTP 503, got {e}"),
+        Ok(_) => panic!("WebSocket {} accepted", MAX_WEBSOCKETS + 1),
+    }
+    // The page is still served meanwhile.
+    assert!(get_page(&addr).is_some());
+    // One leaves: its slot is free again.
+    let mut gone = open.pop().unwrap();
+    let _ = gone.close(None);
+    let _ = gone.flush();
+    drop(gone);
+    let (status, took) = within(Duration::from_secs(10), || websocket_status(&addr));
+    assert_eq!(status["type"], "status");
+    eprintln!("a freed WebSocket slot taken again after {took:?}");
+}
+
+#[test]
+fn an_oversized_request_head_is_refused() {
+    let viewer = spawn_viewer();
+    let mut s = TcpStream::connect(&viewer.addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let big = format!(
+        "GET / HTTP/1.1\r\nHost: x\r\nX-Big: {}\r\n\r\n",
+        "a".repeat(4 * lop_view::MAX_REQUEST_BYTES)
+    );
+    // The viewer may close before all of it is written.
+    let _ = s.write_all(big.as_bytes());
+    let mut text = String::new();
+    let _ = s.read_to_string(&mut text);
+    assert!(
+        !text.starts_with("HTTP/1.1 200"),
+        "a {}-byte head was served: {:?}",
+        big.len(),
+        text.lines().next()
+    );
+    eprintln!("a {}-byte head: {:?}", big.len(), text.lines().next());
+    assert!(get_page(&viewer.addr).is_some());
 }
