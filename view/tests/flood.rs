@@ -87,7 +87,7 @@ fn raise_open_files(want: u64) -> u64 {
             libc::getrlimit(libc::RLIMIT_NOFILE, &mut lim);
         }
     }
-    u64::from(lim.rlim_cur)
+    lim.rlim_cur
 }
 
 /// A number field (`Threads:`, `VmRSS:` in kB) of `/proc/PID/status`.
@@ -197,10 +197,8 @@ fn a_flood_of_1000_connections_leaves_the_page_and_the_websocket_served() {
          {MAX_WEBSOCKETS} WebSockets, {REQUEST_TIMEOUT:?} per request",
         rss.saturating_sub(rss0)
     );
-    assert!(
-        to_page < REQUEST_TIMEOUT + Duration::from_secs(10),
-        "page after {to_page:?}"
-    );
+    // Served by closing an idle flood connection, not after the flood's ones time out.
+    assert!(to_page < REQUEST_TIMEOUT, "page after {to_page:?}");
     assert!(threads <= MAX_THREADS, "{threads} threads under the flood");
     assert!(
         rss.saturating_sub(rss0) <= MAX_RSS_GROWTH_KB,
