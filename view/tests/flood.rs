@@ -4,8 +4,10 @@
 //! client is served within seconds, the viewer's threads stay a fixed handful and its memory
 //! stays bounded, and the flood's half-open connections are closed by the viewer.
 //!
-//! No daemon: the page and the WebSocket (its first message is the `status` one) are the
-//! viewer's alone, and the haptic loop is another process that the viewer only reads from.
+//! No daemon for the flood: the page and the WebSocket (its first message is the `status`
+//! one) are the viewer's alone, and the haptic loop is another process that the viewer only
+//! reads from. With a daemon, WebSocket clients that never read are dropped once frames stop
+//! going through, and a real client then gets frames.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -38,13 +40,12 @@ impl Drop for Viewer {
 }
 
 fn spawn_viewer() -> Viewer {
+    spawn_viewer_of(&format!("flood-{}", std::process::id()))
+}
+
+fn spawn_viewer_of(prefix: &str) -> Viewer {
     let mut child = Command::new(env!("CARGO_BIN_EXE_lop-view"))
-        .args([
-            "--prefix",
-            &format!("flood-{}", std::process::id()),
-            "--bind",
-            "127.0.0.1:0",
-        ])
+        .args(["--prefix", prefix, "--bind", "127.0.0.1:0"])
         .env_remove("LOP_VIEW_TOKEN")
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -125,6 +126,23 @@ fn websocket_status(addr: &str) -> Option<serde_json::Value> {
             return Some(v);
         }
     }
+}
+
+/// Opens `/ws` and reads until a frame; its length, `None` if refused or none came.
+fn websocket_frame(addr: &str) -> Option<usize> {
+    let (mut ws, _) = tungstenite::connect(format!("ws://{addr}/ws")).ok()?;
+    if let tungstenite::stream::MaybeTlsStream::Plain(s) = ws.get_ref() {
+        s.set_read_timeout(Some(Duration::from_secs(5))).ok()?;
+    }
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(20) {
+        if let Message::Binary(b) = ws.read().ok()? {
+            if b.len() >= 4 && b[..4] == lop_view::wire::KIND_FRAME.to_le_bytes() {
+                return Some(b.len());
+            }
+        }
+    }
+    None
 }
 
 /// Retries `f` every 100 ms for up to `limit`; the value and how long it took.
@@ -294,4 +312,44 @@ fn an_oversized_request_head_is_refused() {
     );
     eprintln!("a {}-byte head: {:?}", big.len(), text.lines().next());
     assert!(get_page(&viewer.addr).is_some());
+}
+
+#[test]
+fn websockets_that_never_read_are_dropped_and_a_real_client_gets_frames() {
+    // Frames flow only with a daemon: then a client that never reads fills its socket's
+    // buffers, its send waits, and after SEND_TIMEOUT the viewer drops it.
+    let prefix = lop_system_tests::unique_prefix("view-slow");
+    let _daemon = lop_system_tests::Daemon::spawn(
+        &["run", "--scene", "organs", "--prefix", &prefix, "--quiet"],
+        &prefix,
+        Duration::from_secs(180),
+    );
+    let viewer = spawn_viewer_of(&prefix);
+    let pid = viewer.child.id();
+    let addr = viewer.addr.clone();
+    let (len, _) = within(Duration::from_secs(90), || websocket_frame(&addr));
+    let rss0 = proc_status(pid, "VmRSS:");
+    // Every WebSocket slot taken by a client that never reads.
+    let mut slow = Vec::new();
+    while slow.len() < MAX_WEBSOCKETS {
+        let (ws, _) = within(Duration::from_secs(10), || {
+            tungstenite::connect(format!("ws://{addr}/ws")).ok()
+        });
+        slow.push(ws);
+    }
+    let started = Instant::now();
+    let (_, took) = within(Duration::from_secs(60), || websocket_frame(&addr));
+    let threads = proc_status(pid, "Threads:");
+    let rss = proc_status(pid, "VmRSS:");
+    eprintln!(
+        "{MAX_WEBSOCKETS} WebSockets that never read ({len}-byte frames): a real client got a \
+         frame after {took:?} ({:?} in all); {threads} threads, RSS {rss0} kB -> {rss} kB",
+        started.elapsed()
+    );
+    assert!(threads <= MAX_THREADS, "{threads} threads");
+    assert!(
+        rss.saturating_sub(rss0) <= MAX_RSS_GROWTH_KB,
+        "RSS grew from {rss0} kB to {rss} kB"
+    );
+    drop(slow);
 }
