@@ -125,7 +125,7 @@ fn picking_drags_the_grabbed_tissue_and_releases_it() {
             (top + R + 0.03, false)
         };
         let device = [0.004, y, 0.002];
-        let s = probe.tick(&mut world, device, grab);
+        let s = probe.tick(&world, device, grab);
         if s.grabbing && grabbed.is_none() {
             let a = s.anchor.unwrap();
             grabbed = Some(probe.surfaces().triangles()[a.triangle]);
