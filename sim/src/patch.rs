@@ -226,11 +226,15 @@ impl PatchSolve {
         solve_columns(cols, m);
         let c = &mut self.col;
         let a = self.lcp.matrix();
+        // `A` is symmetric: each entry once, mirrored (half the products, and exactly symmetric
+        // for the complementarity solve's factorisation).
         for j in 0..m {
             c.fill(0.0);
             column(j, c);
-            for (k, z) in cols.chunks_exact(n).enumerate() {
-                a[k * m + j] = scale * c.iter().zip(z).map(|(c, z)| c * z).sum::<f64>();
+            for (k, z) in cols.chunks_exact(n).enumerate().take(j + 1) {
+                let entry = scale * c.iter().zip(z).map(|(c, z)| c * z).sum::<f64>();
+                a[k * m + j] = entry;
+                a[j * m + k] = entry;
             }
         }
     }
