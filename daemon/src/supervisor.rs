@@ -56,25 +56,16 @@ pub struct RunOptions {
 }
 
 /// Environment variable through which the viewer gets its control token.
-pub const VIEW_TOKEN_ENV: &str = "LOP_VIEW_TOKEN";
+pub const VIEW_TOKEN_ENV: &str = lop_ipc::view_token::ENV;
 
-/// Checks a user's viewer token (the viewer applies the same rule): 16 to 256 characters of
-/// `A-Z a-z 0-9 . _ ~ -`, so it fits in the URL's fragment unchanged.
+/// Checks a user's viewer token: the viewer's own rule ([`lop_ipc::view_token::check`]).
 pub fn check_view_token(token: &str) -> std::result::Result<(), String> {
-    let ok_char = |c: char| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '~' | '-');
-    if token.len() < 16 || token.len() > 256 || !token.chars().all(ok_char) {
-        return Err(format!(
-            "token of {} characters: must be 16 to 256 of A-Z a-z 0-9 . _ ~ -",
-            token.chars().count()
-        ));
-    }
-    Ok(())
+    lop_ipc::view_token::check(token)
 }
 
 /// The viewer's token for this run: the given one; else, on a loopback bind, 128 bits from
 /// `/dev/urandom` in hex; else none (the viewer is read-only).
 fn view_control_token(bind: &str, given: Option<&str>) -> Result<Option<String>> {
-    use std::io::Read;
     use std::net::ToSocketAddrs;
     if let Some(t) = given {
         return Ok(Some(t.to_string()));
@@ -87,11 +78,9 @@ fn view_control_token(bind: &str, given: Option<&str>) -> Result<Option<String>>
     if !loopback {
         return Ok(None);
     }
-    let mut bytes = [0u8; 16];
-    std::fs::File::open("/dev/urandom")
-        .and_then(|mut f| f.read_exact(&mut bytes))
+    let token = lop_ipc::view_token::generate()
         .context("reading /dev/urandom for the viewer's control token")?;
-    Ok(Some(bytes.iter().map(|b| format!("{b:02x}")).collect()))
+    Ok(Some(token))
 }
 
 /// Where `lopd run --view` and `lop-view` listen unless told otherwise: loopback only.

@@ -22,6 +22,7 @@ pub mod limits;
 pub mod services;
 pub mod signals;
 pub mod types;
+pub mod view_token;
 
 pub use control::*;
 pub use services::{ServiceNames, SERVICE_PREFIX_DEFAULT};

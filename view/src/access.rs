@@ -21,35 +21,14 @@
 //!   (read-only). On a non-loopback bind no token is generated: control needs one given
 //!   explicitly.
 
-use std::io::Read;
 use std::net::{IpAddr, SocketAddr};
 
+use lop_client::view_token;
+pub use lop_client::view_token::{check as check_token, generate as generate_token};
 /// Environment variable holding the control token (same as `--token`).
-pub const TOKEN_ENV: &str = "LOP_VIEW_TOKEN";
-/// Bytes of a generated token (hex-encoded: twice as many characters).
-pub const TOKEN_BYTES: usize = 16;
-/// Shortest token accepted from the user.
-pub const TOKEN_MIN_LEN: usize = 16;
-
-/// A new token: `TOKEN_BYTES` from `/dev/urandom`, in lower-case hex.
-pub fn generate_token() -> std::io::Result<String> {
-    let mut bytes = [0u8; TOKEN_BYTES];
-    std::fs::File::open("/dev/urandom")?.read_exact(&mut bytes)?;
-    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
-}
-
-/// Checks a user's token: at least `TOKEN_MIN_LEN` characters of `A-Z a-z 0-9 . _ ~ -`, so it
-/// goes into a URL fragment as it is.
-pub fn check_token(token: &str) -> Result<(), String> {
-    let ok_char = |c: char| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '~' | '-');
-    if token.len() < TOKEN_MIN_LEN || token.len() > 256 || !token.chars().all(ok_char) {
-        return Err(format!(
-            "token of {} characters: must be {TOKEN_MIN_LEN} to 256 of A-Z a-z 0-9 . _ ~ -",
-            token.chars().count()
-        ));
-    }
-    Ok(())
-}
+pub const TOKEN_ENV: &str = view_token::ENV;
+/// Bytes of a generated token.
+pub const TOKEN_BYTES: usize = view_token::BYTES;
 
 /// Whether `ip` only reaches this machine.
 pub fn is_loopback(ip: IpAddr) -> bool {
