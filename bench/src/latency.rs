@@ -16,6 +16,9 @@
 //! | frame age in contact | the same over the ticks that rendered a contact (pressing or holding a body): how old the surface under the hand was | haptic loop (`total_frame_age_contact`) |
 //! | tool → deform latency | how old the tool state was when the deformation step read it (`tool_read_ns − tool_stamp_ns` of each frame header; frames with no tool state yet are skipped) | bench, from every frame received in the window |
 //! | deform → client latency | frame published → received by this bench (`received_ns − publish_ns`) | bench, from every frame received in the window; **includes the bench's polling interval** (it sleeps `--poll-us` between polls) |
+//! | device → tissue latency | a device sample → the frame of the tissue that responded to it (`publish_ns − tool_stamp_ns`; the tool state carries the device sample's tick time), over the frames whose contact patch pressed a body: how late the tissue the eye sees (and the surface the hand touches next) answers the hand | bench, from the frames in contact |
+//! | touched body: frame interval | time between two frames in contact (`publish_ns` differences): the rate at which the touched body's surface reaches the haptic loop | bench, consecutive frames in contact |
+//! | touched body: step | wall time of the touched body's last step (`BodyFrame::step_ns` of `contact_body`), once per frame in contact | bench, from the frames in contact |
 //!
 //! The haptic rows come from the loop's own preallocated histograms, which cover everything from
 //! one second after the haptic process started (its own warm-up) to the last telemetry sample
@@ -32,7 +35,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use hdrhistogram::Histogram;
-use lop_client::{clock, Attachment, HapticTelemetry, CONTRACT_VERSION};
+use lop_client::{clock, Attachment, HapticTelemetry, CONTRACT_VERSION, NO_CONTACT};
 use lop_ipc::{RT_FLAG_FIFO, RT_FLAG_MLOCKED, RT_FLAG_PINNED};
 use serde::Serialize;
 
@@ -284,6 +287,21 @@ pub fn run(a: LatencyArgs) -> Result<()> {
         "deform → client latency",
         &m.deform_to_client,
     ));
+    rows.push(Row::from_histogram_ns(
+        "device_to_tissue",
+        "device → tissue latency",
+        &m.device_to_tissue,
+    ));
+    rows.push(Row::from_histogram_ns(
+        "touched_frame_interval",
+        "touched body: frame interval",
+        &m.touched_interval,
+    ));
+    rows.push(Row::from_histogram_ns(
+        "touched_step",
+        "touched body: step",
+        &m.touched_step,
+    ));
 
     let report = LatencyReport {
         scene: scene.name.clone(),
@@ -325,6 +343,9 @@ struct Measured {
     tel_last: HapticTelemetry,
     tool_to_deform: Histogram<u64>,
     deform_to_client: Histogram<u64>,
+    device_to_tissue: Histogram<u64>,
+    touched_interval: Histogram<u64>,
+    touched_step: Histogram<u64>,
     frames_received: u64,
     frames_missed: u64,
     frames_without_tool: u64,
@@ -361,6 +382,10 @@ fn measure(lopd: &mut Lopd, a: &LatencyArgs, period_us: u64, ct: &CtPlan) -> Res
 
     let mut tool_to_deform = table::latency_histogram();
     let mut deform_to_client = table::latency_histogram();
+    let mut device_to_tissue = table::latency_histogram();
+    let mut touched_interval = table::latency_histogram();
+    let mut touched_step = table::latency_histogram();
+    let mut last_touched: Option<(u32, u64)> = None;
     let mut frames_received = 0u64;
     let mut frames_missed = 0u64;
     let mut frames_without_tool = 0u64;
@@ -391,7 +416,12 @@ fn measure(lopd: &mut Lopd, a: &LatencyArgs, period_us: u64, ct: &CtPlan) -> Res
                 continue;
             }
             if let Some(prev) = last_seq {
-                frames_missed += f.header.sequence.saturating_sub(prev + 1);
+                let gap = f.header.sequence.saturating_sub(prev + 1);
+                frames_missed += gap;
+                if gap > 0 {
+                    // The interval would span the missed frames.
+                    last_touched = None;
+                }
             }
             last_seq = Some(f.header.sequence);
             frames_received += 1;
@@ -402,6 +432,26 @@ fn measure(lopd: &mut Lopd, a: &LatencyArgs, period_us: u64, ct: &CtPlan) -> Res
                 tool_to_deform.saturating_record(h.tool_read_ns.saturating_sub(h.tool_stamp_ns));
             }
             deform_to_client.saturating_record(f.received_ns.saturating_sub(h.publish_ns));
+            let touched = f
+                .bodies()
+                .get(h.contact_body as usize)
+                .filter(|_| h.contact_body != NO_CONTACT);
+            match touched {
+                Some(body) => {
+                    if h.tool_stamp_ns != 0 {
+                        device_to_tissue
+                            .saturating_record(h.publish_ns.saturating_sub(h.tool_stamp_ns));
+                    }
+                    touched_step.saturating_record(u64::from(body.step_ns));
+                    if let Some((b, at)) = last_touched {
+                        if b == h.contact_body {
+                            touched_interval.saturating_record(h.publish_ns.saturating_sub(at));
+                        }
+                    }
+                    last_touched = Some((h.contact_body, h.publish_ns));
+                }
+                None => last_touched = None,
+            }
         }
         if last_check.elapsed() >= Duration::from_millis(10) {
             last_check = Instant::now();
@@ -454,6 +504,9 @@ fn measure(lopd: &mut Lopd, a: &LatencyArgs, period_us: u64, ct: &CtPlan) -> Res
         tel_last,
         tool_to_deform,
         deform_to_client,
+        device_to_tissue,
+        touched_interval,
+        touched_step,
         frames_received,
         frames_missed,
         frames_without_tool,

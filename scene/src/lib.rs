@@ -10,7 +10,7 @@
 use anyhow::{Context, Result};
 use lop_config::{BodySpec, MassSpec, ModelPin, Scene, ToolSpec};
 use lop_sim::contact::{ForceLaw, ToolSphere};
-use lop_sim::fem::{Fem, FemMode, FemParameters};
+use lop_sim::fem::{Fem, FemMode, FemParameters, RefactorPolicy};
 use lop_sim::lop::{
     CageDynamics, CageModel, CageShape, GcParameters, LopPolicy, PrecisionController, StartLevel,
 };
@@ -188,8 +188,11 @@ pub fn precise_model(scene: &Scene, spec: &BodySpec, mesh: &TetMesh) -> Result<M
                 lop_config::FemMode::Corotational => FemMode::Corotational,
             },
         };
-        let fem = Fem::new(mesh, params)
+        let mut fem = Fem::new(mesh, params)
             .with_context(|| format!("{}: body {:?}: FEM", scene.path.display(), spec.name))?;
+        if haptic_rate(scene, fem.dt()) {
+            fem.set_refactor_policy(RefactorPolicy::RealTime);
+        }
         return Ok(Model::Fem(fem));
     }
     let msd = spec.msd.as_ref().with_context(|| {
@@ -210,6 +213,14 @@ pub fn precise_model(scene: &Scene, spec: &BodySpec, mesh: &TetMesh) -> Result<M
         integrator: integrator(msd.integrator),
     };
     Ok(Model::MassSpring(MassSpring::new(mesh, params)))
+}
+
+/// Whether a model of step `dt` runs at the scene's haptic rate or faster: the body is then
+/// on the real-time path of the hand whenever the tool touches it, and a corotational FEM body
+/// refreshes its lagged factor only when CG needs it ([`RefactorPolicy::RealTime`]: no
+/// refactorisation spikes), instead of by amortized cost.
+pub fn haptic_rate(scene: &Scene, dt: f64) -> bool {
+    dt * scene.rates.haptic_hz <= 1.0 + 1e-9
 }
 
 /// Padding of a cage when the scene gives none: 5 % of the body's smallest extent (the cage

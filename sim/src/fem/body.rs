@@ -7,8 +7,8 @@ use super::params::validate;
 use super::rotation::{self, QUAT_IDENTITY};
 use super::system::{NodeOrdering, System, NONE};
 use super::{
-    CorotationalSolver, Factor, Fem, FemError, FemMode, FemParameters, Scratch, SolverCounters,
-    INVERSE_SLOTS,
+    CorotationalSolver, Factor, Fem, FemError, FemMode, FemParameters, RefactorPolicy, Scratch,
+    SolverCounters, INVERSE_SLOTS,
 };
 use crate::mesh::TetMesh;
 
@@ -148,6 +148,7 @@ impl Fem {
             system: Box::new(system),
             factor: Factor::Stale,
             solver: CorotationalSolver::LaggedFactorPcg,
+            refactor: RefactorPolicy::Amortized,
             last_iterations: 0,
             baseline_iterations: None,
             extra_iterations: 0,
@@ -246,6 +247,17 @@ impl Fem {
     #[doc(hidden)]
     pub fn set_corotational_solver(&mut self, solver: CorotationalSolver) {
         self.solver = solver;
+    }
+
+    /// Chooses when the lagged factor of a corotational body is refreshed
+    /// ([`RefactorPolicy`]); `Amortized` unless set.
+    pub fn set_refactor_policy(&mut self, policy: RefactorPolicy) {
+        self.refactor = policy;
+    }
+
+    /// The refactor policy in use.
+    pub fn refactor_policy(&self) -> RefactorPolicy {
+        self.refactor
     }
 
     /// Kinetic energy, J.

@@ -3,7 +3,7 @@
 //! problem gives the forces, and `K̃⁻¹ C λ` is added to the increment.
 
 use super::system::NONE;
-use super::{Factor, Fem, FemMode};
+use super::{Factor, Fem};
 use crate::interaction::ContactReport;
 use crate::patch::{report, PatchSolve, ToolPatch};
 
@@ -28,8 +28,7 @@ impl Fem {
                 }
             });
         }
-        let cached = self.factor == Factor::RestDynamic
-            && self.params.mode == FemMode::Linear
+        let cached = matches!(self.factor, Factor::RestDynamic | Factor::WarpedDynamic)
             && self.cache_patch_nodes(&patch);
         if cached {
             self.cached_matrix(&patch);
@@ -123,30 +122,28 @@ impl Fem {
         }
     }
 
-    /// `correction = K̃⁻¹ C λ` from the cached columns; false if it is not finite.
+    /// `correction = K̃⁻¹ C λ` by one solve with the factor (the cached columns would take nine
+    /// per point: more work than the solve once the patch has a few points); false if it is
+    /// not finite.
     fn cached_correction(&mut self, patch: &ToolPatch<'_>) -> bool {
-        let (dof, n) = (&self.system.dof, self.system.n_dof);
+        let dof = &self.system.dof;
         let s = &mut *self.s;
-        let cache = ColumnCache {
-            cols: &s.pc_cols,
-            slot_of: &s.pc_slot_of,
-            n,
-        };
         let out = &mut s.patch.correction;
         out.fill(0.0);
         for (p, &l) in patch.points.iter().zip(s.patch.lcp.lambda()) {
             for k in 0..3 {
-                if l == 0.0 || p.weights[k] == 0.0 || first_dof(dof, p.nodes[k]).is_none() {
+                if l == 0.0 || p.weights[k] == 0.0 {
                     continue;
                 }
-                for c in 0..3 {
-                    let f = l * p.weights[k] * p.normal[c];
-                    let col = cache.column(p.nodes[k], c);
-                    out.iter_mut().zip(col).for_each(|(t, g)| *t += f * g);
+                if let Some(d) = first_dof(dof, p.nodes[k]) {
+                    for c in 0..3 {
+                        out[d + c] += l * p.weights[k] * p.normal[c];
+                    }
                 }
             }
         }
-        out.iter().all(|d| d.is_finite())
+        self.system.solve_in_place(&mut self.s.patch.correction);
+        self.s.patch.correction.iter().all(|d| d.is_finite())
     }
 }
 

@@ -128,7 +128,12 @@ impl Fem {
     /// The refactor policy (ski rental), after a CG run of `run` iterations with the lagged
     /// factor: refresh it once the iterations it has cost beyond what a fresh factor needs (its
     /// first step's count) add up to about the price of a refactorisation.
+    /// Under [`super::RefactorPolicy::RealTime`] nothing is charged: the factor is refreshed
+    /// only when CG fails to converge (`cg_with_refactor`).
     pub(super) fn charge_lagged_factor(&mut self, run: usize) {
+        if self.refactor == super::RefactorPolicy::RealTime {
+            return;
+        }
         match self.baseline_iterations {
             None => self.baseline_iterations = Some(run),
             Some(base) => self.extra_iterations += run.saturating_sub(base),
