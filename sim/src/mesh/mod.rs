@@ -133,6 +133,9 @@ mod tetgen;
 mod text;
 mod validate;
 mod vtk;
+mod vtk_binary;
+mod vtk_cells;
+mod vtk_xml;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -143,6 +146,7 @@ pub use gmsh::read_gmsh;
 pub use surface_io::{read_surface, SurfaceMesh};
 pub use tetgen::{read_tetgen, write_tetgen, write_tetgen_numbered};
 pub use vtk::{read_vtk, write_vtk};
+pub use vtk_xml::read_vtk_xml;
 
 /// A validated linear tetrahedral mesh.
 #[derive(Debug, Clone, PartialEq)]
@@ -366,19 +370,22 @@ pub fn read_mesh(path: &Path) -> Result<TetMesh, MeshReadError> {
     match sniff(&first) {
         Some(Format::Gmsh) => read_gmsh(path),
         Some(Format::Vtk) => read_vtk(path),
+        Some(Format::VtkXml) => read_vtk_xml(path),
         None => match ext.as_deref() {
             Some("msh") => read_gmsh(path),
             Some("vtk") => read_vtk(path),
+            Some("vtu") => read_vtk_xml(path),
             _ => {
-                let surface = matches!(ext.as_deref(), Some("stl" | "obj" | "ply"))
+                let surface = matches!(ext.as_deref(), Some("stl" | "obj" | "ply" | "vtp"))
                     || first == "ply"
                     || first.starts_with("solid");
                 Err(MeshReadError::UnsupportedFormat {
                     path: path.to_owned(),
                     reason: format!(
                         "expected a TetGen mesh (.node/.ele), a Gmsh .msh file (first line \
-                         `$MeshFormat` or `$NOD`) or a legacy VTK .vtk file (first line \
-                         `# vtk DataFile Version ...`), but the first line is {}{}",
+                         `$MeshFormat` or `$NOD`), a legacy VTK .vtk file (first line \
+                         `# vtk DataFile Version ...`) or a VTK XML .vtu file (first line \
+                         `<?xml ...` or `<VTKFile ...`), but the first line is {}{}",
                         if first.is_empty() {
                             "empty (or the file is)".to_owned()
                         } else {
@@ -402,6 +409,7 @@ pub fn read_mesh(path: &Path) -> Result<TetMesh, MeshReadError> {
 enum Format {
     Gmsh,
     Vtk,
+    VtkXml,
 }
 
 /// The format a file's first non-blank line announces, if any.
@@ -414,6 +422,7 @@ fn sniff(first: &str) -> Option<Format> {
         {
             Some(Format::Vtk)
         }
+        t if t.starts_with("<?xml") || t.starts_with("<VTKFile") => Some(Format::VtkXml),
         _ => None,
     }
 }

@@ -25,6 +25,8 @@ enum Kind {
     StlBinary,
     Obj,
     Ply,
+    /// Legacy VTK (`# vtk DataFile ...`) or VTK XML.
+    Vtk,
     /// Nothing recognised; the first line, for the message.
     Unknown(String),
 }
@@ -66,21 +68,18 @@ pub fn read_surface(path: &Path) -> Result<SurfaceMesh, MeshReadError> {
         Kind::StlAscii => stl_ascii(path, bytes),
         Kind::Obj => obj(path, bytes),
         Kind::Ply => ply(path, &bytes),
+        Kind::Vtk => super::vtk::read_vtk_surface(path, bytes),
         Kind::Unknown(first) => Err(MeshReadError::UnsupportedFormat {
             path: path.to_owned(),
-            reason: if first.starts_with("# vtk") {
-                "VTK surfaces (POLYDATA) are not read yet; convert it to STL, OBJ or PLY".to_owned()
-            } else {
-                format!(
-                    "expected a surface in STL (ASCII or binary), OBJ or PLY, but the first line \
-                     is {}",
-                    if first.is_empty() {
-                        "empty (or the file is)".to_owned()
-                    } else {
-                        text::quote(&first)
-                    }
-                )
-            },
+            reason: format!(
+                "expected a surface in STL (ASCII or binary), OBJ, PLY or VTK (legacy POLYDATA \
+                 or XML PolyData), but the first line is {}",
+                if first.is_empty() {
+                    "empty (or the file is)".to_owned()
+                } else {
+                    text::quote(&first)
+                }
+            ),
         }),
     }
 }
@@ -93,6 +92,13 @@ fn detect(path: &Path, bytes: &[u8]) -> Kind {
     let first = lines.clone().next().unwrap_or("").to_owned();
     if first == "ply" {
         return Kind::Ply;
+    }
+    if first
+        .get(..14)
+        .is_some_and(|head| head.eq_ignore_ascii_case("# vtk DataFile"))
+        || super::vtk_xml::is_xml(bytes)
+    {
+        return Kind::Vtk;
     }
     if stl_count(bytes).is_some_and(|n| stl_size(n) == bytes.len() as u64) {
         return Kind::StlBinary;
