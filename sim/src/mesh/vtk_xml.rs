@@ -380,7 +380,8 @@ impl<'a, 'd> File<'a, 'd> {
         if comps.trim() != "3" {
             return Err(self.attr_error(da, "NumberOfComponents", "3", comps));
         }
-        let values = self.reals(da, n.saturating_mul(3), "NumberOfPoints × 3 coordinates")?;
+        let what = format!("NumberOfPoints=\"{n}\" × 3 coordinates");
+        let values = self.reals(da, n.saturating_mul(3), &what)?;
         for (i, p) in values.chunks_exact(3).enumerate() {
             if let Some(k) = p.iter().position(|v| !v.is_finite()) {
                 return Err(error_at(
@@ -406,7 +407,7 @@ impl<'a, 'd> File<'a, 'd> {
         cells: &mut Cells,
     ) -> Result<(), MeshReadError> {
         let off_da = self.array(parent, "offsets")?;
-        let offsets = self.ints(off_da, n, count_name)?;
+        let offsets = self.ints(off_da, n, &format!("{count_name}=\"{n}\""))?;
         let mut ends = Vec::with_capacity(offsets.len());
         for (i, &o) in offsets.iter().enumerate() {
             let prev = ends.last().copied().unwrap_or(0);
@@ -424,7 +425,7 @@ impl<'a, 'd> File<'a, 'd> {
         }
         let conn_da = self.array(parent, "connectivity")?;
         let total = ends.last().copied().unwrap_or(0);
-        let conn = self.ints(conn_da, total, "the last offset")?;
+        let conn = self.ints(conn_da, total, &format!("the last offset, {total}"))?;
         let shift = i64::try_from(base).unwrap_or(i64::MAX);
         let first = cells.conn.len();
         if cells.offsets.is_empty() {
@@ -451,7 +452,8 @@ impl<'a, 'd> File<'a, 'd> {
         self.points(piece, np, points)?;
         let cells_node = self.child(piece, "Cells")?;
         self.cell_arrays(cells_node, nc, "NumberOfCells", base, cells)?;
-        let types = self.ints(self.array(cells_node, "types")?, nc, "NumberOfCells")?;
+        let what = format!("NumberOfCells=\"{nc}\"");
+        let types = self.ints(self.array(cells_node, "types")?, nc, &what)?;
         cells.types.extend(types);
         Ok(())
     }
