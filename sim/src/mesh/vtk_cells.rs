@@ -114,7 +114,7 @@ impl Scalar {
     /// Value `raw` (exactly `size()` bytes) as an integer; `None` for a float type or a
     /// `UInt64` above `i64::MAX`.
     pub(super) fn int(self, raw: &[u8], big: bool) -> Option<i64> {
-        let b = ordered(raw, big);
+        let b = ordered(raw.get(..self.size()).unwrap_or(raw), big);
         Some(match self {
             Scalar::I8 => i64::from(b[7] as i8),
             Scalar::U8 => i64::from(b[7]),
@@ -130,7 +130,7 @@ impl Scalar {
 
     /// Value `raw` (exactly `size()` bytes) as a real number (integers converted).
     pub(super) fn real(self, raw: &[u8], big: bool) -> f64 {
-        let b = ordered(raw, big);
+        let b = ordered(raw.get(..self.size()).unwrap_or(raw), big);
         match self {
             Scalar::F32 => f64::from(f32::from_be_bytes([b[4], b[5], b[6], b[7]])),
             Scalar::F64 => f64::from_be_bytes(b),
