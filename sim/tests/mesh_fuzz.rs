@@ -301,8 +301,9 @@ fn mutated_surfaces_never_panic() {
 
 /// The cube of `mesh_text::VTK` as a binary legacy file, in the 5.1 layout or the classic one.
 fn vtk_binary(v51: bool) -> Vec<u8> {
-    let mut b = b"# vtk DataFile Version 5.1\ncube\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS 8 float\n"
-        .to_vec();
+    let mut b =
+        b"# vtk DataFile Version 5.1\ncube\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS 8 float\n"
+            .to_vec();
     for p in cube_nodes() {
         for c in p {
             b.extend((c as f32).to_be_bytes());
@@ -337,10 +338,17 @@ fn vtk_binary(v51: bool) -> Vec<u8> {
 
 /// A tetrahedron's surface as a legacy POLYDATA (ASCII or binary) and a `.vtp`.
 fn polydata_fixtures() -> Vec<(&'static str, Vec<u8>)> {
-    let p = [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let p = [
+        [0.0f32, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
     let tris = [[0i32, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
-    let mut ascii = String::from("# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n");
-    let mut bin = b"# vtk DataFile Version 3.0\nt\nBINARY\nDATASET POLYDATA\nPOINTS 4 float\n".to_vec();
+    let mut ascii =
+        String::from("# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n");
+    let mut bin =
+        b"# vtk DataFile Version 3.0\nt\nBINARY\nDATASET POLYDATA\nPOINTS 4 float\n".to_vec();
     for q in p {
         ascii += &format!("{} {} {}\n", q[0], q[1], q[2]);
         for c in q {
@@ -370,7 +378,10 @@ fn polydata_fixtures() -> Vec<(&'static str, Vec<u8>)> {
         "PolyData",
         "NumberOfPoints=\"4\" NumberOfPolys=\"4\"",
         &[
-            ("Points", vec![vtk_build::Array::new("Float32", "Points", 3, points)]),
+            (
+                "Points",
+                vec![vtk_build::Array::new("Float32", "Points", 3, points)],
+            ),
             (
                 "Polys",
                 vec![
@@ -380,7 +391,11 @@ fn polydata_fixtures() -> Vec<(&'static str, Vec<u8>)> {
             ),
         ],
     );
-    vec![("s.vtk", ascii.into_bytes()), ("t.vtk", bin), ("u.vtp", vtp)]
+    vec![
+        ("s.vtk", ascii.into_bytes()),
+        ("t.vtk", bin),
+        ("u.vtp", vtp),
+    ]
 }
 
 #[test]
@@ -397,12 +412,30 @@ fn mutated_vtk_files_never_panic() {
     let volumes: Vec<(&str, Vec<u8>)> = vec![
         ("a.vtk", vtk_binary(true)),
         ("b.vtk", vtk_binary(false)),
-        ("c.vtu", cube_vtu(&enc(Place::Ascii, false, false, None, true))),
-        ("d.vtu", cube_vtu(&enc(Place::Inline, false, false, None, false))),
-        ("e.vtu", cube_vtu(&enc(Place::Inline, true, true, Some(32), true))),
-        ("f.vtu", cube_vtu(&enc(Place::Raw, false, false, None, true))),
-        ("g.vtu", cube_vtu(&enc(Place::Raw, true, true, Some(32), true))),
-        ("h.vtu", cube_vtu(&enc(Place::Base64, false, false, Some(32), true))),
+        (
+            "c.vtu",
+            cube_vtu(&enc(Place::Ascii, false, false, None, true)),
+        ),
+        (
+            "d.vtu",
+            cube_vtu(&enc(Place::Inline, false, false, None, false)),
+        ),
+        (
+            "e.vtu",
+            cube_vtu(&enc(Place::Inline, true, true, Some(32), true)),
+        ),
+        (
+            "f.vtu",
+            cube_vtu(&enc(Place::Raw, false, false, None, true)),
+        ),
+        (
+            "g.vtu",
+            cube_vtu(&enc(Place::Raw, true, true, Some(32), true)),
+        ),
+        (
+            "h.vtu",
+            cube_vtu(&enc(Place::Base64, false, false, Some(32), true)),
+        ),
     ];
     for (name, bytes) in &volumes {
         let mesh = read_mesh(&write(&dir, name, bytes)).unwrap_or_else(|e| panic!("{e}"));

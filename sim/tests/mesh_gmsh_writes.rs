@@ -45,21 +45,39 @@ fn gmsh_msh_and_vtk_files_read_to_the_same_mesh() {
         let out = dir.join(name);
         gmsh("-3", &geo, format, extra, &out);
         let mesh = read_mesh(&out).unwrap_or_else(|e| panic!("{name}: {e}"));
-        assert!(mesh.tets.len() > 300, "{name}: {} tetrahedra", mesh.tets.len());
+        assert!(
+            mesh.tets.len() > 300,
+            "{name}: {} tetrahedra",
+            mesh.tets.len()
+        );
         meshes.push((name, mesh));
     }
     let head = std::fs::read(dir.join("ball-binary.vtk")).unwrap();
-    assert!(head.windows(7).any(|w| w == b"BINARY\n"), "gmsh -bin wrote ASCII VTK");
+    assert!(
+        head.windows(7).any(|w| w == b"BINARY\n"),
+        "gmsh -bin wrote ASCII VTK"
+    );
     let (_, first) = &meshes[0];
     let info = first.info();
     // A sphere of radius 0.02 m, meshed with flat faces: a little under 4/3 π r³.
     let sphere = 4.0 / 3.0 * std::f64::consts::PI * 0.02f64.powi(3);
-    assert!(info.volume < sphere && info.volume > 0.9 * sphere, "{}", info.volume);
+    assert!(
+        info.volume < sphere && info.volume > 0.9 * sphere,
+        "{}",
+        info.volume
+    );
     for (name, mesh) in &meshes[1..] {
         let other = mesh.info();
         assert_eq!((other.nodes, other.tets), (info.nodes, info.tets), "{name}");
-        assert!((other.volume - info.volume).abs() <= 1e-12 * info.volume, "{name}: {}", other.volume);
-        assert!(tets(mesh) == tets(first), "{name}: other tetrahedra than ball-1.msh");
+        assert!(
+            (other.volume - info.volume).abs() <= 1e-12 * info.volume,
+            "{name}: {}",
+            other.volume
+        );
+        assert!(
+            tets(mesh) == tets(first),
+            "{name}: other tetrahedra than ball-1.msh"
+        );
     }
 }
 
@@ -71,7 +89,13 @@ fn gmsh_binary_msh_is_refused_with_how_to_reexport() {
         let out = dir.join(format!("ball-{format}-bin.msh"));
         gmsh("-3", &geo, format, &["-bin"], &out);
         let err = read_mesh(&out).unwrap_err();
-        assert!(matches!(err, MeshReadError::UnsupportedFormat { .. }), "{err}");
-        says(&err, &[&format!("ball-{format}-bin.msh"), "binary", "-format msh22"]);
+        assert!(
+            matches!(err, MeshReadError::UnsupportedFormat { .. }),
+            "{err}"
+        );
+        says(
+            &err,
+            &[&format!("ball-{format}-bin.msh"), "binary", "-format msh22"],
+        );
     }
 }

@@ -142,7 +142,10 @@ fn every_file_meshio_writes_reads_to_its_mesh() {
         }
     }
     // Recognised by content: a .vtu under another name, and XML inside a .vtk.
-    for (from, to) in [("vol-zlib.vtu", "renamed.dat"), ("vol-base64.vtu", "xml.vtk")] {
+    for (from, to) in [
+        ("vol-zlib.vtu", "renamed.dat"),
+        ("vol-base64.vtu", "xml.vtk"),
+    ] {
         let path = write(&dir, to, std::fs::read(dir.join(from)).unwrap());
         let mesh = read_mesh(&path).unwrap_or_else(|e| panic!("{to}: {e}"));
         assert_eq!(mesh.tets.len(), r.tets, "{to}");
@@ -203,7 +206,12 @@ fn malformed_meshio_files_are_refused_with_their_place() {
     let err = refused(&bad, "trunc.vtu", &b64.as_bytes()[..cut.start + 40], &[]);
     assert!(matches!(err, MeshReadError::Parse { .. }), "{err}");
     let bin = std::fs::read(dir.join("vol-binary-51.vtk")).unwrap();
-    refused(&bad, "trunc.vtk", &bin[..bin.len() / 2], &["byte", "bytes left"]);
+    refused(
+        &bad,
+        "trunc.vtk",
+        &bin[..bin.len() / 2],
+        &["byte", "bytes left"],
+    );
     let bin42 = std::fs::read(dir.join("vol-binary-42.vtk")).unwrap();
     refused(&bad, "trunc42.vtk", &bin42[..bin42.len() - 30], &["byte"]);
 
@@ -264,8 +272,16 @@ fn malformed_meshio_files_are_refused_with_their_place() {
     let first = c.start + a[c.clone()].find(|ch: char| ch.is_ascii_digit()).unwrap();
     let end = first + a[first..].find(char::is_whitespace).unwrap();
     t.replace_range(first..end, "60");
-    let err = refused(&bad, "ids.vtu", t.as_bytes(), &["node index 60", "60 nodes"]);
-    assert!(matches!(err, MeshReadError::IndexOutOfRange { .. }), "{err}");
+    let err = refused(
+        &bad,
+        "ids.vtu",
+        t.as_bytes(),
+        &["node index 60", "60 nodes"],
+    );
+    assert!(
+        matches!(err, MeshReadError::IndexOutOfRange { .. }),
+        "{err}"
+    );
     let mut b = bin.clone();
     let at = find(&b, b"CONNECTIVITY vtktypeint64\n") + 26;
     b[at..at + 8].copy_from_slice(&(-3i64).to_be_bytes());
@@ -293,5 +309,7 @@ fn base64_encode(bytes: &[u8]) -> String {
 }
 
 fn base64_decode(text: &str) -> Vec<u8> {
-    base64::engine::general_purpose::STANDARD.decode(text).unwrap()
+    base64::engine::general_purpose::STANDARD
+        .decode(text)
+        .unwrap()
 }

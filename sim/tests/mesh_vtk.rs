@@ -74,7 +74,12 @@ fn broken_appended_and_compressed_data_is_refused_with_its_place() {
 
     // No `_` marker.
     let t = String::from_utf8(cube_vtu(&enc(Place::Base64, None))).unwrap();
-    refused(&dir, "marker.vtu", t.replacen("   _", "    ", 1).as_bytes(), &["`_`"]);
+    refused(
+        &dir,
+        "marker.vtu",
+        t.replacen("   _", "    ", 1).as_bytes(),
+        &["`_`"],
+    );
 
     // An offset past the appended data.
     let t = t.replacen("offset=\"0\"", "offset=\"99999\"", 1);
@@ -110,11 +115,31 @@ fn broken_appended_and_compressed_data_is_refused_with_its_place() {
     let err = read_mesh(&write(&dir, "lz4.vtu", t.replace("vtkZLib", "vtkLZ4"))).unwrap_err();
     assert!(matches!(err, MeshReadError::UnsupportedFormat { .. }));
     says(&err, &["lz4.vtu", "vtkLZ4DataCompressor"]);
-    refused(&dir, "order.vtu", t.replace("LittleEndian", "Middle").as_bytes(), &[":2:", "`Middle`"]);
-    refused(&dir, "type.vtu", t.replace("Float64", "Float16").as_bytes(), &["`Float16`"]);
-    let err = read_mesh(&write(&dir, "poly.vtu", t.replace("UnstructuredGrid", "PolyData"))).unwrap_err();
+    refused(
+        &dir,
+        "order.vtu",
+        t.replace("LittleEndian", "Middle").as_bytes(),
+        &[":2:", "`Middle`"],
+    );
+    refused(
+        &dir,
+        "type.vtu",
+        t.replace("Float64", "Float16").as_bytes(),
+        &["`Float16`"],
+    );
+    let err = read_mesh(&write(
+        &dir,
+        "poly.vtu",
+        t.replace("UnstructuredGrid", "PolyData"),
+    ))
+    .unwrap_err();
     says(&err, &["poly.vtu", "read_surface"]);
-    refused(&dir, "xml.vtu", t.replace("</Piece>", "</Peace>").as_bytes(), &["XML"]);
+    refused(
+        &dir,
+        "xml.vtu",
+        t.replace("</Piece>", "</Peace>").as_bytes(),
+        &["XML"],
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -149,7 +174,8 @@ fn legacy_polydata_ascii(v51: bool) -> String {
 }
 
 fn legacy_polydata_binary(v51: bool) -> Vec<u8> {
-    let mut b = b"# vtk DataFile Version 5.1\nsurface\nBINARY\nDATASET POLYDATA\nPOINTS 5 float\n".to_vec();
+    let mut b =
+        b"# vtk DataFile Version 5.1\nsurface\nBINARY\nDATASET POLYDATA\nPOINTS 5 float\n".to_vec();
     for p in SURF_POINTS {
         for c in p {
             b.extend(c.to_be_bytes());
@@ -175,7 +201,11 @@ fn legacy_polydata_binary(v51: bool) -> Vec<u8> {
 }
 
 fn vtp(e: &Encoding) -> Vec<u8> {
-    let points = SURF_POINTS.iter().flatten().map(|&c| f64::from(c)).collect();
+    let points = SURF_POINTS
+        .iter()
+        .flatten()
+        .map(|&c| f64::from(c))
+        .collect();
     vtk_xml(
         e,
         "PolyData",
@@ -223,18 +253,41 @@ fn polydata_surfaces_read_in_every_form() {
 #[test]
 fn polydata_polygons_other_than_triangles_and_quads_are_refused() {
     let dir = scratch("vtk-poly-bad");
-    let t = legacy_polydata_ascii(false).replace("POLYGONS 2 9\n3 0 1 4\n4 0 3 2 1\n", "POLYGONS 2 10\n3 0 1 4\n5 0 3 2 1 4\n");
-    let err = refused(&dir, "s5.vtk", t.as_bytes(), &[":15:", "polygon 1", "5 points"]);
+    let t = legacy_polydata_ascii(false).replace(
+        "POLYGONS 2 9\n3 0 1 4\n4 0 3 2 1\n",
+        "POLYGONS 2 10\n3 0 1 4\n5 0 3 2 1 4\n",
+    );
+    let err = refused(
+        &dir,
+        "s5.vtk",
+        t.as_bytes(),
+        &[":15:", "polygon 1", "5 points"],
+    );
     assert!(matches!(err, MeshReadError::Parse { line: 15, .. }));
     let t = legacy_polydata_ascii(false).replace("POLYGONS 2 9", "TRIANGLE_STRIPS 2 9");
-    refused(&dir, "strips.vtk", t.as_bytes(), &[":13:", "triangle strips"]);
+    refused(
+        &dir,
+        "strips.vtk",
+        t.as_bytes(),
+        &[":13:", "triangle strips"],
+    );
     let t = legacy_polydata_ascii(false).replace("4 0 3 2 1", "4 0 3 2 9");
-    refused(&dir, "sid.vtk", t.as_bytes(), &[":15:", "node index 9", "5 nodes"]);
+    refused(
+        &dir,
+        "sid.vtk",
+        t.as_bytes(),
+        &[":15:", "node index 9", "5 nodes"],
+    );
     // Binary: the byte offset of the bad point id.
     let mut b = legacy_polydata_binary(true);
     let at = find(&b, b"CONNECTIVITY vtktypeint64\n") + 26 + 8 * 5;
     b[at..at + 8].copy_from_slice(&7i64.to_be_bytes());
-    let err = refused(&dir, "sbin.vtk", &b, &["point id below 5", "polygon 1", "`7`"]);
+    let err = refused(
+        &dir,
+        "sbin.vtk",
+        &b,
+        &["point id below 5", "polygon 1", "`7`"],
+    );
     assert_eq!(err.offset(), Some(at as u64 - 16));
     let t = String::from_utf8(vtp(&enc(Place::Ascii, None))).unwrap();
     let t = t.replace("NumberOfStrips=\"0\"", "NumberOfStrips=\"1\"");

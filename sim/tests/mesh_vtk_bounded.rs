@@ -58,7 +58,10 @@ fn refused_small(dir: &std::path::Path, name: &str, bytes: &[u8], surface: bool,
     for n in needles {
         assert!(msg.contains(n), "{n:?} missing from {msg}");
     }
-    assert!(largest < 4 << 20, "{name}: an allocation of {largest} bytes");
+    assert!(
+        largest < 4 << 20,
+        "{name}: an allocation of {largest} bytes"
+    );
 }
 
 #[test]
@@ -68,10 +71,17 @@ fn headers_claiming_a_trillion_points_are_refused_before_allocating() {
     for e in all_encodings() {
         let name = name(&e);
         let t = cube_vtu(&e);
-        let t = String::from_utf8_lossy(&t).replace("NumberOfPoints=\"8\"", &format!("NumberOfPoints=\"{TRILLION}\""));
+        let t = String::from_utf8_lossy(&t).replace(
+            "NumberOfPoints=\"8\"",
+            &format!("NumberOfPoints=\"{TRILLION}\""),
+        );
         // Raw appended data is not UTF-8 text: patch the bytes instead.
         let bytes = if e.place == Place::Raw {
-            patch(&cube_vtu(&e), b"NumberOfPoints=\"8\"", format!("NumberOfPoints=\"{TRILLION}\"").as_bytes())
+            patch(
+                &cube_vtu(&e),
+                b"NumberOfPoints=\"8\"",
+                format!("NumberOfPoints=\"{TRILLION}\"").as_bytes(),
+            )
         } else {
             t.into_bytes()
         };
@@ -83,12 +93,25 @@ fn headers_claiming_a_trillion_points_are_refused_before_allocating() {
     refused_small(&dir, "ascii.vtk", ascii.as_bytes(), false, &[TRILLION]);
     let mut bin = format!("# vtk DataFile Version 3.0\nx\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS {TRILLION} double\n").into_bytes();
     bin.extend([0u8; 64]);
-    refused_small(&dir, "binary.vtk", &bin, false, &["24000000000000 bytes", "64 bytes left"]);
-    let mut cells = b"# vtk DataFile Version 3.0\nx\nBINARY\nDATASET POLYDATA\nPOINTS 1 float\n".to_vec();
+    refused_small(
+        &dir,
+        "binary.vtk",
+        &bin,
+        false,
+        &["24000000000000 bytes", "64 bytes left"],
+    );
+    let mut cells =
+        b"# vtk DataFile Version 3.0\nx\nBINARY\nDATASET POLYDATA\nPOINTS 1 float\n".to_vec();
     cells.extend([0u8; 12]);
     cells.extend(format!("\nPOLYGONS {TRILLION} {TRILLION}\n").into_bytes());
     cells.extend([0u8; 16]);
-    refused_small(&dir, "cells.vtk", &cells, true, &["4000000000000 bytes", "bytes left"]);
+    refused_small(
+        &dir,
+        "cells.vtk",
+        &cells,
+        true,
+        &["4000000000000 bytes", "bytes left"],
+    );
 
     // A zlib block that claims to expand 10 compressed bytes to 24 MB, consistent with
     // NumberOfPoints="1000000": refused by the deflate ratio before decompressing.
@@ -99,12 +122,22 @@ fn headers_claiming_a_trillion_points_are_refused_before_allocating() {
         zlib: Some(48),
         separate: true,
     };
-    let mut b = patch(&cube_vtu(&e), b"NumberOfPoints=\"8\"", b"NumberOfPoints=\"1000000\"");
+    let mut b = patch(
+        &cube_vtu(&e),
+        b"NumberOfPoints=\"8\"",
+        b"NumberOfPoints=\"1000000\"",
+    );
     let start = b.windows(4).position(|w| w == b"   _").unwrap() + 4;
     for (k, v) in [1u32, 24_000_000, 0, 10].iter().enumerate() {
         b[start + 4 * k..start + 4 * k + 4].copy_from_slice(&v.to_le_bytes());
     }
-    refused_small(&dir, "ratio.vtu", &b, false, &["10 compressed bytes declared to expand to 24000000"]);
+    refused_small(
+        &dir,
+        "ratio.vtu",
+        &b,
+        false,
+        &["10 compressed bytes declared to expand to 24000000"],
+    );
 }
 
 fn patch(bytes: &[u8], from: &[u8], to: &[u8]) -> Vec<u8> {

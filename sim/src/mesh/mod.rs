@@ -16,14 +16,16 @@
 //! |---|---|---|
 //! | path `X.node`, `X.ele`, or `X` with `X.node` beside it | TetGen | [`read_tetgen`] |
 //! | first line `$MeshFormat` or `$NOD` | Gmsh ASCII 1, 2.2 or 4.1 | [`read_gmsh`] |
-//! | first line `# vtk DataFile ...` | legacy VTK ASCII `UNSTRUCTURED_GRID` (file versions up to 5.1) | [`read_vtk`] |
-//! | otherwise the extension `*.msh` / `*.vtk` | (the reader then says what is wrong) | |
+//! | first line `# vtk DataFile ...` | legacy VTK `UNSTRUCTURED_GRID`, ASCII or binary (file versions up to 5.1) | [`read_vtk`] |
+//! | first line `<?xml ...` or `<VTKFile ...` | VTK XML `UnstructuredGrid` (`.vtu`) | [`read_vtk_xml`] |
+//! | otherwise the extension `*.msh` / `*.vtk` / `*.vtu` | (the reader then says what is wrong) | |
 //!
 //! So a Gmsh file named `liver.txt` or a VTK file named `liver.dat` reads. A file that is
 //! none of these is a [`MeshReadError::UnsupportedFormat`] that quotes its first line.
 //!
-//! Triangle surfaces (STL ASCII and binary, OBJ, PLY ASCII and binary) are read by
-//! [`read_surface`] into a [`SurfaceMesh`]; see there for what is read of each. They are not
+//! Triangle surfaces (STL ASCII and binary, OBJ, PLY ASCII and binary, VTK legacy `POLYDATA`
+//! and XML `PolyData`) are read by [`read_surface`] into a [`SurfaceMesh`]; see there for what
+//! is read of each. They are not
 //! volume meshes: `read_mesh` does not read them.
 //!
 //! Coordinates are taken as they are written: they are metres by convention, and no unit
@@ -68,19 +70,31 @@
 //! [`MeshReadError::UnsupportedFormat`] (re-export with `gmsh -format msh22` or `msh41`,
 //! ASCII).
 //!
-//! ## VTK (`*.vtk`, or any name with VTK content)
+//! ## VTK (`*.vtk`, `*.vtu`, or any name with VTK content)
 //!
-//! Legacy ASCII `DATASET UNSTRUCTURED_GRID`, with `POINTS`, `CELLS` (either the classic
-//! `<count> <ids...>` list or the 5.1 `OFFSETS`/`CONNECTIVITY` arrays) and `CELL_TYPES`. Only
-//! cells of type 10 (`VTK_TETRA`) are kept. `FIELD` and `METADATA` blocks are skipped and
-//! reading stops at `POINT_DATA` / `CELL_DATA`. Points are numbered from 0. Binary files are
-//! rejected.
+//! Legacy `DATASET UNSTRUCTURED_GRID`, ASCII or binary (`BINARY` on line 3: the arrays are
+//! big-endian, as the legacy format specifies), with `POINTS` (any numeric type), `CELLS`
+//! (either the classic `<count> <ids...>` list or the 5.1 `OFFSETS`/`CONNECTIVITY` arrays)
+//! and `CELL_TYPES`. `FIELD` and `METADATA` blocks are skipped and reading stops at
+//! `POINT_DATA` / `CELL_DATA`.
+//!
+//! VTK XML `UnstructuredGrid` (`.vtu`, or XML inside a `.vtk`): `DataArray`s in `ascii`,
+//! `binary` (base64) or `appended` (`raw` or `base64`) format, uncompressed or with
+//! `vtkZLibDataCompressor`, either `byte_order`, `header_type` `UInt32` or `UInt64`, several
+//! `<Piece>`s joined; other compressors are [`MeshReadError::UnsupportedFormat`]. Every count
+//! and size in a header is checked against the bytes in the file before anything is allocated
+//! for it.
+//!
+//! Only cells of type 10 (`VTK_TETRA`) are kept; the others are skipped, and an error for a
+//! file with no tetrahedra says how many were. Points are numbered from 0. Errors give the
+//! line in text and the byte offset in binary data (raw appended data, binary legacy arrays).
+//! A `POLYDATA` / `PolyData` file is a surface: read it with [`read_surface`].
 //!
 //! ## Fixed nodes: the boundary file (`.bnd`)
 //!
 //! lop's own format for the "additional file specifying the boundary constraints" of the
 //! thesis. It sits beside the mesh: `X.bnd` for TetGen base `X`, `<stem>.bnd` for
-//! `<stem>.msh` / `<stem>.vtk`. If it is absent, no node is fixed.
+//! `<stem>.msh` / `<stem>.vtk` / `<stem>.vtu`. If it is absent, no node is fixed.
 //!
 //! ```text
 //! # comments start with '#', anywhere on a line; blank lines are ignored

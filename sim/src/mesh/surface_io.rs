@@ -1,5 +1,6 @@
-//! Triangle surfaces from files: STL (ASCII and binary), Wavefront OBJ and PLY (ASCII and
-//! binary, either byte order). See [`read_surface`].
+//! Triangle surfaces from files: STL (ASCII and binary), Wavefront OBJ, PLY (ASCII and
+//! binary, either byte order) and VTK (legacy and XML, read by the VTK modules). See
+//! [`read_surface`].
 
 use std::collections::hash_map::{Entry, HashMap};
 use std::path::Path;
@@ -50,6 +51,12 @@ enum Kind {
 ///   `v x y z [w | r g b]` and `f` with `i`, `i/t`, `i//n` or `i/t/n` corners, negative
 ///   numbers counting back from the last vertex so far; polygons are fanned into triangles.
 ///   Texture coordinates, normals, groups, materials, lines and points are skipped.
+/// - **VTK**: the first line is `# vtk DataFile ...` (legacy, ASCII or binary) or `<?xml` /
+///   `<VTKFile` (XML; every encoding [`super::read_vtk_xml`] reads). A `POLYDATA` / `PolyData`
+///   with its `POLYGONS` / `<Polys>`, or an unstructured grid of triangles and quadrilaterals
+///   (types 5 and 9; as meshio writes surfaces). Triangles are kept; a quadrilateral `a b c d`
+///   is split into `a b c` and `a c d`; any other polygon, triangle strips and volume cells
+///   are refused naming the cell. Vertices and lines are skipped.
 ///
 /// STL repeats each vertex in every triangle that uses it: vertices with equal coordinates
 /// (`-0.0` equal to `0.0`) are merged into one. OBJ and PLY vertices are kept as listed.

@@ -59,7 +59,11 @@ pub(super) fn read(path: &Path, bytes: &[u8]) -> Result<Legacy, MeshReadError> {
             }
             "CELLS" | "POLYGONS" | "VERTICES" | "LINES" | "TRIANGLE_STRIPS" => {
                 let [_, n, size] = words[..] else {
-                    return Err(r.error(at, format!("`{keyword} <n> <size>`"), quote_words(&words)));
+                    return Err(r.error(
+                        at,
+                        format!("`{keyword} <n> <size>`"),
+                        quote_words(&words),
+                    ));
                 };
                 let n = r.count(at, n, "the number of cells")?;
                 let size = r.count(at, size, "the size of the cell list")?;
@@ -253,7 +257,7 @@ impl<'a> Cursor<'a> {
     }
 
     fn points(&mut self, n: usize, scalar: Scalar) -> Result<Vec<[f64; 3]>, MeshReadError> {
-        let values = n.checked_mul(3).unwrap_or(usize::MAX);
+        let values = n.saturating_mul(3);
         let (start, raw) = self.array(values, scalar, "point coordinates")?;
         let size = scalar.size();
         let mut points = Vec::with_capacity(n);
@@ -454,11 +458,7 @@ impl<'a> Cursor<'a> {
             let comps = self.count(at, comps, "the number of components")?;
             let tuples = self.count(at, tuples, "the number of tuples")?;
             let scalar = self.scalar(at, kind)?;
-            self.array(
-                comps.saturating_mul(tuples),
-                scalar,
-                "field array values",
-            )?;
+            self.array(comps.saturating_mul(tuples), scalar, "field array values")?;
             a += 1;
         }
         Ok(())

@@ -248,7 +248,13 @@ pub(super) fn tets(path: &Path, points: usize, cells: &Cells) -> Result<Tets, Me
         }
         let mut tet = [0u32; 4];
         for (j, (slot, &id)) in tet.iter_mut().zip(ids).enumerate() {
-            *slot = point(path, loc(c), points, id, format_args!("point {j} of cell {c}"))?;
+            *slot = point(
+                path,
+                loc(c),
+                points,
+                id,
+                format_args!("point {j} of cell {c}"),
+            )?;
         }
         out.tets.push(tet);
         out.labels.push(i64::try_from(c).unwrap_or(i64::MAX));
@@ -271,13 +277,21 @@ pub(super) fn triangles(
             return Err(error_at(
                 path,
                 loc(c),
-                format!("a triangle or a quadrilateral for polygon {c} (other polygons are not read)"),
+                format!(
+                    "a triangle or a quadrilateral for polygon {c} (other polygons are not read)"
+                ),
                 format!("a polygon of {} points", ids.len()),
             ));
         }
         let mut p = [0u32; 4];
         for (j, &id) in ids.iter().enumerate() {
-            p[j] = point(path, loc(c), points, id, format_args!("point {j} of polygon {c}"))?;
+            p[j] = point(
+                path,
+                loc(c),
+                points,
+                id,
+                format_args!("point {j} of polygon {c}"),
+            )?;
         }
         out.push([p[0], p[1], p[2]]);
         if ids.len() == 4 {
@@ -291,10 +305,12 @@ pub(super) fn triangles(
 pub(super) fn line_numbers(cells: &Cells, labels: &[i64]) -> Vec<usize> {
     labels
         .iter()
-        .map_while(|&c| match cells.loc(usize::try_from(c).unwrap_or(usize::MAX)) {
-            Loc::Line(line) => Some(line),
-            Loc::Byte(_) => None,
-        })
+        .map_while(
+            |&c| match cells.loc(usize::try_from(c).unwrap_or(usize::MAX)) {
+                Loc::Line(line) => Some(line),
+                Loc::Byte(_) => None,
+            },
+        )
         .collect()
 }
 

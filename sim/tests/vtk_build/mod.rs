@@ -90,13 +90,18 @@ pub fn framed(e: &Encoding, data: &[u8]) -> (Vec<u8>, Vec<u8>) {
         None => (word(e, data.len()), data.to_vec()),
         Some(block) => {
             let blocks: Vec<&[u8]> = data.chunks(block).collect();
-            let last = if data.len() % block == 0 { 0 } else { data.len() % block };
+            let last = if data.len().is_multiple_of(block) {
+                0
+            } else {
+                data.len() % block
+            };
             let mut header = word(e, blocks.len());
             header.extend(word(e, block));
             header.extend(word(e, if blocks.is_empty() { 0 } else { last }));
             let mut body = Vec::new();
             for b in &blocks {
-                let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+                let mut z =
+                    flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
                 z.write_all(b).unwrap();
                 let c = z.finish().unwrap();
                 header.extend(word(e, c.len()));
@@ -177,7 +182,9 @@ pub fn vtk_xml(
                     }
                     xml += "        ";
                 }
-                Place::Inline => xml += &format!("\n          {}\n        ", b64_framed(e, &header, &body)),
+                Place::Inline => {
+                    xml += &format!("\n          {}\n        ", b64_framed(e, &header, &body))
+                }
                 Place::Raw => {
                     appended.extend(header);
                     appended.extend(body);
@@ -192,7 +199,11 @@ pub fn vtk_xml(
     let mut out = xml.into_bytes();
     match e.place {
         Place::Raw | Place::Base64 => {
-            let encoding = if e.place == Place::Raw { "raw" } else { "base64" };
+            let encoding = if e.place == Place::Raw {
+                "raw"
+            } else {
+                "base64"
+            };
             out.extend(format!("  <AppendedData encoding=\"{encoding}\">\n   _").into_bytes());
             out.extend(appended);
             out.extend(b"\n  </AppendedData>\n");
