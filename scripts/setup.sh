@@ -4,6 +4,8 @@
 #   tetgen    regenerates and checks the shipped meshes (assets/generate.py --check)
 #   gmsh      meshes the graded test blocks of `lop-bench haptics` (bench/src/haptics/block.rs)
 #   rt-tests  cyclictest, the machine's own wake-up latency floor in `lop-bench latency`
+#   python3-meshio  writes the VTK, STL, OBJ and PLY files that the mesh readers are tested on
+#             (sim/tests/mesh_meshio.rs); an independent writer, with numpy
 #   chromium  headless browser for the web viewer's screenshot test (view/tests/browser.rs)
 #   iceoryx2  the Python binding, at exactly the daemon's iceoryx2 version, for the renderer
 #             contract's Python consumer example (examples/python/consumer.py)
@@ -19,6 +21,9 @@ command -v gmsh >/dev/null 2>&1 || need+=(gmsh)
 command -v cyclictest >/dev/null 2>&1 || need+=(rt-tests)
 command -v python3 >/dev/null 2>&1 || need+=(python3)
 command -v chromium >/dev/null 2>&1 || need+=(chromium)
+# Debian's package installs for /usr/bin/python3, which the tests fall back to.
+python3 -c 'import meshio' >/dev/null 2>&1 || /usr/bin/python3 -c 'import meshio' >/dev/null 2>&1 \
+  || need+=(python3-meshio)
 
 if [ ${#need[@]} -gt 0 ]; then
   if ! command -v apt-get >/dev/null 2>&1; then

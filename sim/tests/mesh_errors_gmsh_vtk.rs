@@ -261,9 +261,11 @@ fn vtk_errors() {
     let (_, err) = read_vtk_text("vtk-poly", VTK.replace("UNSTRUCTURED_GRID", "POLYDATA"));
     assert!(matches!(err, MeshReadError::UnsupportedFormat { .. }));
 
+    // BINARY with ASCII data: the binary reader takes the text as big-endian doubles and
+    // reports where the data stops making sense, by byte offset.
     let (_, err) = read_vtk_text("vtk-binary", VTK.replace("ASCII", "BINARY"));
-    assert!(matches!(err, MeshReadError::UnsupportedFormat { .. }));
-    says(&err, &["binary"]);
+    assert!(err.offset().is_some(), "{err}");
+    says(&err, &["m.vtk: byte "]);
 
     let (_, err) = read_vtk_text(
         "vtk-header",

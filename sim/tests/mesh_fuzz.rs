@@ -1,7 +1,8 @@
-//! Mesh readers: mutated files of every format (TetGen, Gmsh 1, 2.2 and 4.1, VTK; STL, OBJ,
-//! PLY surfaces) never panic a reader.
+//! Mesh readers: mutated files of every format (TetGen, Gmsh 1, 2.2 and 4.1, legacy VTK ASCII
+//! and binary, VTK XML in each encoding; STL, OBJ, PLY and VTK surfaces) never panic a reader.
 
 mod mesh_text;
+mod vtk_build;
 
 use std::fs;
 
@@ -293,4 +294,187 @@ fn mutated_surfaces_never_panic() {
     }
     println!("ok: {}, errors: {}", outcomes[0], outcomes[1]);
     assert!(outcomes[0] >= 50 && outcomes[1] >= 300, "{outcomes:?}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// VTK: binary legacy, XML in each encoding, POLYDATA
+
+/// The cube of `mesh_text::VTK` as a binary legacy file, in the 5.1 layout or the classic one.
+fn vtk_binary(v51: bool) -> Vec<u8> {
+    let mut b =
+        b"# vtk DataFile Version 5.1\ncube\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS 8 float\n"
+            .to_vec();
+    for p in cube_nodes() {
+        for c in p {
+            b.extend((c as f32).to_be_bytes());
+        }
+    }
+    let tets = cube_tets();
+    if v51 {
+        b.extend(b"\nCELLS 6 20\nOFFSETS vtktypeint64\n");
+        for o in 0..6i64 {
+            b.extend((4 * o).to_be_bytes());
+        }
+        b.extend(b"\nCONNECTIVITY vtktypeint64\n");
+        for i in tets.iter().flatten() {
+            b.extend(i64::from(*i).to_be_bytes());
+        }
+    } else {
+        b.extend(b"\nCELLS 5 25\n");
+        for t in &tets {
+            b.extend(4i32.to_be_bytes());
+            for i in t {
+                b.extend((*i as i32).to_be_bytes());
+            }
+        }
+    }
+    b.extend(b"\nCELL_TYPES 5\n");
+    for _ in &tets {
+        b.extend(10i32.to_be_bytes());
+    }
+    b.extend(b"\n");
+    b
+}
+
+/// A tetrahedron's surface as a legacy POLYDATA (ASCII or binary) and a `.vtp`.
+fn polydata_fixtures() -> Vec<(&'static str, Vec<u8>)> {
+    let p = [
+        [0.0f32, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    let tris = [[0i32, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+    let mut ascii =
+        String::from("# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n");
+    let mut bin =
+        b"# vtk DataFile Version 3.0\nt\nBINARY\nDATASET POLYDATA\nPOINTS 4 float\n".to_vec();
+    for q in p {
+        ascii += &format!("{} {} {}\n", q[0], q[1], q[2]);
+        for c in q {
+            bin.extend(c.to_be_bytes());
+        }
+    }
+    ascii += "POLYGONS 4 16\n";
+    bin.extend(b"\nPOLYGONS 4 16\n");
+    for t in tris {
+        ascii += &format!("3 {} {} {}\n", t[0], t[1], t[2]);
+        bin.extend(3i32.to_be_bytes());
+        for i in t {
+            bin.extend(i.to_be_bytes());
+        }
+    }
+    let e = vtk_build::Encoding {
+        place: vtk_build::Place::Raw,
+        big: true,
+        u64_header: false,
+        zlib: Some(16),
+        separate: true,
+    };
+    let points = p.iter().flatten().map(|&c| f64::from(c)).collect();
+    let conn = tris.iter().flatten().map(|&i| f64::from(i)).collect();
+    let vtp = vtk_build::vtk_xml(
+        &e,
+        "PolyData",
+        "NumberOfPoints=\"4\" NumberOfPolys=\"4\"",
+        &[
+            (
+                "Points",
+                vec![vtk_build::Array::new("Float32", "Points", 3, points)],
+            ),
+            (
+                "Polys",
+                vec![
+                    vtk_build::Array::new("Int64", "connectivity", 1, conn),
+                    vtk_build::Array::new("Int64", "offsets", 1, vec![3., 6., 9., 12.]),
+                ],
+            ),
+        ],
+    );
+    vec![
+        ("s.vtk", ascii.into_bytes()),
+        ("t.vtk", bin),
+        ("u.vtp", vtp),
+    ]
+}
+
+#[test]
+fn mutated_vtk_files_never_panic() {
+    use vtk_build::{cube_vtu, Encoding, Place};
+    let dir = scratch("fuzz-vtk");
+    let enc = |place, big, u64_header, zlib, separate| Encoding {
+        place,
+        big,
+        u64_header,
+        zlib,
+        separate,
+    };
+    let volumes: Vec<(&str, Vec<u8>)> = vec![
+        ("a.vtk", vtk_binary(true)),
+        ("b.vtk", vtk_binary(false)),
+        (
+            "c.vtu",
+            cube_vtu(&enc(Place::Ascii, false, false, None, true)),
+        ),
+        (
+            "d.vtu",
+            cube_vtu(&enc(Place::Inline, false, false, None, false)),
+        ),
+        (
+            "e.vtu",
+            cube_vtu(&enc(Place::Inline, true, true, Some(32), true)),
+        ),
+        (
+            "f.vtu",
+            cube_vtu(&enc(Place::Raw, false, false, None, true)),
+        ),
+        (
+            "g.vtu",
+            cube_vtu(&enc(Place::Raw, true, true, Some(32), true)),
+        ),
+        (
+            "h.vtu",
+            cube_vtu(&enc(Place::Base64, false, false, Some(32), true)),
+        ),
+    ];
+    for (name, bytes) in &volumes {
+        let mesh = read_mesh(&write(&dir, name, bytes)).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(mesh.tets, cube_tets(), "{name}");
+    }
+    let surfaces = polydata_fixtures();
+    for (name, bytes) in &surfaces {
+        let s = read_surface(&write(&dir, name, bytes)).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((s.vertices.len(), s.triangles.len()), (4, 4), "{name}");
+    }
+    let mut rng = Rng(0x1234_5678_9abc_def1);
+    let mut outcomes = [0usize; 2];
+    let n = volumes.len() + surfaces.len();
+    for round in 0..2200 {
+        let k = round % n;
+        let surface = k >= volumes.len();
+        let (name, bytes) = if surface {
+            &surfaces[k - volumes.len()]
+        } else {
+            &volumes[k]
+        };
+        let path = write(&dir, name, mutate(&mut rng, bytes));
+        let result = if surface {
+            read_surface(&path).map(|s| check_surface(&s))
+        } else {
+            read_mesh(&path).map(|m| check_ok(&m))
+        };
+        match result {
+            Ok(()) => outcomes[0] += 1,
+            Err(err) => {
+                let msg = err.to_string();
+                if std::env::var_os("LOP_MESH_FUZZ_LOG").is_some() {
+                    eprintln!("{msg}");
+                }
+                assert!(msg.contains(name), "message does not name the file: {msg}");
+                outcomes[1] += 1;
+            }
+        }
+    }
+    println!("ok: {}, errors: {}", outcomes[0], outcomes[1]);
+    assert!(outcomes[0] >= 100 && outcomes[1] >= 1000, "{outcomes:?}");
 }

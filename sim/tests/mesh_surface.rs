@@ -624,8 +624,9 @@ fn unknown_surface_names_file_and_first_line() {
     let err = read_err(&dir, "x.srf", "hello world\n");
     assert!(matches!(err, MeshReadError::UnsupportedFormat { .. }));
     says(&err, &["x.srf", "STL", "OBJ", "PLY", "`hello world`"]);
+    // A VTK volume mesh is recognised, and refused as a surface at its first tetrahedron.
     let err = read_err(&dir, "y.vtk", VTK);
-    says(&err, &["y.vtk", "POLYDATA", "not read yet"]);
+    says(&err, &["y.vtk:15:", "cell 0", "type `10`", "read_mesh"]);
     let err = read_surface(&dir.join("missing.stl")).unwrap_err();
     assert!(matches!(err, MeshReadError::Io { .. }));
 }

@@ -51,8 +51,8 @@ pub enum MeshReadError {
         found: String,
     },
 
-    /// The file is not in a format this module reads (unknown extension, binary Gmsh or VTK,
-    /// Gmsh 4.0, a VTK dataset other than an unstructured grid, ...).
+    /// The file is not in a format this module reads (unknown extension, binary Gmsh,
+    /// Gmsh 4.0, a VTK dataset or compressor that is not read, ...).
     #[error("{}: unsupported mesh format: {reason}", show(.path))]
     UnsupportedFormat { path: PathBuf, reason: String },
 

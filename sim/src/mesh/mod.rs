@@ -16,14 +16,16 @@
 //! |---|---|---|
 //! | path `X.node`, `X.ele`, or `X` with `X.node` beside it | TetGen | [`read_tetgen`] |
 //! | first line `$MeshFormat` or `$NOD` | Gmsh ASCII 1, 2.2 or 4.1 | [`read_gmsh`] |
-//! | first line `# vtk DataFile ...` | legacy VTK ASCII `UNSTRUCTURED_GRID` (file versions up to 5.1) | [`read_vtk`] |
-//! | otherwise the extension `*.msh` / `*.vtk` | (the reader then says what is wrong) | |
+//! | first line `# vtk DataFile ...` | legacy VTK `UNSTRUCTURED_GRID`, ASCII or binary (file versions up to 5.1) | [`read_vtk`] |
+//! | first line `<?xml ...` or `<VTKFile ...` | VTK XML `UnstructuredGrid` (`.vtu`) | [`read_vtk_xml`] |
+//! | otherwise the extension `*.msh` / `*.vtk` / `*.vtu` | (the reader then says what is wrong) | |
 //!
 //! So a Gmsh file named `liver.txt` or a VTK file named `liver.dat` reads. A file that is
 //! none of these is a [`MeshReadError::UnsupportedFormat`] that quotes its first line.
 //!
-//! Triangle surfaces (STL ASCII and binary, OBJ, PLY ASCII and binary) are read by
-//! [`read_surface`] into a [`SurfaceMesh`]; see there for what is read of each. They are not
+//! Triangle surfaces (STL ASCII and binary, OBJ, PLY ASCII and binary, VTK legacy `POLYDATA`
+//! and XML `PolyData`) are read by [`read_surface`] into a [`SurfaceMesh`]; see there for what
+//! is read of each. They are not
 //! volume meshes: `read_mesh` does not read them.
 //!
 //! Coordinates are taken as they are written: they are metres by convention, and no unit
@@ -68,19 +70,31 @@
 //! [`MeshReadError::UnsupportedFormat`] (re-export with `gmsh -format msh22` or `msh41`,
 //! ASCII).
 //!
-//! ## VTK (`*.vtk`, or any name with VTK content)
+//! ## VTK (`*.vtk`, `*.vtu`, or any name with VTK content)
 //!
-//! Legacy ASCII `DATASET UNSTRUCTURED_GRID`, with `POINTS`, `CELLS` (either the classic
-//! `<count> <ids...>` list or the 5.1 `OFFSETS`/`CONNECTIVITY` arrays) and `CELL_TYPES`. Only
-//! cells of type 10 (`VTK_TETRA`) are kept. `FIELD` and `METADATA` blocks are skipped and
-//! reading stops at `POINT_DATA` / `CELL_DATA`. Points are numbered from 0. Binary files are
-//! rejected.
+//! Legacy `DATASET UNSTRUCTURED_GRID`, ASCII or binary (`BINARY` on line 3: the arrays are
+//! big-endian, as the legacy format specifies), with `POINTS` (any numeric type), `CELLS`
+//! (either the classic `<count> <ids...>` list or the 5.1 `OFFSETS`/`CONNECTIVITY` arrays)
+//! and `CELL_TYPES`. `FIELD` and `METADATA` blocks are skipped and reading stops at
+//! `POINT_DATA` / `CELL_DATA`.
+//!
+//! VTK XML `UnstructuredGrid` (`.vtu`, or XML inside a `.vtk`): `DataArray`s in `ascii`,
+//! `binary` (base64) or `appended` (`raw` or `base64`) format, uncompressed or with
+//! `vtkZLibDataCompressor`, either `byte_order`, `header_type` `UInt32` or `UInt64`, several
+//! `<Piece>`s joined; other compressors are [`MeshReadError::UnsupportedFormat`]. Every count
+//! and size in a header is checked against the bytes in the file before anything is allocated
+//! for it.
+//!
+//! Only cells of type 10 (`VTK_TETRA`) are kept; the others are skipped, and an error for a
+//! file with no tetrahedra says how many were. Points are numbered from 0. Errors give the
+//! line in text and the byte offset in binary data (raw appended data, binary legacy arrays).
+//! A `POLYDATA` / `PolyData` file is a surface: read it with [`read_surface`].
 //!
 //! ## Fixed nodes: the boundary file (`.bnd`)
 //!
 //! lop's own format for the "additional file specifying the boundary constraints" of the
 //! thesis. It sits beside the mesh: `X.bnd` for TetGen base `X`, `<stem>.bnd` for
-//! `<stem>.msh` / `<stem>.vtk`. If it is absent, no node is fixed.
+//! `<stem>.msh` / `<stem>.vtk` / `<stem>.vtu`. If it is absent, no node is fixed.
 //!
 //! ```text
 //! # comments start with '#', anywhere on a line; blank lines are ignored
@@ -133,6 +147,9 @@ mod tetgen;
 mod text;
 mod validate;
 mod vtk;
+mod vtk_binary;
+mod vtk_cells;
+mod vtk_xml;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -143,6 +160,7 @@ pub use gmsh::read_gmsh;
 pub use surface_io::{read_surface, SurfaceMesh};
 pub use tetgen::{read_tetgen, write_tetgen, write_tetgen_numbered};
 pub use vtk::{read_vtk, write_vtk};
+pub use vtk_xml::read_vtk_xml;
 
 /// A validated linear tetrahedral mesh.
 #[derive(Debug, Clone, PartialEq)]
@@ -366,19 +384,22 @@ pub fn read_mesh(path: &Path) -> Result<TetMesh, MeshReadError> {
     match sniff(&first) {
         Some(Format::Gmsh) => read_gmsh(path),
         Some(Format::Vtk) => read_vtk(path),
+        Some(Format::VtkXml) => read_vtk_xml(path),
         None => match ext.as_deref() {
             Some("msh") => read_gmsh(path),
             Some("vtk") => read_vtk(path),
+            Some("vtu") => read_vtk_xml(path),
             _ => {
-                let surface = matches!(ext.as_deref(), Some("stl" | "obj" | "ply"))
+                let surface = matches!(ext.as_deref(), Some("stl" | "obj" | "ply" | "vtp"))
                     || first == "ply"
                     || first.starts_with("solid");
                 Err(MeshReadError::UnsupportedFormat {
                     path: path.to_owned(),
                     reason: format!(
                         "expected a TetGen mesh (.node/.ele), a Gmsh .msh file (first line \
-                         `$MeshFormat` or `$NOD`) or a legacy VTK .vtk file (first line \
-                         `# vtk DataFile Version ...`), but the first line is {}{}",
+                         `$MeshFormat` or `$NOD`), a legacy VTK .vtk file (first line \
+                         `# vtk DataFile Version ...`) or a VTK XML .vtu file (first line \
+                         `<?xml ...` or `<VTKFile ...`), but the first line is {}{}",
                         if first.is_empty() {
                             "empty (or the file is)".to_owned()
                         } else {
@@ -402,6 +423,7 @@ pub fn read_mesh(path: &Path) -> Result<TetMesh, MeshReadError> {
 enum Format {
     Gmsh,
     Vtk,
+    VtkXml,
 }
 
 /// The format a file's first non-blank line announces, if any.
@@ -414,6 +436,7 @@ fn sniff(first: &str) -> Option<Format> {
         {
             Some(Format::Vtk)
         }
+        t if t.starts_with("<?xml") || t.starts_with("<VTKFile") => Some(Format::VtkXml),
         _ => None,
     }
 }

@@ -1,5 +1,6 @@
-//! Triangle surfaces from files: STL (ASCII and binary), Wavefront OBJ and PLY (ASCII and
-//! binary, either byte order). See [`read_surface`].
+//! Triangle surfaces from files: STL (ASCII and binary), Wavefront OBJ, PLY (ASCII and
+//! binary, either byte order) and VTK (legacy and XML, read by the VTK modules). See
+//! [`read_surface`].
 
 use std::collections::hash_map::{Entry, HashMap};
 use std::path::Path;
@@ -25,6 +26,8 @@ enum Kind {
     StlBinary,
     Obj,
     Ply,
+    /// Legacy VTK (`# vtk DataFile ...`) or VTK XML.
+    Vtk,
     /// Nothing recognised; the first line, for the message.
     Unknown(String),
 }
@@ -48,6 +51,12 @@ enum Kind {
 ///   `v x y z [w | r g b]` and `f` with `i`, `i/t`, `i//n` or `i/t/n` corners, negative
 ///   numbers counting back from the last vertex so far; polygons are fanned into triangles.
 ///   Texture coordinates, normals, groups, materials, lines and points are skipped.
+/// - **VTK**: the first line is `# vtk DataFile ...` (legacy, ASCII or binary) or `<?xml` /
+///   `<VTKFile` (XML; every encoding [`super::read_vtk_xml`] reads). A `POLYDATA` / `PolyData`
+///   with its `POLYGONS` / `<Polys>`, or an unstructured grid of triangles and quadrilaterals
+///   (types 5 and 9; as meshio writes surfaces). Triangles are kept; a quadrilateral `a b c d`
+///   is split into `a b c` and `a c d`; any other polygon, triangle strips and volume cells
+///   are refused naming the cell. Vertices and lines are skipped.
 ///
 /// STL repeats each vertex in every triangle that uses it: vertices with equal coordinates
 /// (`-0.0` equal to `0.0`) are merged into one. OBJ and PLY vertices are kept as listed.
@@ -66,21 +75,18 @@ pub fn read_surface(path: &Path) -> Result<SurfaceMesh, MeshReadError> {
         Kind::StlAscii => stl_ascii(path, bytes),
         Kind::Obj => obj(path, bytes),
         Kind::Ply => ply(path, &bytes),
+        Kind::Vtk => super::vtk::read_vtk_surface(path, bytes),
         Kind::Unknown(first) => Err(MeshReadError::UnsupportedFormat {
             path: path.to_owned(),
-            reason: if first.starts_with("# vtk") {
-                "VTK surfaces (POLYDATA) are not read yet; convert it to STL, OBJ or PLY".to_owned()
-            } else {
-                format!(
-                    "expected a surface in STL (ASCII or binary), OBJ or PLY, but the first line \
-                     is {}",
-                    if first.is_empty() {
-                        "empty (or the file is)".to_owned()
-                    } else {
-                        text::quote(&first)
-                    }
-                )
-            },
+            reason: format!(
+                "expected a surface in STL (ASCII or binary), OBJ, PLY or VTK (legacy POLYDATA \
+                 or XML PolyData), but the first line is {}",
+                if first.is_empty() {
+                    "empty (or the file is)".to_owned()
+                } else {
+                    text::quote(&first)
+                }
+            ),
         }),
     }
 }
@@ -93,6 +99,13 @@ fn detect(path: &Path, bytes: &[u8]) -> Kind {
     let first = lines.clone().next().unwrap_or("").to_owned();
     if first == "ply" {
         return Kind::Ply;
+    }
+    if first
+        .get(..14)
+        .is_some_and(|head| head.eq_ignore_ascii_case("# vtk DataFile"))
+        || super::vtk_xml::is_xml(bytes)
+    {
+        return Kind::Vtk;
     }
     if stl_count(bytes).is_some_and(|n| stl_size(n) == bytes.len() as u64) {
         return Kind::StlBinary;

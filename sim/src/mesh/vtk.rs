@@ -1,17 +1,16 @@
-//! Legacy VTK (`.vtk`) ASCII unstructured grids: reading and writing.
+//! Legacy VTK (`.vtk`) files: `UNSTRUCTURED_GRID` volume meshes and `POLYDATA` surfaces,
+//! ASCII (read here) and binary (read by [`super::vtk_binary`]); writing ASCII. An XML file
+//! handed to [`read_vtk`] goes to [`super::vtk_xml`].
 
 use std::io::Write;
 use std::path::Path;
 
 use super::text::{self, quote};
-use super::validate::{self, NodeLabels, Origin};
-use super::{bnd, MeshReadError, TetMesh};
-
-/// VTK cell type of the linear tetrahedron (`VTK_TETRA`).
-const VTK_TETRA: i64 = 10;
+use super::vtk_cells::{self, Cells, Loc, VTK_TETRA};
+use super::{vtk_binary, vtk_xml, MeshReadError, SurfaceMesh, TetMesh};
 
 /// Section keywords: meeting one where a number is due means the count was too large.
-const KEYWORDS: [&str; 10] = [
+const KEYWORDS: [&str; 14] = [
     "DATASET",
     "POINTS",
     "CELLS",
@@ -22,23 +21,88 @@ const KEYWORDS: [&str; 10] = [
     "CELL_DATA",
     "FIELD",
     "METADATA",
+    "VERTICES",
+    "LINES",
+    "POLYGONS",
+    "TRIANGLE_STRIPS",
 ];
 
-/// Reads a legacy VTK ASCII `UNSTRUCTURED_GRID` (cells of type 10 only) and the fixed nodes
-/// from a sibling `<stem>.bnd` (0-based point ids) if there is one. See the
+/// Reads a legacy VTK `UNSTRUCTURED_GRID`, ASCII or binary (cells of type 10 only), and the
+/// fixed nodes from a sibling `<stem>.bnd` (0-based point ids) if there is one. A VTK XML file
+/// (first line `<?xml` or `<VTKFile`) is read as [`super::read_vtk_xml`] does. See the
 /// [module docs](super).
 ///
 /// # Errors
-/// Any [`MeshReadError`] naming the `.vtk` or `.bnd` file at fault; binary files and datasets
-/// other than `UNSTRUCTURED_GRID` are [`MeshReadError::UnsupportedFormat`].
+/// Any [`MeshReadError`] naming the `.vtk` or `.bnd` file at fault; datasets other than
+/// `UNSTRUCTURED_GRID` are [`MeshReadError::UnsupportedFormat`].
 pub fn read_vtk(path: &Path) -> Result<TetMesh, MeshReadError> {
     let bytes = std::fs::read(path).map_err(|source| MeshReadError::Io {
         path: path.to_owned(),
         source,
     })?;
+    if vtk_xml::is_xml(&bytes) {
+        return vtk_xml::read_volume(path, &bytes);
+    }
+    let legacy = read_legacy(path, bytes)?;
+    if legacy.dataset != Dataset::UnstructuredGrid {
+        return Err(MeshReadError::UnsupportedFormat {
+            path: path.to_owned(),
+            reason: "VTK dataset POLYDATA is a surface, not a volume mesh: it holds no \
+                     tetrahedra (read it with read_surface)"
+                .to_owned(),
+        });
+    }
+    let points = legacy.points.len();
+    let tets = vtk_cells::tets(path, points, &legacy.cells)?;
+    let lines = vtk_cells::line_numbers(&legacy.cells, &tets.labels);
+    vtk_cells::tet_mesh(path, legacy.points, tets, lines)
+}
+
+/// Reads a legacy VTK `POLYDATA` (ASCII or binary) or a VTK XML `PolyData` as a triangle
+/// surface: `bytes` are the file's. An unstructured grid of triangles and quadrilaterals (as
+/// meshio writes surfaces) is read too.
+pub(super) fn read_vtk_surface(path: &Path, bytes: Vec<u8>) -> Result<SurfaceMesh, MeshReadError> {
+    if vtk_xml::is_xml(&bytes) {
+        return vtk_xml::read_surface(path, &bytes);
+    }
+    let mut legacy = read_legacy(path, bytes)?;
+    if legacy.dataset == Dataset::UnstructuredGrid {
+        legacy.polys = vtk_cells::surface_cells(path, &legacy.cells)?;
+    }
+    let points = legacy.points.len();
+    let triangles = vtk_cells::triangles(path, points, &legacy.polys)?;
+    Ok(SurfaceMesh {
+        vertices: legacy.points,
+        triangles,
+    })
+}
+
+/// The dataset types read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Dataset {
+    UnstructuredGrid,
+    PolyData,
+}
+
+/// A legacy VTK dataset as read, before its cells are turned into tetrahedra or triangles.
+pub(super) struct Legacy {
+    pub dataset: Dataset,
+    pub points: Vec<[f64; 3]>,
+    /// `CELLS` and `CELL_TYPES` (an unstructured grid).
+    pub cells: Cells,
+    /// `POLYGONS` (a polydata).
+    pub polys: Cells,
+}
+
+/// Reads the header and hands the body to the ASCII or the binary reader.
+fn read_legacy(path: &Path, bytes: Vec<u8>) -> Result<Legacy, MeshReadError> {
     // The header is ASCII even in binary files: look at it before the UTF-8 check.
-    if header_line(&bytes, 2).eq_ignore_ascii_case("BINARY") {
-        return Err(binary(path));
+    if header_line(&bytes, 2).eq_ignore_ascii_case("BINARY")
+        && header_line(&bytes, 0)
+            .to_ascii_lowercase()
+            .starts_with("# vtk datafile")
+    {
+        return vtk_binary::read(path, &bytes);
     }
     let text = text::bytes_to_text(path, bytes)?;
     if text.trim().is_empty() {
@@ -58,84 +122,19 @@ pub fn read_vtk(path: &Path) -> Result<TetMesh, MeshReadError> {
     let _title = header.next();
     match header.next().map(str::trim) {
         Some(t) if t.eq_ignore_ascii_case("ASCII") => {}
-        Some(t) if t.eq_ignore_ascii_case("BINARY") => return Err(binary(path)),
-        Some(t) => return Err(text::parse_error(path, 3, "`ASCII`", quote(t))),
-        None => return Err(text::eof_error(path, 3, "`ASCII`")),
+        Some(t) => return Err(text::parse_error(path, 3, "`ASCII` or `BINARY`", quote(t))),
+        None => return Err(text::eof_error(path, 3, "`ASCII` or `BINARY`")),
     }
 
     let mut r = Reader::new(path, &text);
-    r.dataset()?;
-    let grid = r.grid()?;
-    let points = grid.points.len();
-
-    let mut tets = Vec::new();
-    let mut tet_lines = Vec::new();
-    let mut tet_labels = Vec::new();
-    let mut skipped = 0;
-    for (cell, &kind) in grid.types.iter().enumerate() {
-        if kind != VTK_TETRA {
-            skipped += 1;
-            continue;
-        }
-        let (line, ids) = grid.cell(cell);
-        if ids.len() != 4 {
-            return Err(text::parse_error(
-                path,
-                line,
-                format!("4 point ids for cell {cell} of type 10 (VTK_TETRA)"),
-                format!("{} ids", ids.len()),
-            ));
-        }
-        let mut tet = [0u32; 4];
-        for (slot, &id) in tet.iter_mut().zip(ids) {
-            *slot = usize::try_from(id)
-                .ok()
-                .filter(|&i| i < points)
-                .and_then(|i| u32::try_from(i).ok())
-                .ok_or_else(|| MeshReadError::IndexOutOfRange {
-                    path: path.to_owned(),
-                    line: Some(line),
-                    index: id,
-                    count: points,
-                    first_index: 0,
-                    node_file: path.to_owned(),
-                })?;
-        }
-        tets.push(tet);
-        tet_lines.push(line);
-        tet_labels.push(i64::try_from(cell).unwrap_or(i64::MAX));
-    }
-    if tets.is_empty() {
-        return Err(MeshReadError::NoTets {
-            path: path.to_owned(),
-            skipped,
-        });
-    }
-
-    let bnd_path = path.with_extension("bnd");
-    let fixed = bnd::read_optional(&bnd_path, |line, id| {
-        usize::try_from(id)
-            .ok()
-            .filter(|&i| i < points)
-            .and_then(|i| u32::try_from(i).ok())
-            .ok_or_else(|| MeshReadError::BadBoundary {
-                path: bnd_path.clone(),
-                line: Some(line),
-                index: id,
-                count: points,
-                first_index: 0,
-                node_file: path.to_owned(),
-            })
-    })?
-    .unwrap_or_default();
-
-    let origin = Origin {
-        tet_file: path.to_owned(),
-        tet_lines,
-        tet_labels,
-        node_labels: NodeLabels::Offset(0),
-    };
-    validate::build(grid.points, tets, fixed, path.to_owned(), &origin)
+    let dataset = r.dataset()?;
+    let grid = r.grid(dataset)?;
+    Ok(Legacy {
+        dataset,
+        points: grid.points,
+        cells: grid.cells,
+        polys: grid.polys,
+    })
 }
 
 /// Writes `mesh` as a legacy VTK 3.0 ASCII unstructured grid of tetrahedra (type 10), points
@@ -170,15 +169,8 @@ pub fn write_vtk(mesh: &TetMesh, path: &Path) -> std::io::Result<()> {
     out.flush()
 }
 
-fn binary(path: &Path) -> MeshReadError {
-    MeshReadError::UnsupportedFormat {
-        path: path.to_owned(),
-        reason: "binary VTK files are not supported; save it as ASCII".to_owned(),
-    }
-}
-
 /// Line `i` (0-based) of raw bytes, trimmed, lossily decoded.
-fn header_line(bytes: &[u8], i: usize) -> String {
+pub(super) fn header_line(bytes: &[u8], i: usize) -> String {
     bytes
         .split(|&b| b == b'\n')
         .nth(i)
@@ -186,24 +178,12 @@ fn header_line(bytes: &[u8], i: usize) -> String {
         .unwrap_or_default()
 }
 
-/// The unstructured grid as read: points, cells (connectivity with offsets) and cell types.
+/// A legacy ASCII dataset as read.
 #[derive(Default)]
 struct Grid {
     points: Vec<[f64; 3]>,
-    /// Cell `i` is `conn[offsets[i]..offsets[i + 1]]`.
-    offsets: Vec<usize>,
-    conn: Vec<i64>,
-    cell_lines: Vec<usize>,
-    types: Vec<i64>,
-}
-
-impl Grid {
-    fn cell(&self, i: usize) -> (usize, &[i64]) {
-        let lo = self.offsets.get(i).copied().unwrap_or(0);
-        let hi = self.offsets.get(i + 1).copied().unwrap_or(lo);
-        let ids = self.conn.get(lo..hi).unwrap_or(&[]);
-        (self.cell_lines.get(i).copied().unwrap_or(0), ids)
-    }
+    cells: Cells,
+    polys: Cells,
 }
 
 /// A declared count being read, for [`MeshReadError::CountMismatch`].
@@ -308,8 +288,8 @@ impl<'a> Reader<'a> {
         Ok((line, text::parse_i64(self.path, line, t, what)?))
     }
 
-    /// `DATASET UNSTRUCTURED_GRID`.
-    fn dataset(&mut self) -> Result<(), MeshReadError> {
+    /// `DATASET UNSTRUCTURED_GRID` or `DATASET POLYDATA`.
+    fn dataset(&mut self) -> Result<Dataset, MeshReadError> {
         let (line, t) = self.token("`DATASET UNSTRUCTURED_GRID`")?;
         if !t.eq_ignore_ascii_case("DATASET") {
             return Err(text::parse_error(
@@ -320,16 +300,10 @@ impl<'a> Reader<'a> {
             ));
         }
         let (_, kind) = self.token("`UNSTRUCTURED_GRID`")?;
-        if !kind.eq_ignore_ascii_case("UNSTRUCTURED_GRID") {
-            return Err(MeshReadError::UnsupportedFormat {
-                path: self.path.to_owned(),
-                reason: format!("VTK dataset {kind}: only UNSTRUCTURED_GRID holds tetrahedra"),
-            });
-        }
-        Ok(())
+        dataset(self.path, kind)
     }
 
-    fn grid(&mut self) -> Result<Grid, MeshReadError> {
+    fn grid(&mut self, dataset: Dataset) -> Result<Grid, MeshReadError> {
         let mut grid = Grid::default();
         let mut cells: Option<(usize, usize)> = None; // (line, count)
         let mut types_seen = false;
@@ -367,18 +341,35 @@ impl<'a> Reader<'a> {
                     }
                     last = Some(counted);
                 }
-                "CELLS" => {
+                "CELLS" | "POLYGONS" | "VERTICES" | "LINES" | "TRIANGLE_STRIPS" => {
                     let (_, n) = self.count("the number of cells")?;
                     let (_, size) = self.count("the size of the cell list")?;
                     let is_v51 = self
                         .peek()
                         .is_some_and(|(_, t)| t.eq_ignore_ascii_case("OFFSETS"));
+                    let mut list = Cells::default();
                     last = Some(if is_v51 {
-                        self.cells_v51(line, n, size, &mut grid)?
+                        self.cells_v51(line, n, size, &mut list)?
                     } else {
-                        self.cells_legacy(line, n, size, &mut grid)?
+                        self.cells_legacy(line, n, size, &mut list)?
                     });
-                    cells = Some((line, grid.offsets.len().saturating_sub(1)));
+                    match keyword.as_str() {
+                        "CELLS" => {
+                            cells = Some((line, list.len()));
+                            grid.cells = list;
+                        }
+                        "POLYGONS" => grid.polys = list,
+                        "TRIANGLE_STRIPS" if list.len() > 0 && dataset == Dataset::PolyData => {
+                            return Err(text::parse_error(
+                                self.path,
+                                line,
+                                "POLYGONS (triangle strips are not read; save the surface \
+                                 as triangles)",
+                                format!("{} triangle strips", list.len()),
+                            ))
+                        }
+                        _ => {} // points and lines are no part of a surface
+                    }
                 }
                 "CELL_TYPES" => {
                     let (_, n) = self.count("the number of cell types")?;
@@ -388,11 +379,11 @@ impl<'a> Reader<'a> {
                         declared: n,
                         per: 1,
                     };
-                    grid.types = Vec::with_capacity(text::capacity(n));
+                    grid.cells.types = Vec::with_capacity(text::capacity(n));
                     for i in 0..n {
                         let (_, kind) =
                             self.int_value(counted, i, format_args!("the type of cell {i}"))?;
-                        grid.types.push(kind);
+                        grid.cells.types.push(kind);
                     }
                     let cell_count = cells.map_or(0, |(_, c)| c);
                     if n != cell_count {
@@ -438,7 +429,7 @@ impl<'a> Reader<'a> {
                 _ => return Err(text::parse_error(
                     self.path,
                     line,
-                    "a section keyword (POINTS, CELLS, CELL_TYPES, POINT_DATA, CELL_DATA, FIELD)",
+                    "a section keyword (POINTS, CELLS, CELL_TYPES, POLYGONS, POINT_DATA, CELL_DATA, FIELD)",
                     quote(t),
                 )),
             }
@@ -461,7 +452,7 @@ impl<'a> Reader<'a> {
         line: usize,
         n: usize,
         size: usize,
-        grid: &mut Grid,
+        grid: &mut Cells,
     ) -> Result<Counted, MeshReadError> {
         let counted = Counted {
             line,
@@ -505,7 +496,7 @@ impl<'a> Reader<'a> {
                 grid.conn.push(id);
             }
             grid.offsets.push(grid.conn.len());
-            grid.cell_lines.push(cell_line);
+            grid.locs.push(Loc::Line(cell_line));
         }
         if used != size {
             return Err(MeshReadError::CountMismatch {
@@ -526,7 +517,7 @@ impl<'a> Reader<'a> {
         line: usize,
         n_offsets: usize,
         n_conn: usize,
-        grid: &mut Grid,
+        grid: &mut Cells,
     ) -> Result<Counted, MeshReadError> {
         self.next(); // OFFSETS
         self.token("the offsets data type")?;
@@ -591,10 +582,10 @@ impl<'a> Reader<'a> {
                 quote(&offsets.last().copied().unwrap_or(0).to_string()),
             ));
         }
-        grid.cell_lines = offsets
+        grid.locs = offsets
             .iter()
             .take(offsets.len().saturating_sub(1))
-            .map(|&o| conn_lines.get(o).copied().unwrap_or(line))
+            .map(|&o| Loc::Line(conn_lines.get(o).copied().unwrap_or(line)))
             .collect();
         grid.offsets = offsets;
         if grid.offsets.is_empty() {
@@ -638,6 +629,24 @@ impl<'a> Reader<'a> {
             self.skip_metadata();
         }
         Ok(())
+    }
+}
+
+/// The dataset a `DATASET <kind>` line names, if it is one that is read.
+pub(super) fn dataset(path: &Path, kind: &str) -> Result<Dataset, MeshReadError> {
+    if kind.eq_ignore_ascii_case("UNSTRUCTURED_GRID") {
+        Ok(Dataset::UnstructuredGrid)
+    } else if kind.eq_ignore_ascii_case("POLYDATA") {
+        Ok(Dataset::PolyData)
+    } else {
+        Err(MeshReadError::UnsupportedFormat {
+            path: path.to_owned(),
+            reason: format!(
+                "VTK dataset {}: only UNSTRUCTURED_GRID (tetrahedra) and POLYDATA (surfaces) \
+                 are read",
+                quote(kind)
+            ),
+        })
     }
 }
 

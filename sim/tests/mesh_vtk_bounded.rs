@@ -1,0 +1,149 @@
+//! Bounded memory: a VTK file whose header claims 10^12 points (or a zlib block that claims to
+//! expand a few bytes to gigabytes) is refused with a clear error before anything is allocated
+//! for the claim. A global allocator records the largest single allocation while each such
+//! file is read: it must stay far below what the claim would need (the files are tiny).
+
+mod mesh_text;
+mod vtk_build;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use lop_sim::mesh::{read_mesh, read_surface};
+use mesh_text::*;
+use vtk_build::*;
+
+/// Records the largest allocation since the last [`reset`].
+struct Largest;
+
+static LARGEST: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Largest {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        LARGEST.fetch_max(layout.size(), Ordering::Relaxed);
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        LARGEST.fetch_max(new_size, Ordering::Relaxed);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static A: Largest = Largest;
+
+const TRILLION: &str = "1000000000000";
+
+/// Reads `bytes` as `name` (a surface if `surface`), expects an error naming the file and
+/// saying each needle, and checks no allocation exceeded 4 MiB meanwhile (the text readers
+/// reserve up to 65,536 records ahead, 1.5 MiB of points; the claims here need terabytes).
+fn refused_small(dir: &std::path::Path, name: &str, bytes: &[u8], surface: bool, needles: &[&str]) {
+    let path = write(dir, name, bytes);
+    LARGEST.store(0, Ordering::Relaxed);
+    let err = if surface {
+        read_surface(&path).map(|_| ())
+    } else {
+        read_mesh(&path).map(|_| ())
+    }
+    .expect_err(name);
+    let largest = LARGEST.load(Ordering::Relaxed);
+    let msg = err.to_string();
+    println!("{msg} (largest allocation {largest} bytes)");
+    assert!(msg.contains(name), "{msg}");
+    for n in needles {
+        assert!(msg.contains(n), "{n:?} missing from {msg}");
+    }
+    assert!(
+        largest < 4 << 20,
+        "{name}: an allocation of {largest} bytes"
+    );
+}
+
+#[test]
+fn headers_claiming_a_trillion_points_are_refused_before_allocating() {
+    let dir = scratch("bounded");
+    // VTK XML in every encoding: NumberOfPoints="10^12".
+    for e in all_encodings() {
+        let name = name(&e);
+        let t = cube_vtu(&e);
+        let t = String::from_utf8_lossy(&t).replace(
+            "NumberOfPoints=\"8\"",
+            &format!("NumberOfPoints=\"{TRILLION}\""),
+        );
+        // Raw appended data is not UTF-8 text: patch the bytes instead.
+        let bytes = if e.place == Place::Raw {
+            patch(
+                &cube_vtu(&e),
+                b"NumberOfPoints=\"8\"",
+                format!("NumberOfPoints=\"{TRILLION}\"").as_bytes(),
+            )
+        } else {
+            t.into_bytes()
+        };
+        refused_small(&dir, &name, &bytes, false, &[TRILLION]);
+    }
+
+    // Legacy VTK, ASCII and binary.
+    let ascii = VTK.replace("POINTS 8 double", &format!("POINTS {TRILLION} double"));
+    refused_small(&dir, "ascii.vtk", ascii.as_bytes(), false, &[TRILLION]);
+    let mut bin = format!("# vtk DataFile Version 3.0\nx\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS {TRILLION} double\n").into_bytes();
+    bin.extend([0u8; 64]);
+    refused_small(
+        &dir,
+        "binary.vtk",
+        &bin,
+        false,
+        &["24000000000000 bytes", "64 bytes left"],
+    );
+    let mut cells =
+        b"# vtk DataFile Version 3.0\nx\nBINARY\nDATASET POLYDATA\nPOINTS 1 float\n".to_vec();
+    cells.extend([0u8; 12]);
+    cells.extend(format!("\nPOLYGONS {TRILLION} {TRILLION}\n").into_bytes());
+    cells.extend([0u8; 16]);
+    refused_small(
+        &dir,
+        "cells.vtk",
+        &cells,
+        true,
+        &["4000000000000 bytes", "bytes left"],
+    );
+
+    // A zlib block that claims to expand 10 compressed bytes to 24 MB, consistent with
+    // NumberOfPoints="1000000": refused by the deflate ratio before decompressing.
+    let e = Encoding {
+        place: Place::Raw,
+        big: false,
+        u64_header: false,
+        zlib: Some(48),
+        separate: true,
+    };
+    let mut b = patch(
+        &cube_vtu(&e),
+        b"NumberOfPoints=\"8\"",
+        b"NumberOfPoints=\"1000000\"",
+    );
+    let start = b.windows(4).position(|w| w == b"   _").unwrap() + 4;
+    for (k, v) in [1u32, 24_000_000, 0, 10].iter().enumerate() {
+        b[start + 4 * k..start + 4 * k + 4].copy_from_slice(&v.to_le_bytes());
+    }
+    refused_small(
+        &dir,
+        "ratio.vtu",
+        &b,
+        false,
+        &["10 compressed bytes declared to expand to 24000000"],
+    );
+}
+
+fn patch(bytes: &[u8], from: &[u8], to: &[u8]) -> Vec<u8> {
+    let at = bytes.windows(from.len()).position(|w| w == from).unwrap();
+    let mut out = bytes[..at].to_vec();
+    out.extend_from_slice(to);
+    out.extend_from_slice(&bytes[at + from.len()..]);
+    out
+}
