@@ -81,7 +81,7 @@ fn union(a: SurfaceMesh, b: SurfaceMesh) -> SurfaceMesh {
     m
 }
 
-fn indices<'a>(report: &'a lop_sim::mesh::SurfaceReport, kind: DefectKind) -> Vec<Vec<u32>> {
+fn indices(report: &lop_sim::mesh::SurfaceReport, kind: DefectKind) -> Vec<Vec<u32>> {
     report
         .of(kind)
         .map(|d| d.triangles.iter().map(|t| t.index).collect())

@@ -295,7 +295,7 @@ pub fn check_surface(surface: &SurfaceMesh) -> SurfaceReport {
             edges.entry(key).or_default().push((i as u32, a < b));
         }
     }
-    let mut sorted: Vec<(&[u32; 2], &Vec<(u32, bool)>)> = edges.iter().collect();
+    let mut sorted: Vec<_> = edges.iter().collect();
     sorted.sort_unstable_by_key(|(e, _)| **e);
     for (&edge, users) in sorted {
         let refs = |users: &[(u32, bool)]| {
@@ -455,12 +455,11 @@ fn intersecting_pairs(surface: &SurfaceMesh, degenerate: &[bool]) -> Vec<[u32; 2
     let cell = (2.0 * mean_extent).max(size / 64.0).max(f64::MIN_POSITIVE);
     let dims = ((hi - lo) / cell).floor().as_uvec3() + 1;
     let index = |p: DVec3| {
-        let c = ((p - lo) / cell)
+        ((p - lo) / cell)
             .floor()
             .max(DVec3::ZERO)
             .as_uvec3()
-            .min(dims - 1);
-        c
+            .min(dims - 1)
     };
     let mut grid: HashMap<[u32; 3], Vec<u32>> = HashMap::new();
     for &i in &live {
