@@ -1,11 +1,12 @@
 //! `lopd mesh tetrahedralize`: a closed triangle surface (a segmented organ as STL, OBJ or PLY)
 //! filled with tetrahedra by TetGen, checked on the way in and on the way out.
 //!
-//! 1. Read the surface ([`lop_sim::mesh::read_surface`]) and scale it to metres (`--units`).
-//! 2. Optionally close small holes ([`close_holes`]), then check it ([`check_surface`]): a
-//!    surface with a hole, a non-manifold edge or vertex, an inconsistent winding, a degenerate
-//!    triangle or a self-intersection is refused with the triangles at fault; one wound inward
-//!    throughout is flipped, with a note.
+//! 1. Read the surface ([`lop_sim::mesh::read_surface`]).
+//! 2. Optionally close small holes ([`close_holes`]), then check it ([`check_surface`]) in the
+//!    file's own units, so a defect's coordinates can be looked up in the file: a surface with
+//!    a hole, a non-manifold edge or vertex, an inconsistent winding, a degenerate triangle or a
+//!    self-intersection is refused with the triangles at fault; one wound inward throughout is
+//!    flipped, with a note. Then it is scaled to metres (`--units`).
 //! 3. Write it as a TetGen `.smesh` in a temporary directory and run the `tetgen` program there
 //!    (a separate program, never linked: TetGen is AGPL; Debian package `tetgen`, installed by
 //!    `scripts/setup.sh`) with `-p` (fill the surface), `-q` (radius-edge bound) and `-a`
@@ -78,7 +79,7 @@ pub struct TetrahedralizeOptions {
 pub struct Tetrahedralized {
     /// The volume mesh, in metres, as written.
     pub mesh: TetMesh,
-    /// The surface check (after closing holes and before flipping).
+    /// The surface check (after closing holes, before flipping; in the file's units).
     pub report: SurfaceReport,
     /// Holes closed or left open, if asked to close them.
     pub holes: Option<HoleClosing>,
@@ -223,9 +224,9 @@ pub fn run(opts: &TetrahedralizeOptions) -> Result<Tetrahedralized, Tetrahedrali
     }
     let tetgen = find_tetgen()?;
 
-    // 1-2. The surface, in metres, checked.
+    // 1-2. The surface, checked in its own units (so that the coordinates a defect names are
+    // the file's), then scaled to metres.
     let mut surface = read_surface(&opts.surface)?;
-    surface.scale(opts.units.metres());
     let holes = opts.close_holes.map(|n| close_holes(&mut surface, n));
     let report = check_surface(&surface);
     if !report.is_ok() {
@@ -252,6 +253,7 @@ pub fn run(opts: &TetrahedralizeOptions) -> Result<Tetrahedralized, Tetrahedrali
     if flipped {
         surface.flip();
     }
+    surface.scale(opts.units.metres());
 
     // 3. TetGen in a scratch directory.
     let work =
