@@ -198,8 +198,46 @@
 //! | `rotate_deg` | `[x, y, z]` | `[0, 0, 0]` | rotation after scaling, same convention as the workspace |
 //! | `translate` | `[x, y, z]` | `[0, 0, 0]` | m, applied last: `p' = R·(scale·p) + translate` |
 //! | `fixed_nodes` | array of integers | `[]` | 0-based node indices held fixed, in addition to the `.bnd` file |
+//! | `fix` | array of tables | `[]` | fixed-node selectors, `[[body.fix]]` below: every node one of them picks is fixed too |
 //! | `color` | `[r, g, b]` | by body index | sRGB, each in 0..=1, for viewers |
 //! | `tool_stiffness` | float | `[tool] stiffness` | stiffness of the tool against this body (> 0; N/m for the linear law, N/m² for the quadratic one): a firm organ feels firmer |
+//!
+//! ### `[[body.fix]]`: fixed nodes by region
+//! Where a `.bnd` file or a list of node numbers is awkward (a mesh fresh from a mesher, or one
+//! remeshed finer), a body fixes the nodes in a region. The fixed nodes are the union of the
+//! `.bnd` file, `fixed_nodes` and every selector.
+//!
+//! **Coordinates: the scene's**, in metres — a selector is evaluated on the body's nodes after
+//! its `scale`, `rotate_deg` and `translate`, because that is where the author places the body
+//! and sees it (a viewer, the device mapping, the other bodies are all in scene coordinates).
+//! `lopd mesh info MESH --select '…'` shows what a selector picks in the mesh file's own
+//! coordinates; for a body with no transform the two are the same.
+//!
+//! A selector that picks no node is an error naming the body and the selector (`body[0].fix[1]`)
+//! when the scene is loaded (`lopd run` checks it before starting).
+//!
+//! | `kind` | keys | picks |
+//! |---|---|---|
+//! | `"box"` | `min`, `max` (`[x, y, z]`, m; `min < max` per axis) | nodes inside the box (boundary included) |
+//! | `"sphere"` | `center` (m), `radius` (m, > 0) | nodes within `radius` of `center` |
+//! | `"slab"` | `point` (m), `normal` (not zero), optional `thickness` (m, > 0) | nodes behind the plane through `point`, i.e. on the side `normal` points away from (`(p − point)·n̂ <= 0`), at most `thickness` behind it if given |
+//! | `"facing"` | `direction` (not zero), `angle_deg` (0 < a <= 180, default 45), optional `within` (another selector, as an inline table) | surface nodes whose outward normal (area-weighted mean of their triangles' normals) is within `angle_deg` of `direction`, and inside `within` if given |
+//!
+//! A key of another kind (`radius` on a box) is refused naming it. For example, the back of an
+//! organ whose posterior side is at `z = -0.04`, and a ligament:
+//!
+//! ```toml
+//! [[body.fix]]
+//! kind = "facing"
+//! direction = [0.0, 0.0, -1.0]
+//! angle_deg = 60.0
+//! within = { kind = "slab", point = [0.0, 0.0, -0.03], normal = [0.0, 0.0, 1.0] }
+//!
+//! [[body.fix]]
+//! kind = "sphere"
+//! center = [0.05, 0.02, 0.0]
+//! radius = 0.005
+//! ```
 //!
 //! A body needs the parameter tables of every model it can run:
 //! - `[body.fem]` if `importance = "important"` or `model = "fem"`;
@@ -290,6 +328,7 @@ mod raw;
 mod resolve;
 mod scene;
 mod source;
+mod tissue;
 mod workspace;
 
 pub use daemon::{
@@ -301,8 +340,10 @@ pub use resolve::{
     scene_dirs, script_dirs,
 };
 pub use scene::{
-    load_scene, parse_scene, BodySpec, CageKind, CollisionSpec, DeviceDefaults, FemMode, FemParams,
-    ForceLaw, GcDynamics, GcParams, HeatParams, HeatSpec, Importance, Integrator, LopSpec,
-    MassSpec, ModelPin, MsdParams, Rates, Scene, StartLevel, ToolSpec,
+    load_scene, parse_scene, parse_selector, selector_toml, BodySpec, CageKind, CollisionSpec,
+    DeviceDefaults, FemMode, FemParams, FixSelector, ForceLaw, GcDynamics, GcParams, HeatParams,
+    HeatSpec, Importance, Integrator, LopSpec, MassSpec, ModelPin, MsdParams, Rates, Scene,
+    StartLevel, ToolSpec,
 };
+pub use tissue::{tissue, tissue_names, Tissue, MSD_CALIBRATION, TISSUES};
 pub use workspace::{mat_t_vec, mat_vec, rotation_xyz_deg, Mat3, WorkspaceMap, WorkspaceTransform};

@@ -109,6 +109,7 @@ pub(crate) struct RawBody {
     pub rotate_deg: Option<[f64; 3]>,
     pub scale: Option<f64>,
     pub fixed_nodes: Option<Vec<u32>>,
+    pub fix: Option<Vec<crate::scene::fix::RawFix>>,
     pub color: Option<[f32; 3]>,
     pub tool_stiffness: Option<f64>,
     pub fem: Option<RawFem>,

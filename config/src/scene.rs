@@ -5,6 +5,7 @@
 //! sections (`validate`) and of the bodies (`validate_body`).
 
 mod body;
+pub(crate) mod fix;
 mod sections;
 mod validate;
 mod validate_body;
@@ -22,6 +23,7 @@ pub use body::{
     BodySpec, CageKind, FemMode, FemParams, GcDynamics, GcParams, HeatParams, Importance,
     Integrator, MassSpec, ModelPin, MsdParams,
 };
+pub use fix::{parse_selector, selector_toml, FixSelector};
 pub use sections::{
     CollisionSpec, DeviceDefaults, ForceLaw, HeatSpec, LopSpec, Rates, StartLevel, ToolSpec,
 };

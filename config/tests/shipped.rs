@@ -239,7 +239,7 @@ fn doc_toml_blocks() -> Vec<String> {
 #[test]
 fn documentation_examples_are_valid() {
     let blocks = doc_toml_blocks();
-    assert_eq!(blocks.len(), 2, "{blocks:#?}");
+    assert_eq!(blocks.len(), 3, "{blocks:#?}");
     // The scene example, as if it were a file beside the shipped scenes.
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/doc-example.toml");
     let scene = parse_scene(&blocks[0], &path).unwrap_or_else(|e| panic!("{e}"));
@@ -253,8 +253,12 @@ fn documentation_examples_are_valid() {
         (&doc_liver.fem, &doc_liver.msd, &doc_liver.gc),
         (&liver.fem, &liver.msd, &liver.gc)
     );
+    // The `[[body.fix]]` example, appended to the scene example's (last) body.
+    let with_fix = format!("{}\n{}", blocks[0], blocks[1]);
+    let scene = parse_scene(&with_fix, &path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.bodies[0].fix.len(), 2, "{:?}", scene.bodies[0].fix);
     // The daemon example.
-    let cfg = parse_daemon_config(&blocks[1], std::path::Path::new("lopd.toml"))
+    let cfg = parse_daemon_config(&blocks[2], std::path::Path::new("lopd.toml"))
         .unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(cfg.haptic.core, Some(1));
 }

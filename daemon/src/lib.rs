@@ -1,6 +1,6 @@
 //! `lopd`, the lop daemon: the supervisor (`lopd run`), the 1 kHz haptic process
 //! (`lopd haptic`) and the deformation process (`lopd deform`), plus small tools
-//! (`lopd mesh info`).
+//! (`lopd mesh info`, `lopd mesh tetrahedralize`, `lopd scene new`).
 //!
 //! The binary (`main.rs`) is glue: it parses the command line and calls into these modules.
 
@@ -16,11 +16,13 @@ pub mod record;
 pub mod rounds;
 pub mod rt;
 pub mod safety;
+pub mod scene_new;
 pub mod servo;
 pub use lop_ipc::signals;
 pub mod simulate;
 pub mod status;
 pub mod supervisor;
+pub mod tetrahedralize;
 pub mod tool_source;
 
 /// Set once `mlockall` succeeded in this process.

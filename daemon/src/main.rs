@@ -46,6 +46,11 @@ enum Command {
         #[command(subcommand)]
         command: MeshCommand,
     },
+    /// Scene tools.
+    Scene {
+        #[command(subcommand)]
+        command: SceneCommand,
+    },
     /// List the shipped scenes and mock scripts.
     Scenes,
     /// Check this machine for a rig (real-time limits, CPUs, device library and device,
@@ -109,7 +114,76 @@ enum MeshCommand {
         /// TetGen base path (or .node/.ele), Gmsh .msh, or legacy VTK .vtk.
         #[arg(required = true)]
         paths: Vec<PathBuf>,
+        /// Also show which nodes a fixed-node selector picks, in the mesh file's coordinates:
+        /// a `[[body.fix]]` table inline, e.g.
+        /// 'kind = "sphere", center = [0, 0, 0], radius = 0.01'.
+        #[arg(long, value_name = "SELECTOR")]
+        select: Option<String>,
     },
+    /// Fill a closed triangle surface (STL, OBJ, PLY) with tetrahedra using TetGen, after
+    /// checking it (closed, manifold, consistently wound, no degenerate triangles, no
+    /// self-intersections), and write PREFIX.node/.ele/.face/.bnd in metres.
+    Tetrahedralize(TetrahedralizeArgs),
+}
+
+#[derive(Args, Clone)]
+struct TetrahedralizeArgs {
+    /// The surface: STL (ASCII or binary), OBJ or PLY.
+    surface: PathBuf,
+    /// Output base path: writes PREFIX.node, PREFIX.ele, PREFIX.face, PREFIX.bnd.
+    #[arg(long, value_name = "PREFIX")]
+    out: PathBuf,
+    /// The surface's length unit; the output is always in metres.
+    #[arg(long, value_enum, default_value = "m")]
+    units: lop_daemon::tetrahedralize::Units,
+    /// Largest tetrahedron volume (TetGen -a), in m³ or with a unit: 5e-7, 0.5cm3, 500mm3.
+    #[arg(long, value_name = "VOLUME", value_parser = lop_daemon::tetrahedralize::parse_volume, conflicts_with = "edge")]
+    max_volume: Option<f64>,
+    /// Target edge length instead (-a of a regular tetrahedron, L³/(6√2)), in m or with a
+    /// unit: 0.008, 8mm, 0.8cm.
+    #[arg(long, value_name = "L", value_parser = lop_daemon::tetrahedralize::parse_length)]
+    edge: Option<f64>,
+    /// Radius-edge ratio bound (TetGen -q), > 1: lower is better-shaped and finer.
+    #[arg(long, default_value_t = 1.4)]
+    quality: f64,
+    /// Close holes bounded by at most this many edges before the check (a triangle or a fan
+    /// from the hole's centroid).
+    #[arg(long, value_name = "MAX_EDGES")]
+    close_holes: Option<usize>,
+    /// Keep the surface triangles exactly as given (TetGen -Y: no points added on it).
+    #[arg(long)]
+    keep_surface: bool,
+}
+
+#[derive(Subcommand)]
+enum SceneCommand {
+    /// Write a scene for your own tetrahedral meshes: bodies placed side by side in metres,
+    /// tissue parameters from the library, a posterior patch fixed, a mock poke at the first
+    /// body; then load it as `lopd run --scene` does.
+    New(SceneNewArgs),
+}
+
+#[derive(Args, Clone)]
+struct SceneNewArgs {
+    /// Scene name.
+    name: String,
+    /// A tetrahedral mesh (TetGen base path or .node, Gmsh .msh, VTK .vtk); one body each.
+    #[arg(long, required = true, num_args = 1..)]
+    mesh: Vec<PathBuf>,
+    /// Tissue from the library (liver, spleen, stomach, pancreas, kidney): once for every
+    /// body, or once per mesh in order. Default: liver.
+    #[arg(long)]
+    tissue: Vec<String>,
+    /// The meshes' length unit (meshes from `lopd mesh tetrahedralize` are in metres).
+    #[arg(long, value_enum, default_value = "m")]
+    units: lop_daemon::tetrahedralize::Units,
+    /// The scene file to write (default NAME.toml); the poke script goes beside it as
+    /// NAME-poke.toml.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Overwrite existing files.
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(Args, Clone)]
@@ -234,8 +308,14 @@ fn main() -> ExitCode {
         Command::Deform(a) => cmd_deform(a).map(|()| 0),
         Command::Simulate(a) => cmd_simulate(a).map(|()| 0),
         Command::Mesh {
-            command: MeshCommand::Info { paths },
-        } => cmd_mesh_info(&paths),
+            command: MeshCommand::Info { paths, select },
+        } => cmd_mesh_info(&paths, select.as_deref()),
+        Command::Mesh {
+            command: MeshCommand::Tetrahedralize(a),
+        } => cmd_tetrahedralize(a),
+        Command::Scene {
+            command: SceneCommand::New(a),
+        } => cmd_scene_new(a),
         Command::Scenes => cmd_scenes().map(|()| 0),
         Command::Doctor(a) => cmd_doctor(a),
         Command::Ctl(a) => cmd_ctl(a),
@@ -349,6 +429,8 @@ fn open_device(spec: &DeviceSpec, scene: &Scene, config: &DaemonConfig) -> Resul
 fn cmd_run(a: RunArgs) -> Result<i32> {
     // Validate everything up front so a typo fails here, not in a child.
     let (scene, config, _names, duration) = load_common(&a.haptic.common)?;
+    // The meshes read and every fixed-node selector picks nodes (cheap: no models built).
+    bad(lop_scene::place_bodies(&scene))?;
     let spec: DeviceSpec = bad(a.haptic.device.parse())?;
     drop(open_device(&spec, &scene, &config)?);
     let view_token = a.view_token.clone().or_else(|| {
@@ -442,11 +524,22 @@ fn cmd_simulate(a: SimulateArgs) -> Result<()> {
     Ok(())
 }
 
-fn cmd_mesh_info(paths: &[PathBuf]) -> Result<i32> {
+fn cmd_mesh_info(paths: &[PathBuf], select: Option<&str>) -> Result<i32> {
+    let selector = match select {
+        Some(text) => Some(lop_scene::node_selector(&bad(lop_config::parse_selector(
+            text,
+        ))?)),
+        None => None,
+    };
     let mut failed = 0;
     for p in paths {
         match lop_sim::mesh::read_mesh(p) {
-            Ok(mesh) => println!("{}\n{}", p.display(), mesh.info()),
+            Ok(mesh) => {
+                println!("{}\n{}", p.display(), mesh.info());
+                if let Some(s) = &selector {
+                    println!("{}", selection_summary(&mesh, s));
+                }
+            }
             Err(e) => {
                 eprintln!("{}: error: {e}", p.display());
                 failed += 1;
@@ -454,6 +547,93 @@ fn cmd_mesh_info(paths: &[PathBuf]) -> Result<i32> {
         }
     }
     Ok(if failed > 0 { 2 } else { 0 })
+}
+
+/// Count, bounds and first indices of the nodes a selector picks, in the mesh's coordinates.
+fn selection_summary(mesh: &lop_sim::mesh::TetMesh, s: &lop_sim::mesh::NodeSelector) -> String {
+    const SHOWN: usize = 20;
+    let picked = s.select(&mesh.nodes, &mesh.surface);
+    if picked.is_empty() {
+        return "selected:          no node (as [[body.fix]] in a scene, this is an error)"
+            .to_owned();
+    }
+    let points: Vec<[f64; 3]> = picked.iter().map(|&i| mesh.nodes[i as usize]).collect();
+    let (lo, hi) = lop_sim::mesh::bounds(&points);
+    let surface = mesh.surface_nodes();
+    let on_surface = picked
+        .iter()
+        .filter(|i| surface.binary_search(i).is_ok())
+        .count();
+    let first: Vec<String> = picked.iter().take(SHOWN).map(u32::to_string).collect();
+    format!(
+        "selected:          {} nodes ({on_surface} on the surface)\n\
+         selected bounds:   [{:.6}, {:.6}, {:.6}] .. [{:.6}, {:.6}, {:.6}] (mesh coordinates)\n\
+         selected nodes:    {}{} (0-based)",
+        picked.len(),
+        lo[0],
+        lo[1],
+        lo[2],
+        hi[0],
+        hi[1],
+        hi[2],
+        first.join(" "),
+        if picked.len() > SHOWN { " ..." } else { "" }
+    )
+}
+
+fn cmd_tetrahedralize(a: TetrahedralizeArgs) -> Result<i32> {
+    use lop_daemon::tetrahedralize::{run, volume_for_edge, TetrahedralizeOptions};
+    let opts = TetrahedralizeOptions {
+        surface: a.surface,
+        out: a.out,
+        units: a.units,
+        max_volume: a.max_volume.or(a.edge.map(volume_for_edge)),
+        quality: a.quality,
+        close_holes: a.close_holes,
+        keep_surface: a.keep_surface,
+    };
+    match run(&opts) {
+        Ok(done) => {
+            println!("{}", done.summary(&opts));
+            Ok(0)
+        }
+        Err(e) if e.is_bad_input() => bad(Err(e)),
+        Err(e) => Err(e.into()),
+    }
+}
+
+fn cmd_scene_new(a: SceneNewArgs) -> Result<i32> {
+    use lop_daemon::scene_new::{run, SceneNewInputError, SceneNewOptions};
+    let out = a
+        .out
+        .unwrap_or_else(|| PathBuf::from(format!("{}.toml", a.name)));
+    let opts = SceneNewOptions {
+        name: a.name,
+        meshes: a.mesh,
+        tissues: a.tissue,
+        units: a.units,
+        out,
+        force: a.force,
+    };
+    match run(&opts) {
+        Ok(done) => {
+            println!(
+                "wrote {} and {}",
+                done.scene.display(),
+                done.script.display()
+            );
+            for (name, tissue, nodes, fixed) in &done.bodies {
+                println!("  {name:<16} {tissue:<9} {nodes} nodes, {fixed} fixed");
+            }
+            println!(
+                "run it: lopd run --scene {} --device mock",
+                done.scene.display()
+            );
+            Ok(0)
+        }
+        Err(e) if e.downcast_ref::<SceneNewInputError>().is_some() => bad(Err(e)),
+        Err(e) => Err(e),
+    }
 }
 
 fn cmd_scenes() -> Result<()> {

@@ -15,10 +15,13 @@ use lop_sim::lop::{
     CageDynamics, CageModel, CageShape, GcParameters, LopPolicy, PrecisionController, StartLevel,
 };
 pub use lop_sim::mesh::smallest_extent;
-use lop_sim::mesh::{read_mesh, TetMesh};
+use lop_sim::mesh::TetMesh;
 use lop_sim::model::Model;
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 use lop_sim::world::World;
+
+mod place;
+pub use place::{node_selector, place_bodies, place_body};
 
 /// A loaded scene: the world and its topology.
 pub struct LoadedScene {
@@ -305,25 +308,8 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
     let mut triangles: Vec<u32> = Vec::new();
     let mut tets: Vec<u32> = Vec::new();
     let mut node_offset = 0usize;
-    for spec in scene.bodies.iter() {
-        let mut mesh = read_mesh(&spec.mesh)
-            .with_context(|| format!("body {:?} of scene {}", spec.name, scene.path.display()))?;
-        for p in mesh.nodes.iter_mut() {
-            *p = spec.transform_point(*p);
-        }
-        for &f in &spec.fixed_nodes {
-            if f as usize >= mesh.nodes.len() {
-                anyhow::bail!(
-                    "{}: body {:?}: fixed_nodes has {f}, but the mesh has {} nodes",
-                    scene.path.display(),
-                    spec.name,
-                    mesh.nodes.len()
-                );
-            }
-            mesh.fixed.push(f);
-        }
-        mesh.fixed.sort_unstable();
-        mesh.fixed.dedup();
+    for (index, spec) in scene.bodies.iter().enumerate() {
+        let mesh = place_body(&scene, index)?;
         let (model, lop) = body_models(&scene, spec, &mesh)?;
         topology.bodies.push(BodyTopology {
             name: spec.name.clone(),

@@ -81,6 +81,9 @@ pub struct BodySpec {
     pub scale: f64,
     /// Extra fixed nodes (0-based mesh node indices), in addition to the mesh's `.bnd` file.
     pub fixed_nodes: Vec<u32>,
+    /// Fixed-node selectors, `[[body.fix]]`, in scene coordinates (m): every node any of them
+    /// picks is fixed too. Each must pick at least one node (checked when the mesh is loaded).
+    pub fix: Vec<super::FixSelector>,
     /// sRGB colour in 0..=1 for viewers.
     pub color: [f32; 3],
     /// Tool stiffness against this body (units of `[tool] force_law`), or `None` for the

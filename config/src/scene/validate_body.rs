@@ -8,6 +8,7 @@ use crate::error::ConfigError;
 use crate::raw::{RawBody, RawBodyHeat, RawFem, RawGc, RawMsd};
 use crate::source::{KeyPath, Source};
 
+use super::fix::validate_fix;
 use super::validate::check_name;
 use super::{
     BodySpec, FemParams, GcDynamics, GcParams, HeatParams, Importance, MassSpec, ModelPin,
@@ -168,6 +169,13 @@ pub(super) fn validate_body(
         .map(|g| validate_gc(&c, &key.key("gc"), g))
         .transpose()?;
     let heat = validate_body_heat(&c, &key.key("heat"), rb.heat.unwrap_or_default())?;
+    let fix = rb
+        .fix
+        .unwrap_or_default()
+        .into_iter()
+        .enumerate()
+        .map(|(i, f)| validate_fix(&c, &key.key("fix").index(i), f))
+        .collect::<Result<Vec<_>, _>>()?;
     let mesh = resolve_mesh(&c, &key.key("mesh"), &rb.mesh, dir)?;
 
     Ok(BodySpec {
@@ -179,6 +187,7 @@ pub(super) fn validate_body(
         rotate_deg,
         scale,
         fixed_nodes: rb.fixed_nodes.unwrap_or_default(),
+        fix,
         color,
         tool_stiffness,
         fem,

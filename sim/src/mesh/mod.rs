@@ -141,7 +141,9 @@ mod bnd;
 mod error;
 mod gmsh;
 mod quality;
+mod select;
 mod surface;
+mod surface_check;
 mod surface_io;
 mod tetgen;
 mod text;
@@ -157,6 +159,11 @@ use std::path::{Path, PathBuf};
 pub use bnd::write_bnd;
 pub use error::MeshReadError;
 pub use gmsh::read_gmsh;
+pub use select::{vertex_normals, NodeSelector};
+pub use surface_check::{
+    check_surface, close_holes, DefectKind, HoleClosing, SurfaceDefect, SurfaceReport, TriangleRef,
+    DEFECTS_LISTED,
+};
 pub use surface_io::{read_surface, SurfaceMesh};
 pub use tetgen::{read_tetgen, write_tetgen, write_tetgen_numbered};
 pub use vtk::{read_vtk, write_vtk};

@@ -1,0 +1,708 @@
+//! `lopd scene new`: a scene file for the user's own tetrahedral meshes, ready to run.
+//!
+//! Every decision is written into the generated file as a comment, so the author can see and
+//! change it:
+//! - **Units**: each mesh is scaled to metres by its body's `scale` (`--units`).
+//! - **Placement**: the bodies side by side along x, 10 mm apart, centred on the origin (each
+//!   body's bounding-box centre on the x axis), so none overlaps another and the device's
+//!   workspace, centred there, reaches them all.
+//! - **Tissue**: parameters from the tissue library ([`lop_config::tissue`]): the `abdomen`
+//!   scene's literature values, with the mass-spring spring constant and damping derived from
+//!   the mesh as that scene does.
+//! - **Fixed nodes**: a posterior patch, as the shipped organs are held (`assets/README.md`):
+//!   the surface nodes facing backwards (−z, within 60°) in the back 15 % of the body's
+//!   depth — the side away from the surgeon, where the retroperitoneum and ligaments hold an
+//!   abdominal organ; the front, where the tool comes from, stays free. On a shape where that
+//!   patch holds fewer than three nodes, the back tenth of the body (a slab) instead.
+//! - **Device**: the workspace map of the shipped scenes (device origin on the bodies' centre,
+//!   the smallest scale of 1, 1.5, 2, … at which the Omni's 160 × 120 × 70 mm reach all of
+//!   them), the tool of `abdomen` (3 mm tip, linear 300 N/m, lowered above scale 2 so the stylus
+//!   never feels more than 0.6 N/mm), and a mock poke script that presses 6 mm into the front
+//!   (+z) of the first body at its x/y centre along the surface normal there.
+//!
+//! The file is then loaded as `lopd run --scene` loads it (validation, meshes, fixed-node
+//! selectors), and the poke script as the mock device loads it.
+
+use std::fmt::Write as _;
+use std::path::{Component, Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use lop_config::{selector_toml, tissue, tissue_names, FixSelector, Importance, Tissue};
+use lop_scene::node_selector;
+use lop_sim::mesh::{bounds, read_mesh, TetMesh};
+
+use crate::tetrahedralize::Units;
+
+/// Gap between neighbouring bodies, m.
+pub const BODY_GAP: f64 = 0.010;
+/// How far the poke pushes past first contact, m.
+pub const POKE_DEPTH: f64 = 0.006;
+/// Clearance of the tip from the surface at the poke's rest point, m.
+pub const POKE_CLEARANCE: f64 = 0.015;
+/// The Omni's workspace, device mm (the mock device's limits).
+const OMNI_MIN_MM: [f64; 3] = [-80.0, -60.0, -35.0];
+const OMNI_MAX_MM: [f64; 3] = [80.0, 60.0, 35.0];
+/// The tool of the shipped scenes.
+const TOOL_RADIUS: f64 = 0.003;
+const TOOL_STIFFNESS: f64 = 300.0;
+/// Largest stiffness felt at the stylus, N/m of device motion (0.6 N/mm, under the Omni's 0.7).
+const STYLUS_STIFFNESS: f64 = 600.0;
+
+/// What to generate.
+#[derive(Debug, Clone)]
+pub struct SceneNewOptions {
+    /// Scene name.
+    pub name: String,
+    /// The meshes, one body each.
+    pub meshes: Vec<PathBuf>,
+    /// Tissue names: one for every body, or one per body.
+    pub tissues: Vec<String>,
+    /// The meshes' units.
+    pub units: Units,
+    /// The scene file to write.
+    pub out: PathBuf,
+    /// Overwrite existing files.
+    pub force: bool,
+}
+
+/// What was generated.
+#[derive(Debug)]
+pub struct SceneNew {
+    /// The scene file.
+    pub scene: PathBuf,
+    /// The poke script beside it.
+    pub script: PathBuf,
+    /// Per body: name, tissue, node count, fixed node count.
+    pub bodies: Vec<(String, &'static str, usize, usize)>,
+}
+
+/// Is the input at fault? (exit code 2): wrapped by the generator's bad-input errors.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct SceneNewInputError(pub String);
+
+fn input<T>(msg: String) -> Result<T> {
+    Err(anyhow::Error::new(SceneNewInputError(msg)))
+}
+
+struct Body {
+    name: String,
+    tissue: &'static Tissue,
+    mesh_path: PathBuf,
+    mesh: TetMesh,
+    /// Mesh-file bounds, file units.
+    lo: [f64; 3],
+    hi: [f64; 3],
+    translate: [f64; 3],
+    fix: FixSelector,
+    fix_note: &'static str,
+}
+
+/// Generates the scene and its poke script (see the [module docs](self)).
+pub fn run(opts: &SceneNewOptions) -> Result<SceneNew> {
+    if opts.meshes.is_empty() {
+        return input("--mesh: give at least one mesh".to_owned());
+    }
+    if opts.name.trim().is_empty() || opts.name.contains(['"', '\\', '\n']) {
+        return input(format!(
+            "scene name {:?}: must be non-empty, without quotes, backslashes or newlines",
+            opts.name
+        ));
+    }
+    let tissues: Vec<&'static Tissue> = match opts.tissues.len() {
+        0 => vec![tissue("liver").expect("the library has a liver"); opts.meshes.len()],
+        1 => vec![lookup(&opts.tissues[0])?; opts.meshes.len()],
+        n if n == opts.meshes.len() => opts
+            .tissues
+            .iter()
+            .map(|t| lookup(t))
+            .collect::<Result<_>>()?,
+        n => {
+            return input(format!(
+                "--tissue given {n} times for {} meshes: give one for all, or one per mesh",
+                opts.meshes.len()
+            ))
+        }
+    };
+    let script = script_path(&opts.out);
+    for p in [&opts.out, &script] {
+        if p.exists() && !opts.force {
+            return input(format!(
+                "{} exists: choose another --out, or --force to overwrite it",
+                p.display()
+            ));
+        }
+    }
+    let s = opts.units.metres();
+
+    // Read and place the bodies side by side along x.
+    let mut bodies: Vec<Body> = Vec::new();
+    for (path, tissue) in opts.meshes.iter().zip(tissues) {
+        let mesh = match read_mesh(path) {
+            Ok(m) => m,
+            Err(e) => return input(format!("--mesh {}: {e}", path.display())),
+        };
+        let (lo, hi) = bounds(&mesh.nodes);
+        let mut name = mesh_stem(path);
+        let mut k = 2;
+        while bodies.iter().any(|b| b.name == name) {
+            name = format!("{}_{k}", mesh_stem(path));
+            k += 1;
+        }
+        bodies.push(Body {
+            name,
+            tissue,
+            mesh_path: path.clone(),
+            mesh,
+            lo,
+            hi,
+            translate: [0.0; 3],
+            fix: FixSelector::Box {
+                min: [0.0; 3],
+                max: [0.0; 3],
+            },
+            fix_note: "",
+        });
+    }
+    let width: f64 = bodies.iter().map(|b| (b.hi[0] - b.lo[0]) * s).sum::<f64>()
+        + BODY_GAP * (bodies.len() - 1) as f64;
+    let mut x = -width / 2.0;
+    for b in &mut bodies {
+        let size = [0, 1, 2].map(|k| (b.hi[k] - b.lo[k]) * s);
+        let centre = [0, 1, 2].map(|k| (b.hi[k] + b.lo[k]) / 2.0 * s);
+        b.translate = round_m([x + size[0] / 2.0 - centre[0], -centre[1], -centre[2]]);
+        x += size[0] + BODY_GAP;
+        // Place the nodes as the scene will, for the selector and the poke.
+        for p in &mut b.mesh.nodes {
+            *p = [0, 1, 2].map(|k| p[k] * s + b.translate[k]);
+        }
+        let (fix, note) = default_fix(&b.mesh);
+        b.fix = fix;
+        b.fix_note = note;
+    }
+
+    // Workspace: device origin on the centre of everything, the smallest scale that reaches it.
+    let (lo, hi) = bounds(
+        &bodies
+            .iter()
+            .flat_map(|b| b.mesh.nodes.clone())
+            .collect::<Vec<_>>(),
+    );
+    let offset = round_m([0, 1, 2].map(|k| (lo[k] + hi[k]) / 2.0));
+    let reach = [0, 1, 2].map(|k| (OMNI_MAX_MM[k] - OMNI_MIN_MM[k]) * 1e-3);
+    let need = [
+        (hi[0] - lo[0]) / reach[0],
+        (hi[1] - lo[1]) / reach[1],
+        (hi[2] - lo[2] + 2.0 * (POKE_CLEARANCE + TOOL_RADIUS)) / reach[2],
+    ]
+    .into_iter()
+    .fold(1.0, f64::max);
+    let scale = (need * 2.0).ceil() / 2.0;
+    let stiffness = TOOL_STIFFNESS.min(STYLUS_STIFFNESS / scale).round();
+
+    let poke = poke_waypoints(&bodies[0].mesh, offset, scale)?;
+
+    // Write the scene and the script.
+    let scene_dir = absolute_dir(&opts.out)?;
+    let text = scene_text(opts, &bodies, &scene_dir, offset, scale, stiffness, &script)?;
+    if let Some(d) = opts.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
+    }
+    std::fs::write(&opts.out, text).with_context(|| format!("writing {}", opts.out.display()))?;
+    std::fs::write(
+        &script,
+        script_text(&opts.name, &bodies[0].name, offset, scale, &poke),
+    )
+    .with_context(|| format!("writing {}", script.display()))?;
+
+    // Load it as `lopd run` would.
+    let scene = lop_config::load_scene(&opts.out).with_context(|| {
+        format!(
+            "the generated scene {} does not validate",
+            opts.out.display()
+        )
+    })?;
+    let placed = lop_scene::place_bodies(&scene)
+        .with_context(|| format!("the generated scene {} does not load", opts.out.display()))?;
+    lop_drivers::mock::MockScript::load(&script)
+        .with_context(|| format!("the generated poke script {}", script.display()))?;
+    Ok(SceneNew {
+        scene: opts.out.clone(),
+        script,
+        bodies: bodies
+            .iter()
+            .zip(&placed)
+            .map(|(b, m)| (b.name.clone(), b.tissue.name, m.nodes.len(), m.fixed.len()))
+            .collect(),
+    })
+}
+
+fn lookup(name: &str) -> Result<&'static Tissue> {
+    match tissue(name) {
+        Some(t) => Ok(t),
+        None => input(format!(
+            "--tissue {name:?}: not in the tissue library ({})",
+            tissue_names().join(", ")
+        )),
+    }
+}
+
+/// `NAME-poke.toml` beside the scene file `NAME.toml`.
+fn script_path(scene: &Path) -> PathBuf {
+    let stem = scene
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".to_owned());
+    scene.with_file_name(format!("{stem}-poke.toml"))
+}
+
+/// A body name from a mesh path: `liver` for `x/liver.node`, `x/liver` or `x/liver.msh`.
+fn mesh_stem(path: &Path) -> String {
+    path.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .filter(|s| !s.is_empty())
+        .unwrap_or_else(|| "body".to_owned())
+}
+
+/// Rounded to the micrometre, so the file reads cleanly.
+fn round_m(v: [f64; 3]) -> [f64; 3] {
+    v.map(|x| (x * 1e6).round() / 1e6 + 0.0)
+}
+
+fn num(x: f64) -> String {
+    format!("{:?}", (x * 1e6).round() / 1e6 + 0.0)
+}
+
+fn arr(v: [f64; 3]) -> String {
+    format!("[{}, {}, {}]", num(v[0]), num(v[1]), num(v[2]))
+}
+
+/// The posterior patch, or the back slab where the patch is too small (see the module docs).
+fn default_fix(mesh: &TetMesh) -> (FixSelector, &'static str) {
+    let (lo, hi) = bounds(&mesh.nodes);
+    let depth = hi[2] - lo[2];
+    let centre = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0];
+    let slab = |fraction: f64| FixSelector::Slab {
+        point: round_m([centre[0], centre[1], lo[2] + fraction * depth]),
+        normal: [0.0, 0.0, 1.0],
+        thickness: None,
+    };
+    let patch = FixSelector::Facing {
+        direction: [0.0, 0.0, -1.0],
+        angle_deg: 60.0,
+        within: Some(Box::new(slab(0.15))),
+    };
+    if node_selector(&patch)
+        .select(&mesh.nodes, &mesh.surface)
+        .len()
+        >= 3
+    {
+        (
+            patch,
+            "the posterior patch: surface nodes facing backwards (-z, within 60\n\
+             # degrees) in the back 15 % of the body's depth",
+        )
+    } else {
+        (
+            slab(0.1),
+            "the posterior slab: every node in the back tenth of the body's depth\n\
+             # (its posterior surface patch holds fewer than three nodes)",
+        )
+    }
+}
+
+/// The poke's waypoints, device mm: rest, contact, pushed (see [`script_text`]).
+struct Poke {
+    target: [f64; 3],
+    normal: [f64; 3],
+    rest: [f64; 3],
+    contact: [f64; 3],
+    pushed: [f64; 3],
+}
+
+/// The first body's front surface at its x/y centre (the highest hit of a ray down −z there;
+/// else its most anterior surface node) and the poke along the normal there.
+fn poke_waypoints(mesh: &TetMesh, offset: [f64; 3], scale: f64) -> Result<Poke> {
+    let (lo, hi) = bounds(&mesh.nodes);
+    let (cx, cy) = ((lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0);
+    let mut best: Option<([f64; 3], [f64; 3])> = None;
+    for t in &mesh.surface {
+        let [a, b, c] = t.map(|i| mesh.nodes[i as usize]);
+        let n = cross(sub(b, a), sub(c, a));
+        if n[2] <= 0.0 {
+            continue; // faces away from +z
+        }
+        // Barycentric coordinates of (cx, cy) in the xy projection.
+        let det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+        if det == 0.0 {
+            continue;
+        }
+        let u = ((cx - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (cy - a[1])) / det;
+        let v = ((b[0] - a[0]) * (cy - a[1]) - (cx - a[0]) * (b[1] - a[1])) / det;
+        if u < 0.0 || v < 0.0 || u + v > 1.0 {
+            continue;
+        }
+        let z = a[2] + u * (b[2] - a[2]) + v * (c[2] - a[2]);
+        if best.is_none_or(|(p, _)| z > p[2]) {
+            best = Some(([cx, cy, z], normalize(n)));
+        }
+    }
+    let (target, normal) = match best {
+        Some(hit) => hit,
+        None => {
+            let normals = lop_sim::mesh::vertex_normals(&mesh.nodes, &mesh.surface);
+            let i = mesh
+                .surface_nodes()
+                .into_iter()
+                .max_by(|&i, &j| mesh.nodes[i as usize][2].total_cmp(&mesh.nodes[j as usize][2]))
+                .context("the first body has no surface")?;
+            (mesh.nodes[i as usize], normalize(normals[i as usize]))
+        }
+    };
+    let along = |d: f64| [0, 1, 2].map(|k| target[k] + normal[k] * d);
+    let device = |p: [f64; 3]| {
+        [0, 1, 2].map(|k| ((p[k] - offset[k]) / (1e-3 * scale) * 100.0).round() / 100.0)
+    };
+    let poke = Poke {
+        target,
+        normal,
+        rest: device(along(TOOL_RADIUS + POKE_CLEARANCE)),
+        contact: device(along(TOOL_RADIUS)),
+        pushed: device(along(TOOL_RADIUS - POKE_DEPTH)),
+    };
+    for p in [poke.rest, poke.contact, poke.pushed] {
+        if !(0..3).all(|k| p[k] >= OMNI_MIN_MM[k] && p[k] <= OMNI_MAX_MM[k]) {
+            bail!(
+                "the poke's waypoint {p:?} mm is outside the Omni's workspace \
+                 ({OMNI_MIN_MM:?} .. {OMNI_MAX_MM:?} mm) at workspace scale {scale}"
+            );
+        }
+    }
+    Ok(poke)
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn normalize(a: [f64; 3]) -> [f64; 3] {
+    let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    if l > 0.0 {
+        a.map(|x| x / l)
+    } else {
+        [0.0, 0.0, 1.0]
+    }
+}
+
+/// The directory a path will be in, absolute.
+fn absolute_dir(file: &Path) -> Result<PathBuf> {
+    let abs = std::path::absolute(file).with_context(|| format!("{}", file.display()))?;
+    Ok(abs.parent().map(Path::to_path_buf).unwrap_or_default())
+}
+
+/// `target` relative to directory `from` (both absolute), with `..` where needed.
+fn relative(target: &Path, from: &Path) -> PathBuf {
+    let t: Vec<Component> = target.components().collect();
+    let f: Vec<Component> = from.components().collect();
+    let common = t.iter().zip(&f).take_while(|(a, b)| a == b).count();
+    let mut out = PathBuf::new();
+    for _ in common..f.len() {
+        out.push("..");
+    }
+    for c in &t[common..] {
+        out.push(c.as_os_str());
+    }
+    out
+}
+
+/// Mean tet-edge length and mean node mass of a placed mesh of density `rho`.
+fn mesh_scales(mesh: &TetMesh, rho: f64) -> (f64, f64) {
+    let edges = mesh.edges();
+    let len = |[a, b]: [u32; 2]| {
+        let d = sub(mesh.nodes[a as usize], mesh.nodes[b as usize]);
+        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+    };
+    let mean_edge = edges.iter().map(|&e| len(e)).sum::<f64>() / edges.len().max(1) as f64;
+    let volume: f64 = (0..mesh.tets.len()).map(|i| mesh.tet_volume(i)).sum();
+    (mean_edge, rho * volume / mesh.nodes.len().max(1) as f64)
+}
+
+/// Three significant figures.
+fn sig3(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    let e = 10f64.powi(2 - x.abs().log10().floor() as i32);
+    (x * e).round() / e
+}
+
+#[allow(clippy::too_many_arguments)]
+fn scene_text(
+    opts: &SceneNewOptions,
+    bodies: &[Body],
+    scene_dir: &Path,
+    offset: [f64; 3],
+    scale: f64,
+    stiffness: f64,
+    script: &Path,
+) -> Result<String> {
+    let mut t = String::new();
+    let w = &mut t;
+    writeln!(
+        w,
+        "# Scene {:?}, generated by `lopd scene new` from:",
+        opts.name
+    )?;
+    for b in bodies {
+        writeln!(
+            w,
+            "#   {} ({}, in {})",
+            b.mesh_path.display(),
+            b.tissue.name,
+            opts.units.name()
+        )?;
+    }
+    writeln!(
+        w,
+        "# Key-by-key documentation: `cargo doc -p lop-config --open`, or the top of \
+         config/src/lib.rs.\n\
+         #\n\
+         # Frame: metres, y up, +z anterior (towards the surgeon and the camera), as the shipped\n\
+         # organs. Each mesh is scaled to metres by its body's `scale` and placed side by side\n\
+         # with the others along x, {} mm apart, centred on the origin.\n\
+         #\n\
+         # Tissue values: lop's tissue library, the `abdomen` scene's literature values\n\
+         # (config/scenes/abdomen.toml argues each choice). nu 0.45 keeps linear tetrahedra from\n\
+         # locking; density 1050 kg/m^3; FEM damping alpha 30 1/s; mass-spring k = {} E l (l the\n\
+         # mesh's mean edge length, calibrated on the liver against its FEM) and gamma = alpha x\n\
+         # mean node mass. Gravity is off: a body held only by a patch would sag far beyond linear\n\
+         # elasticity (see abdomen.toml).",
+        BODY_GAP * 1e3,
+        lop_config::MSD_CALIBRATION
+    )?;
+    for b in bodies {
+        writeln!(w, "#\n# {}:", b.name)?;
+        for line in b.tissue.source.lines() {
+            writeln!(w, "#   {line}")?;
+        }
+    }
+    writeln!(
+        w,
+        "\n[scene]\nname = \"{}\"\ndescription = \"Generated by lopd scene new: {}\"\ngravity = [0.0, 0.0, 0.0]\n",
+        opts.name,
+        bodies
+            .iter()
+            .map(|b| format!("{} ({})", b.name, b.tissue.name))
+            .collect::<Vec<_>>()
+            .join(", ")
+    )?;
+    writeln!(
+        w,
+        "# The tool of the shipped scenes: a 3 mm tip, the linear law; the stylus feels\n\
+         # stiffness x workspace scale = {} N/mm (an Omni renders about 0.7 N/mm stably).\n\
+         [tool]\nradius = {}\nforce_law = \"linear\"\nstiffness = {}\ndamping = 0.0\nmax_force = 3.0\nheat_power = 20.0\n",
+        stiffness * scale * 1e-3,
+        num(TOOL_RADIUS),
+        num(stiffness)
+    )?;
+    writeln!(
+        w,
+        "# Device mapping: scene = device_mm x 0.001 x scale + offset. The device origin is on the\n\
+         # centre of the bodies' bounding box; scale {} is the smallest of 1, 1.5, 2, ... at which\n\
+         # the Omni's 160 x 120 x 70 mm workspace covers every body and the poke's approach.\n\
+         [workspace]\nscale = {}\nrotate_deg = [0.0, 0.0, 0.0]\noffset = {}\n",
+        scale,
+        num(scale),
+        arr(offset)
+    )?;
+    writeln!(
+        w,
+        "[rates]\nhaptic_hz = 1000.0\ndeform_max_hz = 1000.0\npublish_hz = 250.0\n\n\
+         # The mock device's default: press {} mm into the front of {:?} (see the script).\n\
+         [device]\nmock_script = \"{}\"\n\n\
+         [lop]\nrest_speed = 0.002\nhold = 0.3\nblend = 0.2\nstart = \"gc\"\n\n\
+         [heat]\nair_temperature = 22.0\nair_coefficient = 10.0\ncontact_conductance = 500.0",
+        POKE_DEPTH * 1e3,
+        bodies[0].name,
+        relative(&std::path::absolute(script)?, scene_dir).display()
+    )?;
+    for b in bodies {
+        let tissue = b.tissue;
+        let mesh = relative(&std::path::absolute(&b.mesh_path)?, scene_dir);
+        let (edge, node_mass) = mesh_scales(&b.mesh, tissue.density);
+        let k = sig3(tissue.msd_stiffness(edge));
+        let gamma = sig3(tissue.msd_damping(node_mass));
+        let (lo, hi) = bounds(&b.mesh.nodes);
+        writeln!(
+            w,
+            "\n# {}: {} nodes, {} tetrahedra; in the scene [{}, {}, {}] .. [{}, {}, {}] m.",
+            b.name,
+            b.mesh.nodes.len(),
+            b.mesh.tets.len(),
+            num(lo[0]),
+            num(lo[1]),
+            num(lo[2]),
+            num(hi[0]),
+            num(hi[1]),
+            num(hi[2])
+        )?;
+        writeln!(
+            w,
+            "[[body]]\nname = \"{}\"\nmesh = \"{}\"\nimportance = \"{}\"\nscale = {}\ntranslate = {}\ncolor = [{:?}, {:?}, {:?}]",
+            b.name,
+            mesh.display(),
+            match tissue.importance {
+                Importance::Important => "important",
+                Importance::Normal => "normal",
+            },
+            num(opts.units.metres()),
+            arr(b.translate),
+            tissue.color[0],
+            tissue.color[1],
+            tissue.color[2]
+        )?;
+        writeln!(
+            w,
+            "\n# Fixed: {}. It stands for the retroperitoneum and ligaments\n\
+             # that hold an abdominal organ from behind, as the shipped organs' posterior patches do;\n\
+             # the front, where the tool comes from, stays free.\n\
+             # Check what it picks: lopd mesh info MESH --select '<the table below, inline>'\n\
+             # (in the mesh file's coordinates: apply scale and translate first).\n\
+             # As an inline table: {}",
+            b.fix_note,
+            selector_toml(&b.fix)
+        )?;
+        writeln!(w, "[[body.fix]]")?;
+        write_fix(w, &b.fix)?;
+        let h = &tissue.heat;
+        writeln!(
+            w,
+            "\n[body.heat]\nconductivity = {:?}\nspecific_heat = {:?}\ndensity = {:?}\ninitial = {:?}\ncoagulation = {:?}\nburn_stiffening = {:?}",
+            h.conductivity, h.specific_heat, h.density, h.initial, h.coagulation, h.burn_stiffening
+        )?;
+        writeln!(
+            w,
+            "\n[body.fem]\nyoung = {:?}\npoisson = {:?}\ndensity = {:?}\ndamping = {:?}\ndt = {:?}",
+            tissue.young, tissue.poisson, tissue.density, tissue.fem_damping, tissue.dt
+        )?;
+        writeln!(
+            w,
+            "\n# k = {} x E x mean edge {:.1} mm; gamma = alpha x mean node mass {:.2} g.\n\
+             [body.msd]\nstiffness = {:?}\ndensity = {:?}\ndamping = {:?}\ndt = {:?}\nintegrator = \"implicit-euler\"",
+            lop_config::MSD_CALIBRATION,
+            edge * 1e3,
+            node_mass * 1e3,
+            k,
+            tissue.density,
+            gamma,
+            tissue.dt
+        )?;
+        writeln!(
+            w,
+            "\n[body.gc]\ncage = \"fitted\"\ndynamics = \"projected\"\ndt = {:?}",
+            tissue.gc_dt
+        )?;
+    }
+    Ok(t)
+}
+
+/// A selector's keys as `[[body.fix]]` table lines.
+fn write_fix(w: &mut String, f: &FixSelector) -> std::fmt::Result {
+    match f {
+        FixSelector::Box { min, max } => {
+            writeln!(
+                w,
+                "kind = \"box\"\nmin = {}\nmax = {}",
+                arr(*min),
+                arr(*max)
+            )
+        }
+        FixSelector::Sphere { center, radius } => writeln!(
+            w,
+            "kind = \"sphere\"\ncenter = {}\nradius = {}",
+            arr(*center),
+            num(*radius)
+        ),
+        FixSelector::Slab {
+            point,
+            normal,
+            thickness,
+        } => {
+            writeln!(
+                w,
+                "kind = \"slab\"\npoint = {}\nnormal = {}",
+                arr(*point),
+                arr(*normal)
+            )?;
+            if let Some(t) = thickness {
+                writeln!(w, "thickness = {}", num(*t))?;
+            }
+            Ok(())
+        }
+        FixSelector::Facing {
+            direction,
+            angle_deg,
+            within,
+        } => {
+            writeln!(
+                w,
+                "kind = \"facing\"\ndirection = {}\nangle_deg = {:?}",
+                arr(*direction),
+                angle_deg
+            )?;
+            if let Some(within) = within {
+                writeln!(w, "within = {}", selector_toml(within))?;
+            }
+            Ok(())
+        }
+    }
+}
+
+/// The mock poke script: rest in front of the target, approach to contact, press
+/// [`POKE_DEPTH`] further along the inward normal, hold 1 s, withdraw; loops (as `abdomen-poke`).
+fn script_text(scene: &str, body: &str, offset: [f64; 3], scale: f64, poke: &Poke) -> String {
+    let mut t = String::new();
+    let _ = writeln!(
+        t,
+        "# Poke for scene {scene:?}, generated by `lopd scene new`: approach the front of {body:?},\n\
+         # press the tip {} mm past first contact along the inward surface normal, hold 1 s,\n\
+         # withdraw, loop. Device mm = (scene m - offset) / (0.001 x scale), offset {}, scale {}.\n\
+         # Target: scene {} m, outward normal {}; the tip (radius {} mm) touches at contact.\n\
+         name = \"{scene}: poke\"\n\
+         description = \"Press {} mm into the front of {body}, hold 1 s, withdraw.\"\n\
+         end = \"loop\"\ninterpolation = \"smooth\"",
+        POKE_DEPTH * 1e3,
+        arr(offset),
+        scale,
+        arr(poke.target),
+        arr(poke.normal.map(|x| (x * 1e3).round() / 1e3)),
+        TOOL_RADIUS * 1e3,
+        POKE_DEPTH * 1e3,
+    );
+    for (time, label, p) in [
+        (0.0, "rest", poke.rest),
+        (0.5, "rest", poke.rest),
+        (1.3, "contact", poke.contact),
+        (2.0, "pushed", poke.pushed),
+        (3.0, "pushed", poke.pushed),
+        (3.6, "contact", poke.contact),
+        (4.4, "rest", poke.rest),
+    ] {
+        let _ = writeln!(
+            t,
+            "\n[[waypoint]]\n# {label}\nt = {time:?}\nposition = [{:?}, {:?}, {:?}]\nbuttons = []",
+            p[0] + 0.0,
+            p[1] + 0.0,
+            p[2] + 0.0
+        );
+    }
+    t
+}
