@@ -169,11 +169,12 @@
 //! | `air_temperature` | float | `22` | °C (above -273.15, at most 1000) |
 //! | `air_coefficient` | float | `10` | convective heat-transfer coefficient `h` from tissue surfaces to the air, W/m²/K (>= 0; 10 is natural convection; 0 insulates) |
 //! | `contact_conductance` | float | `500` | W/m²/K (>= 0) between touching organs, times the contact area (≈ tissue conductivity 0.5 W/m/K across a 1 mm layer; 0: no heat crosses) |
-//! | `dt` | float | one heat step per deformation step | heat time step, s (0 < dt <= 1); the scheme is stable at any step, so a longer one only costs accuracy |
+//! | `dt` | float | `0.01` | heat time step, s (0 < dt <= 1); the scheme is stable at any step, so a longer one only costs accuracy |
 //!
 //! ## `[collision]` (optional): organs push each other (thesis §6.3.4.1)
-//! Every deformation step, surface vertices of each body inside another body (or within `skin`
-//! of it) become pairs of contact springs, one on the vertex and one on the other body's
+//! At every detection (each round in which a body steps, or once per `interval`), surface
+//! vertices of each body inside another body (or within `skin` of it) become pairs of contact
+//! springs, one on the vertex and one on the other body's
 //! closest point, each pushing its side half the depth apart; every model resolves them
 //! implicitly in its own step, a cage through its cage (see `lop_sim::collide`). Stiffer
 //! springs let the surfaces sink less into each other (`2F/k` per vertex pair under a force
@@ -186,6 +187,7 @@
 //! | `stiffness` | float | `20` | N/m (> 0) per contact spring |
 //! | `skin` | float | `0.0005` | m (0 to 0.01): contact starts this far before the surfaces meet. The shipped organs are about 1 mm apart at rest, so the default leaves them untouched until pushed |
 //! | `depth_limit` | float | `0.01` | m (> 0): vertices deeper than this inside another body are ignored (and the detection stops searching there) |
+//! | `interval` | float | `0` | s (0 to 1) of simulated time between two detections; the springs of the last one hold meanwhile. `0`: every round in which a body steps. A body stepping at the haptic rate would otherwise pay for a detection every millisecond; organs that push each other move far slower than the tool |
 //!
 //! ## `[[body]]` (one or more)
 //! | key | type | default | meaning |

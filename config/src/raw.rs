@@ -46,6 +46,7 @@ pub(crate) struct RawCollision {
     pub stiffness: Option<f64>,
     pub skin: Option<f64>,
     pub depth_limit: Option<f64>,
+    pub interval: Option<f64>,
 }
 
 #[derive(Debug, Default, Deserialize)]

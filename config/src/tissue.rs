@@ -67,11 +67,13 @@ const HEAT: HeatParams = HeatParams {
 /// Poisson's ratio, density, damping and steps shared by every tissue (argued in
 /// config/scenes/abdomen.toml: ν 0.45 keeps linear tetrahedra from locking; 1050 kg/m³ after
 /// Duck FA (1990), Physical Properties of Tissue, Academic Press; α 30 1/s stops a touched
-/// organ wobbling within ~0.26 s).
+/// organ wobbling within ~0.26 s). The precise models step at the haptic rate (1 ms): they run
+/// only while the tool touches the body and while it settles, and the surface under the hand is
+/// then at most a millisecond old; the cage keeps 20 ms.
 const POISSON: f64 = 0.45;
 const DENSITY: f64 = 1050.0;
 const FEM_DAMPING: f64 = 30.0;
-const DT: f64 = 0.01;
+const DT: f64 = 0.001;
 const GC_DT: f64 = 0.02;
 
 /// Every tissue of the library.

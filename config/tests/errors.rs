@@ -424,6 +424,12 @@ fn collision_keys_out_of_range() {
     assert_eq!(err.line(), Some(line_of(&text, "stiffness = -5.0")));
     let text = format!("[collision]\nskin = 0.5\n\n{GOOD}");
     expect_err(&text, &["collision.skin", "0.5", "at most 0.01"]);
+    let text = format!("[collision]\ninterval = -0.01\n\n{GOOD}");
+    expect_err(&text, &["collision.interval", "-0.01"]);
+    let text = format!("[collision]\ninterval = 2.0\n\n{GOOD}");
+    expect_err(&text, &["collision.interval", "2", "at most 1"]);
+    let text = format!("[collision]\ninterval = nan\n\n{GOOD}");
+    expect_err(&text, &["collision.interval", "nan", "finite"]);
     let text = format!("[collision]\nenabled = \"yes\"\n\n{GOOD}");
     expect_err(&text, &["enabled"]);
     let scene = parse_scene(

@@ -529,7 +529,9 @@ fn scene_text(
          # The mock device's default: press {} mm into the front of {:?} (see the script).\n\
          [device]\nmock_script = \"{}\"\n\n\
          [lop]\nrest_speed = 0.002\nhold = 0.3\nblend = 0.2\nstart = \"gc\"\n\n\
-         [heat]\nair_temperature = 22.0\nair_coefficient = 10.0\ncontact_conductance = 500.0",
+         [heat]\nair_temperature = 22.0\nair_coefficient = 10.0\ncontact_conductance = 500.0\n\n\
+         # Organ collision detected every 10 ms: the touched body steps every millisecond.\n\
+         [collision]\ninterval = 0.01",
         POKE_DEPTH * 1e3,
         bodies[0].name,
         relative(&std::path::absolute(script)?, scene_dir).display()

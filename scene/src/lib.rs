@@ -339,6 +339,7 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
             scene.collision.skin,
             scene.collision.depth_limit,
         );
+        world.set_collision_interval(scene.collision.interval);
     }
     let heat = heat_world(&scene, &world)?;
     world.set_heat(heat);

@@ -233,3 +233,28 @@ fn colliding_steps_allocate_nothing() {
         assert_eq!(n, 0, "{a:?} → {b:?}: {n} allocations in 20 colliding steps");
     }
 }
+
+/// `World::set_collision_interval`: rounds every 20 ms (the bodies' step) with an interval of
+/// 50 ms detect in every third round (at 20, 80, 140 … ms); with no interval every round
+/// detects.
+#[test]
+fn collision_interval_spaces_the_detections() {
+    use lop_sim::world::Round;
+    for (interval, every) in [(0.0, 1usize), (0.05, 3)] {
+        let mut w = world(ModelKind::MassSpring, ModelKind::MassSpring, true);
+        w.set_collision_interval(interval);
+        let mut detected = Vec::new();
+        for k in 1..=12 {
+            let until = 0.02 * k as f64;
+            w.round(&Round::to(until, 4), || 0);
+            detected.push(w.last_round().detected);
+        }
+        for (k, d) in detected.iter().enumerate() {
+            assert_eq!(
+                *d,
+                k % every == 0,
+                "interval {interval}: round {k}: {detected:?}"
+            );
+        }
+    }
+}

@@ -38,6 +38,8 @@ pub struct CollisionSpec {
     pub skin: f64,
     /// Vertices deeper than this inside another body are ignored, m (> 0).
     pub depth_limit: f64,
+    /// Simulated time between two detections, s (>= 0; 0: every round in which a body steps).
+    pub interval: f64,
 }
 
 impl Default for CollisionSpec {
@@ -47,6 +49,7 @@ impl Default for CollisionSpec {
             stiffness: 20.0,
             skin: 0.0005,
             depth_limit: 0.01,
+            interval: 0.0,
         }
     }
 }
@@ -60,7 +63,7 @@ pub struct HeatSpec {
     pub air_coefficient: f64,
     /// Contact conductance between touching organs, W/m²/K (>= 0; 0: no heat crosses).
     pub contact_conductance: f64,
-    /// Heat time step, s (0 < dt <= 1); `None`: one heat step per deformation step.
+    /// Heat time step, s (0 < dt <= 1); `None`: `lop_scene::HEAT_DT_DEFAULT` (0.01 s).
     pub dt: Option<f64>,
 }
 

@@ -27,6 +27,18 @@ pub(super) fn validate_collision(
         raw.depth_limit.unwrap_or(d.depth_limit),
         "collision depth limit (m)",
     )?;
+    let interval = c.non_negative(
+        &k.key("interval"),
+        raw.interval.unwrap_or(d.interval),
+        "collision interval (s)",
+    )?;
+    if interval > 1.0 {
+        return Err(c.invalid(
+            &k.key("interval"),
+            interval.to_string(),
+            "collision interval (s): at most 1; organs would pass through each other between detections",
+        ));
+    }
     if skin > 0.01 {
         return Err(c.invalid(
             &k.key("skin"),
@@ -43,6 +55,7 @@ pub(super) fn validate_collision(
         )?,
         skin,
         depth_limit,
+        interval,
     })
 }
 

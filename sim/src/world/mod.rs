@@ -105,6 +105,10 @@ struct WorldCollisions {
     detector: Collisions,
     params: CollisionParams,
     springs: Vec<Vec<ContactSpring>>,
+    /// Simulated time between two detections in [`World::round`], s (0: every round).
+    interval: f64,
+    /// Simulated time of the last detection in a round, s.
+    last: Option<f64>,
 }
 
 impl World {
@@ -177,7 +181,40 @@ impl World {
             detector,
             params,
             springs,
+            interval: 0.0,
+            last: None,
         }));
+    }
+
+    /// Detects organ-to-organ collisions in [`World::round`] at most once per `interval` s of
+    /// simulated time (the contact springs of the last detection hold meanwhile); 0, the
+    /// default: every round in which a body steps. No effect while collision is off.
+    ///
+    /// # Panics
+    /// If `interval` is negative or not finite.
+    pub fn set_collision_interval(&mut self, interval: f64) {
+        assert!(
+            interval >= 0.0 && interval.is_finite(),
+            "collision interval must be finite and ≥ 0, got {interval}"
+        );
+        if let Some(c) = self.collisions.as_mut() {
+            c.interval = interval;
+        }
+    }
+
+    /// Whether a round to simulated time `until` is due for a detection.
+    pub(crate) fn detection_due(&self, until: f64) -> bool {
+        self.collisions.as_ref().is_some_and(|c| match c.last {
+            Some(t) => until - t >= c.interval - 1e-9 || until < t,
+            None => true,
+        })
+    }
+
+    /// Notes a detection in a round at simulated time `until`.
+    pub(crate) fn detected_at(&mut self, until: f64) {
+        if let Some(c) = self.collisions.as_mut() {
+            c.last = Some(until);
+        }
     }
 
     /// Turns organ-to-organ collision off.

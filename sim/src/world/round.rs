@@ -2,8 +2,9 @@
 //!
 //! 1. **Tool input**: the device tip, each body's tool law and who the tool touches (the nearest
 //!    surface, or the god-object's anchor) arrive as arguments ([`RoundTool`]).
-//! 2. **Organ collision detection** at the current shapes, once, when a body is due: the contact
-//!    springs hold for every step of the round.
+//! 2. **Organ collision detection** at the current shapes, once, when a body is due (and at most
+//!    once per [`World::set_collision_interval`]): the contact springs hold for every step of
+//!    the round, and of the rounds until the next detection.
 //! 3. **The bodies that are due**, each on its own `dt`, at most [`Round::max_catch_up`] steps
 //!    each; on the wall clock ([`Round::drop_lag`]) a body still due after them drops the rest
 //!    of its simulated time (counted as lag) rather than spiral behind.
@@ -154,11 +155,12 @@ impl World {
 
         if !round.paused {
             // Organ-to-organ contacts at the current shapes, for the steps about to be taken.
-            if self.collisions.is_some()
+            if self.detection_due(round.until)
                 && (0..n).any(|i| !skipped(i) && self.body_due(i, round.until))
             {
                 let t0 = clock();
                 self.report.collisions = self.detect_collisions();
+                self.detected_at(round.until);
                 self.report.detected = true;
                 self.report.collision_ns = clock().saturating_sub(t0);
             }
