@@ -184,7 +184,9 @@ fn an_obj_surface_in_centimetres_becomes_a_running_scene() {
         .arg(&scene)
         .arg("--script")
         .arg(&script)
-        .args(["--steps", "250", "--out"])
+        // The cage steps at 20 ms until the tool is near, then the precise model at 1 ms:
+        // 1500 steps take the poke past its full depth (2 s into the script).
+        .args(["--steps", "1500", "--out"])
         .arg(&sim));
     assert_eq!(code, 0, "{out}\n{err}");
     let steps = std::fs::read_to_string(sim.join("steps.csv")).unwrap();
