@@ -188,7 +188,7 @@ impl fmt::Display for SurfaceReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "{} vertices, {} triangles, enclosed volume {:e}",
+            "{} vertices, {} triangles, enclosed volume {:.4e} (the file's units, cubed)",
             self.vertices, self.triangles, self.volume
         )?;
         if self.is_ok() {
