@@ -259,9 +259,10 @@ fn curved_liver_hand_feels_what_the_tissue_receives() {
 
 /// The liver at the haptic rate (1 ms) under the real-time refactor policy: pressed 4 mm and
 /// held, it never refactorises its lagged factor (the set-up's factorisation is the only one),
-/// CG stays at a few iterations per step, and the hold force is the amortized policy's (which
-/// refactorises every few steps here) within 1 %: the patch's gaps close through the lagged
-/// factor, older under the real-time policy (measured: 0.3 % apart).
+/// CG stays at a couple of iterations per step (its warm start takes the patch's correction
+/// off: without that, four per step, and the amortized policy refactorised every 11 steps),
+/// and the hold force is the amortized policy's within 1 %: the patch's gaps close through the
+/// lagged factor, whose age differs between the policies.
 #[test]
 fn liver_at_the_haptic_rate_needs_no_refactorisation() {
     let mesh = read_mesh(&mesh_path("liver.node")).unwrap();
@@ -280,13 +281,12 @@ fn liver_at_the_haptic_rate_needs_no_refactorisation() {
         counters.push(f.solver_counters());
         held.push(s.last().unwrap().hand[2]);
     }
-    let (rt, amortized) = (counters[0], counters[1]);
+    let rt = counters[0];
     assert_eq!(rt.factorizations, 1, "real time: {rt:?}");
-    assert!(amortized.factorizations > 10, "amortized: {amortized:?}");
     let per_step = rt.cg_iterations as f64 / rt.steps as f64;
     assert!(
-        per_step <= 6.0,
-        "real time: {per_step} CG iterations per step"
+        per_step <= 2.5,
+        "real time: {per_step} CG iterations per step ({rt:?})"
     );
     assert!(held[0] > 0.05, "held force {} N", held[0]);
     let diff = (held[0] - held[1]).abs() / held[1];

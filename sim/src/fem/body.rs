@@ -125,6 +125,7 @@ impl Fem {
             inv_used: vec![0; INVERSE_SLOTS],
             inv_clock: 0,
             patch: crate::patch::PatchSolve::new(n_dof),
+            patch_applied: false,
             pc_slot_of: vec![NONE; n],
             pc_node: Vec::new(),
             pc_used: Vec::new(),

@@ -193,9 +193,10 @@ pub enum RefactorPolicy {
     /// matrix `M/Δt² + K` is dominated by the mass, so the lagged factor — whatever the
     /// rotations since — keeps CG at a few iterations, and a refactorisation (milliseconds on
     /// an organ) would be a spike several times the step. Measured on the `abdomen` liver
-    /// pressed at Δt = 1 ms: CG takes 1–2 iterations per step with the factor of the rest
-    /// shape; the amortized policy refactorised every 11 steps, each a 3.3 ms step against a
-    /// 0.4 ms median.
+    /// pressed at Δt = 1 ms (`lopd simulate` of its poke): CG takes 1–2 iterations per step
+    /// with the factor of the rest shape; the amortized policy, before CG's warm start took the
+    /// patch's correction into account, refactorised every 11 steps, each a 3.3 ms step
+    /// against a 0.4 ms median.
     RealTime,
 }
 
@@ -308,6 +309,10 @@ struct Scratch {
     inv_clock: u64,
     /// The contact patch's solve (`patch_correct` only).
     patch: crate::patch::PatchSolve,
+    /// Whether the last step's increment includes the patch's correction (`patch.correction`):
+    /// CG's warm start then takes it off its extrapolation, since CG solves the step without
+    /// the tool (`Fem::cg`).
+    patch_applied: bool,
     /// Linear mode: the patch's cache of `K̃⁻¹` columns, three per node (`patch::patch_slot`):
     /// per node its slot or `NONE`, per slot its node and last use (grown to
     /// `PATCH_CACHE_NODES` on use), the columns.

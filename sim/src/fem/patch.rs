@@ -15,6 +15,7 @@ impl Fem {
     /// one, so the gaps close to its accuracy; the forces still balance the tool spring
     /// exactly. A patch that cannot be solved (non-finite data) applies no force.
     pub(super) fn patch_correct(&mut self, patch: &ToolPatch<'_>) -> ContactReport {
+        self.s.patch_applied = false;
         let Some(patch) = PatchSolve::limit(patch) else {
             return ContactReport::default();
         };
@@ -61,6 +62,7 @@ impl Fem {
             .iter_mut()
             .zip(&s.patch.correction)
             .for_each(|(d, c)| *d += c);
+        s.patch_applied = true;
         report(&patch, s.patch.lcp.lambda())
     }
 

@@ -77,7 +77,10 @@ impl Fem {
         };
         let solved = match (solved, patch) {
             (Ok(_), Some(p)) => Ok(self.patch_correct(&p)),
-            (r, _) => r,
+            (r, _) => {
+                self.s.patch_applied = false;
+                r
+            }
         };
         self.counters.steps += 1;
         let Ok(report) = solved else {
