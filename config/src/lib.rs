@@ -254,7 +254,7 @@
 //! | `poisson` | float | required | Poisson's ratio ν, 0 <= ν < 0.5 |
 //! | `density` | float | required | kg/m³ (> 0); masses are lumped per node |
 //! | `damping` | float | required | α of the damping matrix `D = α M`, 1/s (>= 0) |
-//! | `dt` | float | required | time step, s (0 < dt <= 1) |
+//! | `dt` | float | required | time step, s (0 < dt <= 1). At the haptic rate (`dt <= 1 / [rates] haptic_hz`, as in `abdomen`: a body's precise model runs while the tool touches it) a corotational body never refactorises its solver's factor in a step (no millisecond spikes on the hand's path); slower, it refactorises when that saves work overall |
 //! | `mode` | `"corotational"` \| `"linear"` | `"corotational"` | `linear` is the thesis' formulation and inflates under large rotations; `corotational` warps the stiffness by each element's rotation |
 //!
 //! ### `[body.msd]`: mass-spring-damper (thesis §4.1, eq. 4.2)
