@@ -18,6 +18,7 @@
 //! | deform → client latency | frame published → received by this bench (`received_ns − publish_ns`) | bench, from every frame received in the window; **includes the bench's polling interval** (it sleeps `--poll-us` between polls) |
 //! | device → tissue latency | a device sample → the frame of the tissue that responded to it (`publish_ns − tool_stamp_ns`; the tool state carries the device sample's tick time), over the frames whose contact patch pressed a body: how late the tissue the eye sees (and the surface the hand touches next) answers the hand | bench, from the frames in contact |
 //! | touched body: frame interval | time between two frames in contact (`publish_ns` differences): the rate at which the touched body's surface reaches the haptic loop | bench, consecutive frames in contact |
+//! | deform round | wall time of the round behind each frame (`FrameHeader::step_ns`: collision, every body due, heat), every frame in the window: at the haptic rate a round longer than a millisecond delays the next frame | bench, from every frame received in the window |
 //! | touched body: step | wall time of the touched body's last step (`BodyFrame::step_ns` of `contact_body`), once per frame in contact | bench, from the frames in contact |
 //!
 //! The haptic rows come from the loop's own preallocated histograms, which cover everything from
@@ -298,6 +299,11 @@ pub fn run(a: LatencyArgs) -> Result<()> {
         &m.touched_interval,
     ));
     rows.push(Row::from_histogram_ns(
+        "deform_round",
+        "deform round",
+        &m.deform_round,
+    ));
+    rows.push(Row::from_histogram_ns(
         "touched_step",
         "touched body: step",
         &m.touched_step,
@@ -344,6 +350,7 @@ struct Measured {
     tool_to_deform: Histogram<u64>,
     deform_to_client: Histogram<u64>,
     device_to_tissue: Histogram<u64>,
+    deform_round: Histogram<u64>,
     touched_interval: Histogram<u64>,
     touched_step: Histogram<u64>,
     frames_received: u64,
@@ -383,6 +390,7 @@ fn measure(lopd: &mut Lopd, a: &LatencyArgs, period_us: u64, ct: &CtPlan) -> Res
     let mut tool_to_deform = table::latency_histogram();
     let mut deform_to_client = table::latency_histogram();
     let mut device_to_tissue = table::latency_histogram();
+    let mut deform_round = table::latency_histogram();
     let mut touched_interval = table::latency_histogram();
     let mut touched_step = table::latency_histogram();
     let mut last_touched: Option<(u32, u64)> = None;
@@ -432,6 +440,7 @@ fn measure(lopd: &mut Lopd, a: &LatencyArgs, period_us: u64, ct: &CtPlan) -> Res
                 tool_to_deform.saturating_record(h.tool_read_ns.saturating_sub(h.tool_stamp_ns));
             }
             deform_to_client.saturating_record(f.received_ns.saturating_sub(h.publish_ns));
+            deform_round.saturating_record(h.step_ns);
             let touched = f
                 .bodies()
                 .get(h.contact_body as usize)
@@ -505,6 +514,7 @@ fn measure(lopd: &mut Lopd, a: &LatencyArgs, period_us: u64, ct: &CtPlan) -> Res
         tool_to_deform,
         deform_to_client,
         device_to_tissue,
+        deform_round,
         touched_interval,
         touched_step,
         frames_received,
