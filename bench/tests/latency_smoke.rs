@@ -56,6 +56,10 @@ fn latency_two_seconds_reports_every_row() {
         "frame_age_contact",
         "tool_to_deform",
         "deform_to_client",
+        "device_to_tissue",
+        "touched_frame_interval",
+        "deform_round",
+        "touched_step",
     ] {
         assert!(keys.contains(&want), "row {want} missing: {keys:?}\n{text}");
     }
