@@ -58,67 +58,9 @@ fn box_surface(lo: [f64; 3], hi: [f64; 3], n: usize) -> (Vec<[f64; 3]>, Vec<[u32
 
 /// Unit-sphere surface scaled to `radius`: an icosahedron subdivided `level` times.
 fn sphere_surface(radius: f64, level: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
-    let g = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut x: Vec<[f64; 3]> = vec![
-        [-1., g, 0.],
-        [1., g, 0.],
-        [-1., -g, 0.],
-        [1., -g, 0.],
-        [0., -1., g],
-        [0., 1., g],
-        [0., -1., -g],
-        [0., 1., -g],
-        [g, 0., -1.],
-        [g, 0., 1.],
-        [-g, 0., -1.],
-        [-g, 0., 1.],
-    ];
-    let mut t: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..level {
-        let mut mid = std::collections::HashMap::new();
-        let mut next = Vec::new();
-        for tri in &t {
-            let mut m = [0u32; 3];
-            for k in 0..3 {
-                let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                let key = (a.min(b), a.max(b));
-                m[k] = *mid.entry(key).or_insert_with(|| {
-                    let (pa, pb) = (x[a as usize], x[b as usize]);
-                    x.push([0, 1, 2].map(|i| (pa[i] + pb[i]) / 2.0));
-                    (x.len() - 1) as u32
-                });
-            }
-            next.push([tri[0], m[0], m[2]]);
-            next.push([tri[1], m[1], m[0]]);
-            next.push([tri[2], m[2], m[1]]);
-            next.push(m);
-        }
-        t = next;
-    }
+    let (mut x, t) = lop_test_support::fixtures::icosphere(level);
     for p in &mut x {
-        let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-        *p = p.map(|c| c / l * radius);
+        *p = p.map(|c| c * radius);
     }
     (x, t)
 }

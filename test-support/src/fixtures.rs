@@ -80,3 +80,68 @@ mod tests {
         assert_eq!(c[7], [2.0; 3]);
     }
 }
+
+/// The unit sphere as a closed, outward-wound triangle surface: an icosahedron whose faces are
+/// split in four `level` times, every new vertex pushed out onto the sphere.
+pub fn icosphere(level: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+    let g = (1.0 + 5f64.sqrt()) / 2.0;
+    let unit = |p: [f64; 3]| {
+        let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        p.map(|c| c / l)
+    };
+    let mut x: Vec<[f64; 3]> = [
+        [-1., g, 0.],
+        [1., g, 0.],
+        [-1., -g, 0.],
+        [1., -g, 0.],
+        [0., -1., g],
+        [0., 1., g],
+        [0., -1., -g],
+        [0., 1., -g],
+        [g, 0., -1.],
+        [g, 0., 1.],
+        [-g, 0., -1.],
+        [-g, 0., 1.],
+    ]
+    .map(unit)
+    .to_vec();
+    let mut t: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..level {
+        let mut mid = std::collections::HashMap::new();
+        let mut next = Vec::with_capacity(4 * t.len());
+        for &[a, b, c] in &t {
+            let mut m = |i: u32, j: u32| {
+                *mid.entry((i.min(j), i.max(j))).or_insert_with(|| {
+                    let (p, q) = (x[i as usize], x[j as usize]);
+                    x.push(unit([0, 1, 2].map(|k| (p[k] + q[k]) / 2.0)));
+                    (x.len() - 1) as u32
+                })
+            };
+            let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        t = next;
+    }
+    (x, t)
+}
