@@ -51,36 +51,6 @@ pub fn cube_corners(size: f64) -> Vec<[f64; 3]> {
         .collect()
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn shipped_paths_exist() {
-        assert!(mesh_path("liver").with_extension("node").is_file());
-        assert!(meshes_dir().is_dir());
-        assert!(scene_path("organs").is_file());
-    }
-
-    #[test]
-    fn temp_dir_is_fresh() {
-        let d = temp_dir("lop-test-support-fixtures");
-        std::fs::write(d.join("x"), "x").unwrap();
-        let d = temp_dir("lop-test-support-fixtures");
-        assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
-        std::fs::remove_dir_all(&d).unwrap();
-    }
-
-    #[test]
-    fn cube_corners_are_the_unit_cube_scaled() {
-        let c = cube_corners(2.0);
-        assert_eq!(c.len(), 8);
-        assert_eq!(c[0], [0.0; 3]);
-        assert_eq!(c[5], [2.0, 0.0, 2.0]);
-        assert_eq!(c[7], [2.0; 3]);
-    }
-}
-
 /// The unit sphere as a closed, outward-wound triangle surface: an icosahedron whose faces are
 /// split in four `level` times, every new vertex pushed out onto the sphere.
 pub fn icosphere(level: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
@@ -144,4 +114,34 @@ pub fn icosphere(level: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
         t = next;
     }
     (x, t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shipped_paths_exist() {
+        assert!(mesh_path("liver").with_extension("node").is_file());
+        assert!(meshes_dir().is_dir());
+        assert!(scene_path("organs").is_file());
+    }
+
+    #[test]
+    fn temp_dir_is_fresh() {
+        let d = temp_dir("lop-test-support-fixtures");
+        std::fs::write(d.join("x"), "x").unwrap();
+        let d = temp_dir("lop-test-support-fixtures");
+        assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn cube_corners_are_the_unit_cube_scaled() {
+        let c = cube_corners(2.0);
+        assert_eq!(c.len(), 8);
+        assert_eq!(c[0], [0.0; 3]);
+        assert_eq!(c[5], [2.0, 0.0, 2.0]);
+        assert_eq!(c[7], [2.0; 3]);
+    }
 }
