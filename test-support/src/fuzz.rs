@@ -64,8 +64,8 @@ pub struct Seed {
 /// Every file of the corpus folder `dir`, in name order. Panics if the folder is missing or
 /// empty: a corpus that silently vanished would make its test pass without testing anything.
 pub fn corpus(dir: &Path) -> Vec<Seed> {
-    let entries = std::fs::read_dir(dir)
-        .unwrap_or_else(|e| panic!("corpus folder {}: {e}", dir.display()));
+    let entries =
+        std::fs::read_dir(dir).unwrap_or_else(|e| panic!("corpus folder {}: {e}", dir.display()));
     let mut seeds: Vec<Seed> = entries
         .map(|e| e.expect("a corpus entry").path())
         .filter(|p| p.is_file())
@@ -76,7 +76,11 @@ pub fn corpus(dir: &Path) -> Vec<Seed> {
         })
         .collect();
     seeds.sort_by(|a, b| a.name.cmp(&b.name));
-    assert!(!seeds.is_empty(), "corpus folder {} is empty", dir.display());
+    assert!(
+        !seeds.is_empty(),
+        "corpus folder {} is empty",
+        dir.display()
+    );
     seeds
 }
 
@@ -248,7 +252,12 @@ fn mutate_once(rng: &mut Rng, out: &mut Vec<u8>, dictionary: &[&[u8]]) {
             let k = rng.below(len + 1);
             let open: &[u8] = *rng.pick(&[&b"["[..], b"{\"a\":", b"[[", b"{a={"]);
             let depth = 64 + rng.below(2048);
-            let nest: Vec<u8> = open.iter().copied().cycle().take(open.len() * depth).collect();
+            let nest: Vec<u8> = open
+                .iter()
+                .copied()
+                .cycle()
+                .take(open.len() * depth)
+                .collect();
             out.splice(k..k, nest);
         }
         11 => {
@@ -341,7 +350,9 @@ mod tests {
         let seed = b"8 3 0 0\n1 0 0 0\n[[waypoint]]\nt = 0.5\n";
         let run = |state| {
             let mut rng = Rng::for_seed(state, "x");
-            (0..200).map(|_| mutate(&mut rng, seed, &[b"$EndNodes"])).collect::<Vec<_>>()
+            (0..200)
+                .map(|_| mutate(&mut rng, seed, &[b"$EndNodes"]))
+                .collect::<Vec<_>>()
         };
         let a = run(1);
         assert_eq!(a, run(1));
