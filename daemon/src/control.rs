@@ -551,13 +551,15 @@ pub fn decode(req: &ControlRequest, bodies: &[&str]) -> Result<Command, Refusal>
     }
     let found = match usize::try_from(req.body_index) {
         Ok(i) => (i < bodies.len()).then_some(i),
-        Err(_) => bodies.iter().position(|&b| b == req.body_str()),
+        Err(_) => bodies
+            .iter()
+            .position(|&b| b.as_bytes() == until_nul(&req.body)),
     };
     let Some(body) = found else {
         let asked = if req.body_index >= 0 {
             format!("index {}", req.body_index)
         } else {
-            format!("{:?}", req.body_str())
+            format!("{:?}", field_text(&req.body))
         };
         return Err(refuse(
             CONTROL_STATUS_UNKNOWN_BODY,
@@ -568,12 +570,19 @@ pub fn decode(req: &ControlRequest, bodies: &[&str]) -> Result<Command, Refusal>
     match req.op {
         CONTROL_OP_GET => Ok(Command::Get { body }),
         CONTROL_OP_SET => {
-            let (key, value) = (req.key_str(), req.value);
-            let Some(&(key, range)) = CONTROL_KEYS.iter().find(|(k, _)| *k == key) else {
+            let value = req.value;
+            let found = CONTROL_KEYS
+                .iter()
+                .find(|(k, _)| k.as_bytes() == until_nul(&req.key));
+            let Some(&(key, range)) = found else {
                 let keys: Vec<&str> = CONTROL_KEYS.iter().map(|(k, _)| *k).collect();
                 return Err(refuse(
                     CONTROL_STATUS_UNKNOWN_KEY,
-                    format!("key {key:?} unknown; live keys: {}", keys.join(" ")),
+                    format!(
+                        "key {:?} unknown; live keys: {}",
+                        field_text(&req.key),
+                        keys.join(" ")
+                    ),
                     Some(body),
                 ));
             };
@@ -611,4 +620,16 @@ pub fn decode(req: &ControlRequest, bodies: &[&str]) -> Result<Command, Refusal>
         }
         _ => Ok(Command::Release { body }),
     }
+}
+
+/// A NUL-padded field's bytes up to the first NUL.
+fn until_nul(field: &[u8]) -> &[u8] {
+    let end = field.iter().position(|&b| b == 0).unwrap_or(field.len());
+    &field[..end]
+}
+
+/// A NUL-padded field as text for a message: bytes that are not UTF-8 shown as U+FFFD, so a
+/// refusal quotes what was sent rather than a placeholder.
+pub fn field_text(field: &[u8]) -> std::borrow::Cow<'_, str> {
+    String::from_utf8_lossy(until_nul(field))
 }

@@ -14,11 +14,12 @@
 //! - a [`Command`] names an existing body and, for `SET`, a live key with a finite value in
 //!   range; a `PIN` model is never `Auto`;
 //! - a [`Refusal`] has a status other than OK and quotes what is wrong: the contract version,
-//!   the op, the body's index or name, the key, or the value (NaN included), the model; it
-//!   points at a body only if that body exists.
+//!   the op, the body's index or name, the key, or the value (NaN included), the model (a name
+//!   or key that is not UTF-8 quoted with U+FFFD, never as a placeholder); it points at a body
+//!   only if that body exists.
 
 use lop_config::ModelPin;
-use lop_daemon::control::{decode, Command, Refusal};
+use lop_daemon::control::{decode, field_text, Command, Refusal};
 use lop_ipc::control::*;
 use lop_ipc::CONTRACT_VERSION;
 use lop_test_support::fuzz::{self, Rng};
@@ -119,9 +120,9 @@ fn check_refusal(req: &ControlRequest, r: &Refusal, what: &str) {
         }
         CONTROL_STATUS_UNKNOWN_BODY => {
             m.contains(&format!("index {}", req.body_index))
-                || m.contains(&format!("{:?}", req.body_str()))
+                || m.contains(&format!("{:?}", field_text(&req.body)))
         }
-        CONTROL_STATUS_UNKNOWN_KEY => m.contains(&format!("{:?}", req.key_str())),
+        CONTROL_STATUS_UNKNOWN_KEY => m.contains(&format!("{:?}", field_text(&req.key))),
         CONTROL_STATUS_BAD_VALUE => {
             m.contains(&format!("{} = {}", req.key_str(), req.value))
                 || m.contains(&format!("model = {}", req.model))
@@ -189,4 +190,18 @@ fn arbitrary_requests_never_panic_and_refusals_quote_the_field() {
     }
     println!("control: ok: {}, refused: {}", outcomes[0], outcomes[1]);
     assert!(outcomes[0] >= 500 && outcomes[1] >= 1000, "{outcomes:?}");
+}
+
+#[test]
+fn names_that_are_not_utf8_are_quoted_not_replaced() {
+    let mut req = ControlRequest::new(CONTROL_OP_GET, "");
+    req.body[..4].copy_from_slice(b"li\xffr");
+    let r = decode(&req, &BODIES).unwrap_err();
+    assert_eq!(r.status, CONTROL_STATUS_UNKNOWN_BODY);
+    assert!(r.message.contains("\"li\u{fffd}r\""), "{}", r.message);
+    let mut req = ControlRequest::set("liver", "", 1.0);
+    req.key[..5].copy_from_slice(b"fem.\xc3");
+    let r = decode(&req, &BODIES).unwrap_err();
+    assert_eq!(r.status, CONTROL_STATUS_UNKNOWN_KEY);
+    assert!(r.message.contains("\"fem.\u{fffd}\""), "{}", r.message);
 }

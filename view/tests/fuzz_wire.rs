@@ -23,7 +23,7 @@ use lop_view::wire::{control_op_and_token, control_request};
 use serde_json::Value;
 
 /// Mutations per seed.
-const ROUNDS: usize = 150;
+const ROUNDS: usize = 600;
 
 const WORDS: &[&[u8]] = &[
     b"\"op\":",
