@@ -44,9 +44,9 @@ impl Rng {
         (self.next_u64() % n.max(1) as u64) as usize
     }
 
-    /// One element of `items` (which must not be empty).
-    pub fn pick<'a, T>(&mut self, items: &'a [T]) -> &'a T {
-        &items[self.below(items.len())]
+    /// A copy of one element of `items` (which must not be empty).
+    pub fn pick<T: Copy>(&mut self, items: &[T]) -> T {
+        items[self.below(items.len())]
     }
 }
 
@@ -162,9 +162,9 @@ pub fn mutate(rng: &mut Rng, seed: &[u8], dictionary: &[&[u8]]) -> Vec<u8> {
 
 fn token<'a>(rng: &mut Rng, dictionary: &[&'a [u8]]) -> &'a [u8] {
     if !dictionary.is_empty() && rng.below(2) == 0 {
-        *rng.pick(dictionary)
+        rng.pick(dictionary)
     } else {
-        *rng.pick(NASTY)
+        rng.pick(NASTY)
     }
 }
 
@@ -175,7 +175,7 @@ fn mutate_once(rng: &mut Rng, out: &mut Vec<u8>, dictionary: &[&[u8]]) {
         1 => {
             // Replace a whitespace-separated token.
             let spans = tokens(out);
-            if let Some(&(a, b)) = (!spans.is_empty()).then(|| rng.pick(&spans)) {
+            if let Some((a, b)) = (!spans.is_empty()).then(|| rng.pick(&spans)) {
                 let with = token(rng, dictionary).to_vec();
                 out.splice(a..b, with);
             }
@@ -184,7 +184,7 @@ fn mutate_once(rng: &mut Rng, out: &mut Vec<u8>, dictionary: &[&[u8]]) {
             // Delete or duplicate a line.
             let lines = line_spans(out);
             if !lines.is_empty() {
-                let (a, b) = *rng.pick(&lines);
+                let (a, b) = rng.pick(&lines);
                 if rng.below(2) == 0 {
                     out.drain(a..b);
                 } else {
@@ -207,7 +207,7 @@ fn mutate_once(rng: &mut Rng, out: &mut Vec<u8>, dictionary: &[&[u8]]) {
             // Swap two digits: changes indices and counts plausibly.
             let digits: Vec<usize> = (0..len).filter(|&i| out[i].is_ascii_digit()).collect();
             if digits.len() >= 2 {
-                let (a, b) = (*rng.pick(&digits), *rng.pick(&digits));
+                let (a, b) = (rng.pick(&digits), rng.pick(&digits));
                 out.swap(a, b);
             }
         }
@@ -230,8 +230,8 @@ fn mutate_once(rng: &mut Rng, out: &mut Vec<u8>, dictionary: &[&[u8]]) {
             // A run of digits becomes a huge or negative count.
             let runs = digit_runs(out);
             if !runs.is_empty() {
-                let (a, b) = *rng.pick(&runs);
-                let with: &[u8] = *rng.pick(&[
+                let (a, b) = rng.pick(&runs);
+                let with: &[u8] = rng.pick(&[
                     &b"1000000000000"[..],
                     b"18446744073709551615",
                     b"4294967295",
@@ -244,13 +244,13 @@ fn mutate_once(rng: &mut Rng, out: &mut Vec<u8>, dictionary: &[&[u8]]) {
         9 => {
             // A very long line.
             let k = rng.below(len + 1);
-            let c = *rng.pick(b"x9 [\"");
+            let c = rng.pick(b"x9 [\"");
             out.splice(k..k, std::iter::repeat_n(c, 4096 + rng.below(4096)));
         }
         10 => {
             // Deep nesting.
             let k = rng.below(len + 1);
-            let open: &[u8] = *rng.pick(&[&b"["[..], b"{\"a\":", b"[[", b"{a={"]);
+            let open: &[u8] = rng.pick(&[&b"["[..], b"{\"a\":", b"[[", b"{a={"]);
             let depth = 64 + rng.below(2048);
             let nest: Vec<u8> = open
                 .iter()
@@ -272,7 +272,7 @@ fn mutate_once(rng: &mut Rng, out: &mut Vec<u8>, dictionary: &[&[u8]]) {
         12 => {
             // Invalid UTF-8 in the middle of the text.
             let k = rng.below(len + 1);
-            let bad: &[u8] = *rng.pick(&[&b"\xff"[..], b"\xc3", b"\xed\xa0\x80", b"\xf8\x88"]);
+            let bad: &[u8] = rng.pick(&[&b"\xff"[..], b"\xc3", b"\xed\xa0\x80", b"\xf8\x88"]);
             out.splice(k..k, bad.iter().copied());
         }
         _ => {
