@@ -5,7 +5,7 @@
 //! `LOP_FUZZ_ROUNDS` runs more, `LOP_FUZZ_LOG` prints each refusal):
 //! - scenes: the shipped `config/scenes/*.toml` (read live, so new scenes join) and
 //!   `tests/corpus/scene/` (a minimal scene, 3,000-deep arrays, inline tables and dotted keys,
-//!   1e999 / NaN / ±inf / 20-digit integers, a 100 kB line, bytes that are not UTF-8, a BOM
+//!   1e999 / NaN / ±inf / 20-digit integers, a 30 kB line, bytes that are not UTF-8, a BOM
 //!   with CRLF, duplicate keys, 300 bodies, control characters, an empty file);
 //! - daemon configurations: `deploy/lopd.toml` and `tests/corpus/daemon/` (every key, integer
 //!   overflow, NaN, wrong types, deep nesting, not UTF-8, empty).

@@ -6,7 +6,7 @@
 //! more, `LOP_FUZZ_LOG` prints each refusal):
 //! - scripts: the shipped `config/scripts/*.toml` (read live) and `tests/corpus/script/` (every
 //!   optional table, NaN and infinite hand parameters, unknown keys, 1e999 times, huge
-//!   positions, odd buttons, NaN fault windows, 3,000 waypoints, 3,000-deep arrays, bytes that
+//!   positions, odd buttons, NaN fault windows, 1,000 waypoints, 3,000-deep arrays, bytes that
 //!   are not UTF-8, no waypoints, wrong types, an empty file). Loaded with `MockScript::load`
 //!   from a scratch file; a refusal names the file and a line (syntax, schema, not UTF-8) or a
 //!   key with its value (`waypoint[3].t` = nan, `hand.hand_mass` = nan), or is the whole-file
