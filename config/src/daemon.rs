@@ -77,10 +77,7 @@ pub struct DeformConfig {
 
 /// Reads and validates a daemon configuration file.
 pub fn load_daemon_config(path: &Path) -> Result<DaemonConfig, ConfigError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
-        file: path.to_path_buf(),
-        source,
-    })?;
+    let text = crate::source::read_text(path)?;
     parse_daemon_config(&text, path)
 }
 

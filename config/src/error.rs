@@ -73,7 +73,8 @@ pub(crate) fn line_column(text: &str, offset: usize) -> (usize, usize) {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ConfigError {
-    /// The file could not be read (missing, unreadable, not UTF-8).
+    /// The file could not be read (missing, unreadable). Text that is not UTF-8 is a
+    /// [`ConfigError::Syntax`] at the first bad byte.
     #[error("{}: cannot read file: {source}", file.display())]
     Read {
         /// The file.
@@ -83,8 +84,9 @@ pub enum ConfigError {
         source: std::io::Error,
     },
 
-    /// The text is not valid TOML. `detail` is toml's own report (line, column, a snippet of the
-    /// offending line and what was expected).
+    /// The text is not valid TOML (or not UTF-8). `detail` is toml's own report (line, column, a
+    /// snippet of the offending line and what was expected), or the offset and value of the first
+    /// byte that is not UTF-8.
     #[error("{}: invalid TOML: {detail}", at.file.display())]
     Syntax {
         /// File, line and column of the error.

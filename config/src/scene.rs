@@ -71,10 +71,7 @@ impl Scene {
 
 /// Reads and validates the scene file at `path`.
 pub fn load_scene(path: &Path) -> Result<Scene, ConfigError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
-        file: path.to_path_buf(),
-        source,
-    })?;
+    let text = crate::source::read_text(path)?;
     parse_scene(&text, path)
 }
 

@@ -57,6 +57,31 @@ impl fmt::Display for KeyPath {
     }
 }
 
+/// Reads `file` as UTF-8 text. Text that is not UTF-8 is a [`ConfigError::Syntax`] at the line
+/// and column of the first bad byte, naming its offset and value (not an I/O error that says
+/// neither).
+pub(crate) fn read_text(file: &Path) -> Result<String, ConfigError> {
+    let bytes = std::fs::read(file).map_err(|source| ConfigError::Read {
+        file: file.to_path_buf(),
+        source,
+    })?;
+    String::from_utf8(bytes).map_err(|e| {
+        let valid = e.utf8_error().valid_up_to();
+        let bytes = e.as_bytes();
+        // The valid prefix is text: count lines and columns in it.
+        let prefix = std::str::from_utf8(&bytes[..valid]).unwrap_or_default();
+        let bad = bytes.get(valid).copied().unwrap_or(0);
+        let at = Location::at_offset(file, prefix, valid);
+        let (line, column) = (at.line.unwrap_or(1), at.column.unwrap_or(1));
+        ConfigError::Syntax {
+            at: Box::new(at),
+            detail: format!(
+                "line {line}, column {column}: not UTF-8 text: byte {valid} is 0x{bad:02x}"
+            ),
+        }
+    })
+}
+
 /// A parsed TOML file: its name, its text and a span-keeping document of it.
 pub(crate) struct Source<'a> {
     pub(crate) file: &'a Path,

@@ -14,7 +14,10 @@
 //! swapped under the hand). `lopd ctl` retries on busy.
 //!
 //! Every request is answered; a bad one gets a typed status and a message naming the key and
-//! the bad value, and changes nothing.
+//! the bad value, and changes nothing. A request is first decoded by [`decode`], a pure
+//! function of the request and the bodies' names (so any bytes that arrive can be checked
+//! without iceoryx2: `tests/fuzz_control.rs`), then checked against the simulation's state
+//! (a model the body lacks, a rebuild running, the tool touching the body) here.
 
 use std::thread::JoinHandle;
 
@@ -160,17 +163,20 @@ impl ControlServer {
 
     fn decide(&mut self, req: &ControlRequest, world: &mut World) -> Decision {
         use Decision::Answer;
-        if req.contract_version != CONTRACT_VERSION {
-            return Answer(ControlResponse::with(
-                CONTROL_STATUS_BAD_REQUEST,
-                &format!(
-                    "contract version {}: this daemon speaks {CONTRACT_VERSION}",
-                    req.contract_version
-                ),
-            ));
-        }
-        match req.op {
-            CONTROL_OP_RESET => {
+        let names: Vec<&str> = world.bodies.iter().map(|b| b.name.as_str()).collect();
+        let command = match decode(req, &names) {
+            Ok(command) => command,
+            Err(refusal) => {
+                return Answer(match refusal.body {
+                    Some(i) => self.describe(i, world, refusal.status, &refusal.message),
+                    None => {
+                        self.with_paused(ControlResponse::with(refusal.status, &refusal.message))
+                    }
+                })
+            }
+        };
+        match command {
+            Command::Reset => {
                 if self.rebuild.is_some() {
                     return Answer(self.busy_rebuilding());
                 }
@@ -181,47 +187,21 @@ impl ControlServer {
                     }
                 }
                 tracing::info!("control: scene reset to rest");
-                return Answer(self.ok("every body reset to rest"));
+                Answer(self.ok("every body reset to rest"))
             }
-            CONTROL_OP_PAUSE => {
+            Command::Pause => {
                 self.paused = true;
                 tracing::info!("control: paused");
-                return Answer(self.ok("paused"));
+                Answer(self.ok("paused"))
             }
-            CONTROL_OP_RESUME => {
+            Command::Resume => {
                 self.paused = false;
                 tracing::info!("control: resumed");
-                return Answer(self.ok("resumed"));
+                Answer(self.ok("resumed"))
             }
-            CONTROL_OP_GET | CONTROL_OP_SET | CONTROL_OP_PIN | CONTROL_OP_RELEASE => {}
-            op => {
-                return Answer(ControlResponse::with(
-                    CONTROL_STATUS_BAD_REQUEST,
-                    &format!("op {op}: not a control operation (1 get … 7 resume)"),
-                ))
-            }
-        }
-        let i = match self.find_body(req, world) {
-            Ok(i) => i,
-            Err(r) => return Decision::Answer(*r),
-        };
-        match req.op {
-            CONTROL_OP_GET => Answer(self.describe(i, world, CONTROL_STATUS_OK, "")),
-            CONTROL_OP_SET => self.set(i, req.key_str(), req.value, world),
-            CONTROL_OP_PIN => {
-                let pin = match req.model {
-                    0 => ModelPin::Gc,
-                    1 => ModelPin::Msd,
-                    2 => ModelPin::Fem,
-                    m => {
-                        return Answer(self.describe(
-                            i,
-                            world,
-                            CONTROL_STATUS_BAD_VALUE,
-                            &format!("model = {m}: use 0 (GC), 1 (MSD) or 2 (FEM)"),
-                        ))
-                    }
-                };
+            Command::Get { body } => Answer(self.describe(body, world, CONTROL_STATUS_OK, "")),
+            Command::Set { body, key, value } => self.set(body, key, value, world),
+            Command::Pin { body: i, pin } => {
                 let spec = &self.scene.bodies[i];
                 if pin == ModelPin::Fem && spec.fem.is_none() {
                     return Answer(self.not_allowed(
@@ -247,7 +227,7 @@ impl ControlServer {
                 spec.model = pin;
                 self.rebuild_or_busy(i, spec, format!("pin to {pin:?}"), world)
             }
-            CONTROL_OP_RELEASE => {
+            Command::Release { body: i } => {
                 if self.scene.bodies[i].model == ModelPin::Auto {
                     return Answer(self.describe(
                         i,
@@ -260,34 +240,12 @@ impl ControlServer {
                 spec.model = ModelPin::Auto;
                 self.rebuild_or_busy(i, spec, "release to the controller".into(), world)
             }
-            _ => unreachable!("ops filtered above"),
         }
     }
 
+    /// Applies `key = value` (already checked by [`decode`]) to body `i`.
     fn set(&mut self, i: usize, key: &str, value: f64, world: &mut World) -> Decision {
         use Decision::Answer;
-        let Some(&(_, range)) = CONTROL_KEYS.iter().find(|(k, _)| *k == key) else {
-            let keys: Vec<&str> = CONTROL_KEYS.iter().map(|(k, _)| *k).collect();
-            return Answer(self.describe(
-                i,
-                world,
-                CONTROL_STATUS_UNKNOWN_KEY,
-                &format!("key {key:?} unknown; live keys: {}", keys.join(" ")),
-            ));
-        };
-        let ok = match key {
-            "fem.young" | "msd.stiffness" | "lop.rest_speed" => value > 0.0 && value.is_finite(),
-            "fem.poisson" => (0.0..0.5).contains(&value),
-            _ => value >= 0.0 && value.is_finite(),
-        };
-        if !ok {
-            return Answer(self.describe(
-                i,
-                world,
-                CONTROL_STATUS_BAD_VALUE,
-                &format!("{key} = {value}: out of range ({range})"),
-            ));
-        }
         if let Some(field) = key.strip_prefix("lop.") {
             let Some(lop) = &mut world.bodies[i].lop else {
                 return Answer(self.not_allowed(
@@ -430,31 +388,6 @@ impl ControlServer {
         let _ = request.send_copy(resp);
     }
 
-    fn find_body(
-        &self,
-        req: &ControlRequest,
-        world: &World,
-    ) -> Result<usize, Box<ControlResponse>> {
-        let n = world.bodies.len();
-        let found = if req.body_index >= 0 {
-            ((req.body_index as usize) < n).then_some(req.body_index as usize)
-        } else {
-            world.bodies.iter().position(|b| b.name == req.body_str())
-        };
-        found.ok_or_else(|| {
-            let names: Vec<&str> = world.bodies.iter().map(|b| b.name.as_str()).collect();
-            let asked = if req.body_index >= 0 {
-                format!("index {}", req.body_index)
-            } else {
-                format!("{:?}", req.body_str())
-            };
-            Box::new(self.with_paused(ControlResponse::with(
-                CONTROL_STATUS_UNKNOWN_BODY,
-                &format!("no body {asked}; bodies: {}", names.join(", ")),
-            )))
-        })
-    }
-
     fn ok(&self, message: &str) -> ControlResponse {
         self.with_paused(ControlResponse::with(CONTROL_STATUS_OK, message))
     }
@@ -530,4 +463,173 @@ enum Decision {
         spec: BodySpec,
         what: String,
     },
+}
+
+/// What a request asks for, checked against the scene's bodies: the body resolved to its
+/// index, a `SET` key known and its value in range, a `PIN` model known.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Command {
+    /// Every body back to rest.
+    Reset,
+    /// Hold the simulation.
+    Pause,
+    /// Step again.
+    Resume,
+    /// Describe body `body`.
+    Get {
+        /// Index of the body.
+        body: usize,
+    },
+    /// Set a live parameter of body `body`.
+    Set {
+        /// Index of the body.
+        body: usize,
+        /// One of [`CONTROL_KEYS`].
+        key: &'static str,
+        /// The new value, finite and in the key's range.
+        value: f64,
+    },
+    /// Pin body `body` to one model.
+    Pin {
+        /// Index of the body.
+        body: usize,
+        /// The model (never `Auto`).
+        pin: ModelPin,
+    },
+    /// Release body `body` to the levels-of-precision controller.
+    Release {
+        /// Index of the body.
+        body: usize,
+    },
+}
+
+/// Why [`decode`] refused a request: the response's status and message, and the body when the
+/// request named one that exists (the answer then describes it).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Refusal {
+    /// A `CONTROL_STATUS_*` other than OK.
+    pub status: u32,
+    /// What is wrong, quoting the offending field's value.
+    pub message: String,
+    /// The body the request named, if it exists.
+    pub body: Option<usize>,
+}
+
+/// Decodes and checks a request against the names of the scene's bodies (`bodies[i]` is body
+/// `i`): everything that does not depend on the simulation's state, so any request, whatever
+/// its bytes, is either a [`Command`] or refused with a message that quotes the bad field —
+/// the contract version, the op, the body (index or name), the key or the value (NaN fails
+/// every range), the model. Never panics.
+pub fn decode(req: &ControlRequest, bodies: &[&str]) -> Result<Command, Refusal> {
+    let refuse = |status, message: String, body| Refusal {
+        status,
+        message,
+        body,
+    };
+    if req.contract_version != CONTRACT_VERSION {
+        return Err(refuse(
+            CONTROL_STATUS_BAD_REQUEST,
+            format!(
+                "contract version {}: this daemon speaks {CONTRACT_VERSION}",
+                req.contract_version
+            ),
+            None,
+        ));
+    }
+    match req.op {
+        CONTROL_OP_RESET => return Ok(Command::Reset),
+        CONTROL_OP_PAUSE => return Ok(Command::Pause),
+        CONTROL_OP_RESUME => return Ok(Command::Resume),
+        CONTROL_OP_GET | CONTROL_OP_SET | CONTROL_OP_PIN | CONTROL_OP_RELEASE => {}
+        op => {
+            return Err(refuse(
+                CONTROL_STATUS_BAD_REQUEST,
+                format!("op {op}: not a control operation (1 get … 7 resume)"),
+                None,
+            ))
+        }
+    }
+    let found = match usize::try_from(req.body_index) {
+        Ok(i) => (i < bodies.len()).then_some(i),
+        Err(_) => bodies
+            .iter()
+            .position(|&b| b.as_bytes() == until_nul(&req.body)),
+    };
+    let Some(body) = found else {
+        let asked = if req.body_index >= 0 {
+            format!("index {}", req.body_index)
+        } else {
+            format!("{:?}", field_text(&req.body))
+        };
+        return Err(refuse(
+            CONTROL_STATUS_UNKNOWN_BODY,
+            format!("no body {asked}; bodies: {}", bodies.join(", ")),
+            None,
+        ));
+    };
+    match req.op {
+        CONTROL_OP_GET => Ok(Command::Get { body }),
+        CONTROL_OP_SET => {
+            let value = req.value;
+            let found = CONTROL_KEYS
+                .iter()
+                .find(|(k, _)| k.as_bytes() == until_nul(&req.key));
+            let Some(&(key, range)) = found else {
+                let keys: Vec<&str> = CONTROL_KEYS.iter().map(|(k, _)| *k).collect();
+                return Err(refuse(
+                    CONTROL_STATUS_UNKNOWN_KEY,
+                    format!(
+                        "key {:?} unknown; live keys: {}",
+                        field_text(&req.key),
+                        keys.join(" ")
+                    ),
+                    Some(body),
+                ));
+            };
+            // Written so that NaN fails every range.
+            let ok = match key {
+                "fem.young" | "msd.stiffness" | "lop.rest_speed" => {
+                    value > 0.0 && value.is_finite()
+                }
+                "fem.poisson" => (0.0..0.5).contains(&value),
+                _ => value >= 0.0 && value.is_finite(),
+            };
+            if !ok {
+                return Err(refuse(
+                    CONTROL_STATUS_BAD_VALUE,
+                    format!("{key} = {value}: out of range ({range})"),
+                    Some(body),
+                ));
+            }
+            Ok(Command::Set { body, key, value })
+        }
+        CONTROL_OP_PIN => {
+            let pin = match req.model {
+                0 => ModelPin::Gc,
+                1 => ModelPin::Msd,
+                2 => ModelPin::Fem,
+                m => {
+                    return Err(refuse(
+                        CONTROL_STATUS_BAD_VALUE,
+                        format!("model = {m}: use 0 (GC), 1 (MSD) or 2 (FEM)"),
+                        Some(body),
+                    ))
+                }
+            };
+            Ok(Command::Pin { body, pin })
+        }
+        _ => Ok(Command::Release { body }),
+    }
+}
+
+/// A NUL-padded field's bytes up to the first NUL.
+fn until_nul(field: &[u8]) -> &[u8] {
+    let end = field.iter().position(|&b| b == 0).unwrap_or(field.len());
+    &field[..end]
+}
+
+/// A NUL-padded field as text for a message: bytes that are not UTF-8 shown as U+FFFD, so a
+/// refusal quotes what was sent rather than a placeholder.
+pub fn field_text(field: &[u8]) -> std::borrow::Cow<'_, str> {
+    String::from_utf8_lossy(until_nul(field))
 }

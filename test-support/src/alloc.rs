@@ -20,7 +20,8 @@
 //! Two sets of counters: process-wide totals ([`allocations`], [`bytes`], zeroed by [`reset`]),
 //! for a test that arms one thread (a servo thread, say) and reads the count from another; and
 //! per-thread counts ([`this_thread`]), for a test that measures work done on its own thread
-//! while other tests run in parallel.
+//! while other tests run in parallel. [`largest_on_this_thread`] gives the largest single
+//! allocation instead, for the readers' bounded-memory tests.
 //!
 //! An allocation is one call of `alloc`, `alloc_zeroed` or `realloc`; its bytes are the size
 //! asked for (the new size for `realloc`). `dealloc` is not counted.
@@ -54,6 +55,7 @@ impl Counting {
         if armed {
             let _ = THREAD_ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
             let _ = THREAD_BYTES.try_with(|c| c.set(c.get() + bytes as u64));
+            let _ = THREAD_LARGEST.try_with(|c| c.set(c.get().max(bytes as u64)));
         }
         if armed || self.every_thread {
             ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
@@ -69,6 +71,7 @@ thread_local! {
     static ARMED: Cell<bool> = const { Cell::new(false) };
     static THREAD_ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
     static THREAD_BYTES: Cell<u64> = const { Cell::new(0) };
+    static THREAD_LARGEST: Cell<u64> = const { Cell::new(0) };
 }
 
 // SAFETY: forwards every call to the system allocator unchanged; counting touches only atomics
@@ -131,6 +134,16 @@ pub fn this_thread(f: impl FnOnce()) -> Counts {
         allocations: after.allocations - before.allocations,
         bytes: after.bytes - before.bytes,
     }
+}
+
+/// Runs `f` with this thread armed and returns its result and the largest single allocation
+/// (in bytes) it made on this thread: what the bounded-memory tests of the readers compare
+/// with the size of their input.
+pub fn largest_on_this_thread<R>(f: impl FnOnce() -> R) -> (R, u64) {
+    let outer = THREAD_LARGEST.with(|c| c.replace(0));
+    let r = counted(f);
+    let largest = THREAD_LARGEST.with(|c| c.replace(c.get().max(outer)));
+    (r, largest)
 }
 
 fn thread_counts() -> Counts {

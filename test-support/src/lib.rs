@@ -2,6 +2,8 @@
 //! binary):
 //!
 //! - [`alloc`]: a counting global allocator for the "allocates nothing" tests;
+//! - [`fuzz`]: the committed-corpus fuzzing of the readers and decoders: seeds, a deterministic
+//!   mutator, a seeded xorshift;
 //! - [`fixtures`]: paths to the shipped assets and scenes, fresh temporary directories, the unit
 //!   cube's corners;
 //! - [`vec3`]: the small `[f64; 3]` arithmetic the tests check geometry with.
@@ -10,4 +12,5 @@
 
 pub mod alloc;
 pub mod fixtures;
+pub mod fuzz;
 pub mod vec3;

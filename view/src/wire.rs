@@ -188,12 +188,12 @@ pub fn control_op_and_token(text: &str) -> (String, Option<String>) {
     (op, v["token"].as_str().map(str::to_string))
 }
 
-/// Parses the page's control request.
+/// Parses the page's control request. A refusal quotes the bad part as the page sent it (JSON:
+/// `"sph"`, `null`, `5`), or serde_json's line and column for text that is not JSON.
 pub fn control_request(text: &str) -> Result<ControlRequest, String> {
     let v: Value = serde_json::from_str(text).map_err(|e| format!("bad JSON: {e}"))?;
-    let op = v["op"].as_str().unwrap_or("");
     let body = v["body"].as_str().unwrap_or("");
-    Ok(match op {
+    Ok(match v["op"].as_str().unwrap_or("") {
         "get" => ControlRequest::new(CONTROL_OP_GET, body),
         "set" => {
             let key = v["key"].as_str().unwrap_or("");
@@ -202,17 +202,20 @@ pub fn control_request(text: &str) -> Result<ControlRequest, String> {
                 Value::String(s) => s
                     .trim()
                     .parse()
-                    .map_err(|_| format!("{key}: value {s:?} is not a number"))?,
+                    .map_err(|_| format!("{key}: value {} is not a number", v["value"]))?,
                 other => return Err(format!("{key}: value {other} is not a number")),
             };
             ControlRequest::set(body, key, value)
         }
         "pin" => {
-            let model = match v["model"].as_str().unwrap_or("") {
-                "gc" => BodyModel::Gc,
-                "msd" => BodyModel::Msd,
-                "fem" => BodyModel::Fem,
-                m => return Err(format!("pin: model {m:?} is not one of gc, msd, fem")),
+            let model = match v["model"].as_str() {
+                Some("gc") => BodyModel::Gc,
+                Some("msd") => BodyModel::Msd,
+                Some("fem") => BodyModel::Fem,
+                _ => {
+                    let m = &v["model"];
+                    return Err(format!("pin: model {m} is not one of gc, msd, fem"));
+                }
             };
             ControlRequest::pin(body, model)
         }
@@ -220,7 +223,7 @@ pub fn control_request(text: &str) -> Result<ControlRequest, String> {
         "reset" => ControlRequest::new(CONTROL_OP_RESET, ""),
         "pause" => ControlRequest::new(CONTROL_OP_PAUSE, ""),
         "resume" => ControlRequest::new(CONTROL_OP_RESUME, ""),
-        other => return Err(format!("op {other:?} is not a control operation")),
+        _ => return Err(format!("op {} is not a control operation", v["op"])),
     })
 }
 

@@ -109,15 +109,16 @@ impl FaultWindow {
 #[derive(Debug, thiserror::Error)]
 pub enum ScriptError {
     /// The file could not be read.
-    #[error("cannot read mock script {}", path.display())]
+    #[error("cannot read mock script {}: {source}", path.display())]
     Read {
         /// The script file.
         path: PathBuf,
         /// The I/O error.
         source: std::io::Error,
     },
-    /// The file is not valid TOML or does not fit the schema (unknown key, wrong type); the
-    /// message has the line, the column and the key.
+    /// The file is not valid TOML (or not UTF-8) or does not fit the schema (unknown key, wrong
+    /// type); the message has the line, the column and the key (or the line and the offset of
+    /// the first byte that is not UTF-8).
     #[error("{}: {message}", path.display())]
     Syntax {
         /// The script file.
@@ -231,9 +232,22 @@ impl fmt::Display for TomlFloat {
 impl MockScript {
     /// Reads and validates the script at `path`.
     pub fn load(path: &Path) -> Result<MockScript, ScriptError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ScriptError::Read {
+        let bytes = std::fs::read(path).map_err(|source| ScriptError::Read {
             path: path.to_owned(),
             source,
+        })?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            // Name the line and the byte, as the TOML parser's messages do.
+            let valid = e.utf8_error().valid_up_to();
+            let bytes = e.as_bytes();
+            let line = 1 + bytes[..valid].iter().filter(|&&b| b == b'\n').count();
+            ScriptError::Syntax {
+                path: path.to_owned(),
+                message: format!(
+                    "line {line}: not UTF-8 text: byte {valid} is 0x{:02x}",
+                    bytes.get(valid).copied().unwrap_or(0)
+                ),
+            }
         })?;
         Self::parse(&text, path)
     }

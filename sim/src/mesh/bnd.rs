@@ -36,7 +36,8 @@ pub(crate) fn read_optional(
     let fields = header.fields(false);
     text::expect_fields(path, &header, &fields, 1, "the number of fixed nodes")?;
     let declared = text::parse_count(path, header.no, fields[0], "the number of fixed nodes")?;
-    let mut fixed = Vec::with_capacity(text::capacity(declared));
+    // The shortest line, a digit and its newline, takes 2 bytes.
+    let mut fixed = Vec::with_capacity(text::capacity_within(declared, text.len(), 2));
     text::read_records(
         path,
         &mut lines,

@@ -42,6 +42,7 @@ pub fn read_gmsh(path: &Path) -> Result<TetMesh, MeshReadError> {
     let mut reader = Reader {
         path,
         lines: DataLines::new(&text, false),
+        text_bytes: text.len(),
         nodes: Vec::new(),
         tags: Vec::new(),
         index_of: HashMap::new(),
@@ -167,6 +168,8 @@ fn declares_binary(bytes: &[u8]) -> bool {
 struct Reader<'a> {
     path: &'a Path,
     lines: DataLines<'a>,
+    /// Length of the file's text: no count may reserve more records than it can hold.
+    text_bytes: usize,
     nodes: Vec<[f64; 3]>,
     /// Tag of each node, in file order.
     tags: Vec<i64>,
@@ -458,18 +461,30 @@ impl<'a> Reader<'a> {
         let (header, h) = self.header("$EndNodes", 4, HEADER)?;
         let (blocks, declared) = (h[0], h[1]);
         let mut total = 0usize;
-        for _ in 0..blocks {
+        for k in 0..blocks {
+            self.no_early_end("$EndNodes", header.no, blocks, k)?;
             let (block, b) = self.header("$EndNodes", 4, BLOCK)?;
             let (dim, parametric, n) = (b[0], b[2], b[3]);
             if parametric > 1 || dim > 3 {
                 return Err(self.parse_error(block.no, BLOCK, text::quote(block.text)));
             }
             let per_line = 3 + if parametric == 1 { dim } else { 0 };
-            let mut tags = Vec::with_capacity(text::capacity(n));
+            // The shortest tag line, a digit and its newline, takes 2 bytes.
+            let mut tags = Vec::with_capacity(text::capacity_within(n, self.text_bytes, 2));
             for i in 0..n {
                 let line = self.section_line("$EndNodes", block.no, n, i, "nodes in the block")?;
                 let fields = line.fields(false);
-                text::expect_fields(self.path, &line, &fields, 1, "one node tag")?;
+                text::expect_fields(
+                    self.path,
+                    &line,
+                    &fields,
+                    1,
+                    format_args!(
+                        "one node tag: tag {} of the {n} the block on line {} declares",
+                        i + 1,
+                        block.no
+                    ),
+                )?;
                 tags.push((
                     line.no,
                     text::parse_i64(self.path, line.no, fields[0], "the node tag")?,
@@ -580,7 +595,8 @@ impl<'a> Reader<'a> {
         let (header, h) = self.header("$EndElements", 4, HEADER)?;
         let (blocks, declared) = (h[0], h[1]);
         let mut total = 0usize;
-        for _ in 0..blocks {
+        for k in 0..blocks {
+            self.no_early_end("$EndElements", header.no, blocks, k)?;
             let line = self.data_line("$EndElements", BLOCK)?;
             let fields = line.fields(false);
             text::expect_fields(self.path, &line, &fields, 4, BLOCK)?;
@@ -620,6 +636,27 @@ impl<'a> Reader<'a> {
             });
         }
         self.expect_end("$EndElements", header.no, blocks, "entity blocks")
+    }
+
+    /// Before entity block `k` of the `blocks` declared on `header_line`: the section's end (or
+    /// the file's) there is a count mismatch that quotes the declaration.
+    fn no_early_end(
+        &self,
+        end: &str,
+        header_line: usize,
+        blocks: usize,
+        k: usize,
+    ) -> Result<(), MeshReadError> {
+        match self.lines.clone().next() {
+            Some(line) if line.text != end => Ok(()),
+            _ => Err(MeshReadError::CountMismatch {
+                path: self.path.to_owned(),
+                line: header_line,
+                what: "entity blocks",
+                declared: blocks,
+                found: k,
+            }),
+        }
     }
 
     /// Record `i` of `declared` in a section: running into the end marker (or any other

@@ -883,7 +883,7 @@ impl<'a> Body<'a> {
 
 fn ply(path: &Path, bytes: &[u8]) -> Result<SurfaceMesh, MeshReadError> {
     let header = ply_header(path, bytes)?;
-    let vertex_count = {
+    let (vertex_count, vertex_line) = {
         let Some(vertex) = header.elements.iter().find(|e| e.name == "vertex") else {
             return Err(text::parse_error(
                 path,
@@ -905,7 +905,7 @@ fn ply(path: &Path, bytes: &[u8]) -> Result<SurfaceMesh, MeshReadError> {
                 }
             }
         }
-        vertex.count
+        (vertex.count, vertex.line)
     };
     let Some(face) = header.elements.iter().find(|e| e.name == "face") else {
         return Err(text::parse_error(
@@ -936,10 +936,12 @@ fn ply(path: &Path, bytes: &[u8]) -> Result<SurfaceMesh, MeshReadError> {
         }
     }
     if u32::try_from(vertex_count).is_err() {
-        return Err(MeshReadError::TooManyNodes {
-            path: path.to_owned(),
-            count: vertex_count,
-        });
+        return Err(text::parse_error(
+            path,
+            vertex_line,
+            "at most 2^32 - 1 vertices (what a mesh can index)",
+            vertex_count.to_string(),
+        ));
     }
 
     let text;
@@ -964,7 +966,8 @@ fn ply(path: &Path, bytes: &[u8]) -> Result<SurfaceMesh, MeshReadError> {
         },
     };
 
-    let mut vertices = Vec::with_capacity(text::capacity(vertex_count));
+    // A vertex takes at least 2 bytes ("0\n", or a 1-byte binary property).
+    let mut vertices = Vec::with_capacity(text::capacity_within(vertex_count, bytes.len(), 2));
     let mut triangles = Vec::new();
     for element in &header.elements {
         // Each element takes at least this many bytes in a binary body.

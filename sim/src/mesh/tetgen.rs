@@ -236,7 +236,8 @@ fn parse_node(path: &Path, text: &str) -> Result<(Vec<[f64; 3]>, i64), MeshReadE
         "`<point number> <x> <y> <z>` followed by {attributes} attribute(s) and {markers} marker(s)"
     );
 
-    let mut nodes = Vec::with_capacity(text::capacity(declared));
+    // The shortest point line, `1 0 0 0` and its newline, takes 8 bytes.
+    let mut nodes = Vec::with_capacity(text::capacity_within(declared, text.len(), 8));
     let mut first = 0;
     text::read_records(
         path,
@@ -355,10 +356,12 @@ fn parse_ele(path: &Path, text: &str, nodes: &NodeRef<'_>) -> Result<Ele, MeshRe
         "`<tetrahedron number>` and {corners} node numbers, followed by {attributes} attribute(s)"
     );
 
+    // The shortest tetrahedron line, `1 1 2 3 4` and its newline, takes 10 bytes.
+    let capacity = text::capacity_within(declared, text.len(), 10);
     let mut ele = Ele {
-        tets: Vec::with_capacity(text::capacity(declared)),
-        lines: Vec::with_capacity(text::capacity(declared)),
-        labels: Vec::with_capacity(text::capacity(declared)),
+        tets: Vec::with_capacity(capacity),
+        lines: Vec::with_capacity(capacity),
+        labels: Vec::with_capacity(capacity),
     };
     text::read_records(
         path,

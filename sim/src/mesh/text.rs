@@ -276,6 +276,17 @@ pub(crate) fn capacity(declared: usize) -> usize {
     declared.min(1 << 16)
 }
 
+/// Like [`capacity`], and no more records than a file of `file_bytes` bytes can hold if each
+/// takes at least `min_record_bytes`: a header claiming 10^12 records in a small file reserves
+/// what the file could hold, not 65,536 records.
+pub(crate) fn capacity_within(
+    declared: usize,
+    file_bytes: usize,
+    min_record_bytes: usize,
+) -> usize {
+    capacity(declared).min(file_bytes / min_record_bytes.max(1) + 1)
+}
+
 /// Reads exactly `declared` records with `record`, then checks that no data lines are left.
 /// `header_line` is the line with the declaration (for [`MeshReadError::CountMismatch`]).
 pub(crate) fn read_records<'a>(
