@@ -163,7 +163,7 @@ fn haptic_ticks(scene_name: &str, script_name: &str, seconds: f64) -> Result<Row
         let t0 = Instant::now();
         let proxy = god.proxy();
         let moved = set.refresh_reachable(
-            sequence,
+            |_| sequence,
             &[device, proxy],
             REACH,
             |b| bounds[b],

@@ -43,6 +43,26 @@ use lop_scene::{DeviceClamp, ToolLaws};
 /// A body's positions are copied into the contact index once the device or the god-object is
 /// this close to its bounds, m: well beyond what the tool covers between frames.
 const REACH: f64 = 0.02;
+/// A value that changes whenever body `bf`'s positions may have changed between two frames:
+/// its last step's wall time (to the nanosecond), kinetic energy, top speed, bounds and model
+/// switches, mixed. A body that did not step carries them unchanged (the deformation process
+/// only updates them when it steps); two different steps giving all of them identical to the
+/// bit is not a case worth a copy of every node on each tick.
+fn body_stamp(bf: &BodyFrame) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let mut mix = |x: u64| {
+        h ^= x;
+        h = h.wrapping_mul(0x0100_0000_01b3).rotate_left(23);
+    };
+    mix(u64::from(bf.step_ns));
+    mix(u64::from(bf.kinetic_energy.to_bits()) << 32 | u64::from(bf.max_speed.to_bits()));
+    for k in 0..3 {
+        mix(u64::from(bf.aabb_min[k].to_bits()) << 32 | u64::from(bf.aabb_max[k].to_bits()));
+    }
+    mix(u64::from(bf.switches) << 32 | u64::from(bf.resets) << 8 | u64::from(bf.model));
+    h
+}
+
 /// Device samples farther than this outside the device's workspace are rejected as broken, mm.
 const WORKSPACE_SLACK_MM: f64 = 20.0;
 /// Tool states the ring to the publisher thread holds: 0.5 s at 1 kHz.
@@ -566,9 +586,15 @@ impl HapticLoop {
             Some(bf) if b < count => (bf.aabb_min.map(|c| c as f64), bf.aabb_max.map(|c| c as f64)),
             _ => ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
         };
+        // A body that did not step since the last frame keeps its positions: at 1 kHz frames
+        // only the touched body changes in most, and its neighbours are not copied again.
+        let stamp = |b: usize| match fh.bodies.get(b) {
+            Some(bf) if b < count => body_stamp(bf),
+            _ => fh.sequence,
+        };
         let moved = ix
             .set
-            .refresh_reachable(fh.sequence, &points, REACH, bounds, |i| {
+            .refresh_reachable(stamp, &points, REACH, bounds, |i| {
                 nodes[i].position.map(|c| c as f64)
             });
         if first {

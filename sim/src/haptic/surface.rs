@@ -54,7 +54,7 @@ pub struct SurfaceSet {
     body_nodes: Vec<(usize, usize)>,
     /// Per body: whether queries consider it (its positions are current).
     active: Vec<bool>,
-    /// Per body: the frame its positions come from (see [`SurfaceSet::refresh_reachable`]).
+    /// Per body: the stamp of the positions it holds (see [`SurfaceSet::refresh_reachable`]).
     body_frame: Vec<Option<u64>>,
     /// Per body: a surface vertex to start walks from.
     warm: Vec<u32>,
@@ -254,14 +254,16 @@ impl SurfaceSet {
         self.active[b] = true;
     }
 
-    /// Brings the set up to date with frame `frame` for the bodies the tool can reach: a body
-    /// whose bounds `bounds(b)` (from the frame) are within `reach` of one of `points` gets its
-    /// positions from `at` — once per frame — and takes part in queries; the others are left
-    /// out until they come within reach. Copying only what the tool can touch keeps a frame's
+    /// Brings the set up to date with a frame for the bodies the tool can reach: a body whose
+    /// bounds `bounds(b)` (from the frame) are within `reach` of one of `points` gets its
+    /// positions from `at` — once per stamp `stamp(b)`, which changes whenever the body's
+    /// positions may have (a frame sequence, or something that changes with each of the body's
+    /// steps) — and takes part in queries; the others are left out until they come within
+    /// reach. Copying only what the tool can touch, and only when it moved, keeps a frame's
     /// arrival cheap on the haptic tick. Returns whether any positions changed.
     pub fn refresh_reachable(
         &mut self,
-        frame: u64,
+        stamp: impl Fn(usize) -> u64,
         points: &[[f64; 3]],
         reach: f64,
         bounds: impl Fn(usize) -> ([f64; 3], [f64; 3]),
@@ -275,8 +277,8 @@ impl SurfaceSet {
                 .any(|p| (0..3).all(|k| p[k] >= lo[k] - reach && p[k] <= hi[k] + reach));
             if !near {
                 self.active[b] = false;
-            } else if self.body_frame[b] != Some(frame) {
-                self.body_frame[b] = Some(frame);
+            } else if self.body_frame[b] != Some(stamp(b)) {
+                self.body_frame[b] = Some(stamp(b));
                 self.set_body_positions(b, &mut at);
                 moved = true;
             } else {
