@@ -6,6 +6,7 @@ use std::collections::hash_map::{Entry, HashMap};
 use std::path::Path;
 
 use super::text::{self, DataLines, Line};
+use super::vtk_cells::Scalar;
 use super::MeshReadError;
 
 /// A triangle surface: vertex positions and triangles over them (0-based), as the file has
@@ -515,78 +516,27 @@ fn obj_corner(
 // ---------------------------------------------------------------------------------------------
 // PLY
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Scalar {
-    I8,
-    U8,
-    I16,
-    U16,
-    I32,
-    U32,
-    F32,
-    F64,
+/// A PLY type's name after "a" or "an", for messages.
+fn with_article(s: Scalar) -> String {
+    match s {
+        Scalar::I32 => "an int".to_owned(),
+        other => format!("a {}", ply_name(other)),
+    }
 }
 
-impl Scalar {
-    fn parse(name: &str) -> Option<Scalar> {
-        Some(match name {
-            "char" | "int8" => Scalar::I8,
-            "uchar" | "uint8" => Scalar::U8,
-            "short" | "int16" => Scalar::I16,
-            "ushort" | "uint16" => Scalar::U16,
-            "int" | "int32" => Scalar::I32,
-            "uint" | "uint32" => Scalar::U32,
-            "float" | "float32" => Scalar::F32,
-            "double" | "float64" => Scalar::F64,
-            _ => return None,
-        })
-    }
-
-    fn size(self) -> usize {
-        match self {
-            Scalar::I8 | Scalar::U8 => 1,
-            Scalar::I16 | Scalar::U16 => 2,
-            Scalar::I32 | Scalar::U32 | Scalar::F32 => 4,
-            Scalar::F64 => 8,
-        }
-    }
-
-    fn is_integer(self) -> bool {
-        !matches!(self, Scalar::F32 | Scalar::F64)
-    }
-
-    /// The range of an integer type.
-    fn range(self) -> (i64, i64) {
-        match self {
-            Scalar::I8 => (i8::MIN.into(), i8::MAX.into()),
-            Scalar::U8 => (0, u8::MAX.into()),
-            Scalar::I16 => (i16::MIN.into(), i16::MAX.into()),
-            Scalar::U16 => (0, u16::MAX.into()),
-            Scalar::I32 => (i32::MIN.into(), i32::MAX.into()),
-            Scalar::U32 => (0, u32::MAX.into()),
-            Scalar::F32 | Scalar::F64 => (i64::MIN, i64::MAX),
-        }
-    }
-
-    /// The type's name after "a" or "an", for messages.
-    fn with_article(self) -> String {
-        match self {
-            Scalar::I32 => "an int".to_owned(),
-            other => format!("a {}", other.name()),
-        }
-    }
-
-    fn name(self) -> &'static str {
-        match self {
-            Scalar::I8 => "char",
-            Scalar::U8 => "uchar",
-            Scalar::I16 => "short",
-            Scalar::U16 => "ushort",
-            Scalar::I32 => "int",
-            Scalar::U32 => "uint",
-            Scalar::F32 => "float",
-            Scalar::F64 => "double",
-        }
+/// A PLY type's name as the header writes it.
+fn ply_name(s: Scalar) -> &'static str {
+    match s {
+        Scalar::I8 => "char",
+        Scalar::U8 => "uchar",
+        Scalar::I16 => "short",
+        Scalar::U16 => "ushort",
+        Scalar::I32 => "int",
+        Scalar::U32 => "uint",
+        Scalar::F32 => "float",
+        Scalar::F64 => "double",
+        Scalar::I64 => "int64",
+        Scalar::U64 => "uint64",
     }
 }
 
@@ -690,7 +640,7 @@ fn ply_header(path: &Path, bytes: &[u8]) -> Result<PlyHeader, MeshReadError> {
                 let property =
                     match fields.as_slice() {
                         ["property", "list", count, item, name] => {
-                            match (Scalar::parse(count), Scalar::parse(item)) {
+                            match (Scalar::from_ply(count), Scalar::from_ply(item)) {
                                 (Some(c), Some(i)) if c.is_integer() => {
                                     (name.to_string(), Property::List(c, i))
                                 }
@@ -701,7 +651,7 @@ fn ply_header(path: &Path, bytes: &[u8]) -> Result<PlyHeader, MeshReadError> {
                             }
                         }
                         ["property", kind, name] => {
-                            match Scalar::parse(kind) {
+                            match Scalar::from_ply(kind) {
                                 Some(s) => (name.to_string(), Property::Scalar(s)),
                                 None => return err(
                                     "`property <type> <name>` (types: char, uchar, short, ushort, \
@@ -796,7 +746,7 @@ impl<'a> Body<'a> {
                     return Err(text::parse_error(
                         path,
                         *line,
-                        format!("{} for {what}", s.with_article()),
+                        format!("{} for {what}", with_article(s)),
                         "the end of the line",
                     ));
                 };
@@ -805,7 +755,7 @@ impl<'a> Body<'a> {
                     text::parse_error(
                         path,
                         *line,
-                        format!("{} for {what}", s.with_article()),
+                        format!("{} for {what}", with_article(s)),
                         text::quote(token),
                     )
                 };
@@ -831,28 +781,13 @@ impl<'a> Body<'a> {
                     return Err(binary_error(
                         path,
                         bytes.len(),
-                        format!("{} for {what}", s.with_article()),
+                        format!("{} for {what}", with_article(s)),
                         "end of file",
                     ));
                 };
                 *last = *pos;
                 *pos += size;
-                let mut b = [0u8; 8];
-                b[..size].copy_from_slice(raw);
-                if !*big {
-                    b[..size].reverse();
-                }
-                // `b` now holds the value big-endian in its first `size` bytes.
-                Ok(match s {
-                    Scalar::I8 => f64::from(b[0] as i8),
-                    Scalar::U8 => f64::from(b[0]),
-                    Scalar::I16 => f64::from(i16::from_be_bytes([b[0], b[1]])),
-                    Scalar::U16 => f64::from(u16::from_be_bytes([b[0], b[1]])),
-                    Scalar::I32 => f64::from(i32::from_be_bytes([b[0], b[1], b[2], b[3]])),
-                    Scalar::U32 => f64::from(u32::from_be_bytes([b[0], b[1], b[2], b[3]])),
-                    Scalar::F32 => f64::from(f32::from_be_bytes([b[0], b[1], b[2], b[3]])),
-                    Scalar::F64 => f64::from_be_bytes(b),
-                })
+                Ok(s.real(raw, *big))
             }
         }
     }
@@ -931,7 +866,7 @@ fn ply(path: &Path, bytes: &[u8]) -> Result<SurfaceMesh, MeshReadError> {
                 path,
                 face.line,
                 "integer vertex indices",
-                format!("`{}`", item.name()),
+                format!("`{}`", ply_name(*item)),
             ));
         }
     }

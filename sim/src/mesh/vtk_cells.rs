@@ -1,6 +1,6 @@
 //! What the VTK readers share: where an error sits (a line or a byte offset), the scalar types
-//! of binary arrays, and turning VTK cells into tetrahedra (volume meshes) or triangles
-//! (surfaces).
+//! of binary arrays (the PLY reader decodes its binary properties with them too), and turning
+//! VTK cells into tetrahedra (volume meshes) or triangles (surfaces).
 
 use std::path::Path;
 
@@ -96,6 +96,34 @@ impl Scalar {
             "double" | "vtktypefloat64" => Scalar::F64,
             _ => return None,
         })
+    }
+
+    /// A PLY property type (`char`, `uchar`, …, `double`, or `int8` … `float64`).
+    pub(super) fn from_ply(name: &str) -> Option<Self> {
+        Some(match name {
+            "char" | "int8" => Scalar::I8,
+            "uchar" | "uint8" => Scalar::U8,
+            "short" | "int16" => Scalar::I16,
+            "ushort" | "uint16" => Scalar::U16,
+            "int" | "int32" => Scalar::I32,
+            "uint" | "uint32" => Scalar::U32,
+            "float" | "float32" => Scalar::F32,
+            "double" | "float64" => Scalar::F64,
+            _ => return None,
+        })
+    }
+
+    /// The range of an integer type (all of `i64` for the others).
+    pub(super) fn range(self) -> (i64, i64) {
+        match self {
+            Scalar::I8 => (i8::MIN.into(), i8::MAX.into()),
+            Scalar::U8 => (0, u8::MAX.into()),
+            Scalar::I16 => (i16::MIN.into(), i16::MAX.into()),
+            Scalar::U16 => (0, u16::MAX.into()),
+            Scalar::I32 => (i32::MIN.into(), i32::MAX.into()),
+            Scalar::U32 => (0, u32::MAX.into()),
+            Scalar::I64 | Scalar::U64 | Scalar::F32 | Scalar::F64 => (i64::MIN, i64::MAX),
+        }
     }
 
     pub(super) fn size(self) -> usize {
