@@ -382,3 +382,33 @@ fn small_motions_skip_the_refit_and_stay_exact() {
     set.closest_in_body(0, mid, f64::INFINITY);
     assert_eq!(set.stats().refits, refits + 1);
 }
+
+/// `SurfaceSet::refresh_reachable` copies a reachable body's positions once per stamp: the
+/// same stamp again leaves them (a body that did not step), a new stamp copies them, and a body
+/// out of reach is left out whatever its stamp.
+#[test]
+fn reachable_bodies_are_copied_once_per_stamp() {
+    let (x, t) = sphere_surface(0.01, 1);
+    let n = x.len();
+    let mut all = x.clone();
+    all.extend(x.iter().map(|p| [p[0] + 1.0, p[1], p[2]]));
+    let t2: Vec<[u32; 3]> = t.iter().map(|f| f.map(|i| i + n as u32)).collect();
+    let mut s = SurfaceSet::new(2 * n, &[&t, &t2]);
+    let bounds = |b: usize| {
+        let o = b as f64;
+        ([o - 0.01, -0.01, -0.01], [o + 0.01, 0.01, 0.01])
+    };
+    let near = [[0.0, 0.0, 0.02]];
+    let all = &all;
+    let shifted = |dz: f64| move |i: usize| [all[i][0], all[i][1], all[i][2] + dz];
+    assert!(s.refresh_reachable(|_| 1, &near, 0.02, bounds, shifted(0.0)));
+    assert!(s.is_active(0) && !s.is_active(1));
+    // The same stamp: nothing copied, although `at` would move the body.
+    assert!(!s.refresh_reachable(|_| 1, &near, 0.02, bounds, shifted(1e-3)));
+    assert_eq!(s.positions()[0], all[0]);
+    // A new stamp: copied.
+    assert!(s.refresh_reachable(|_| 2, &near, 0.02, bounds, shifted(1e-3)));
+    assert_eq!(s.positions()[0][2], all[0][2] + 1e-3);
+    // Body 1 stays out of reach: never copied.
+    assert!(!s.is_active(1));
+}

@@ -277,8 +277,11 @@ impl SurfaceSet {
                 .any(|p| (0..3).all(|k| p[k] >= lo[k] - reach && p[k] <= hi[k] + reach));
             if !near {
                 self.active[b] = false;
-            } else if self.body_frame[b] != Some(stamp(b)) {
-                self.body_frame[b] = Some(stamp(b));
+                continue;
+            }
+            let fresh = stamp(b);
+            if self.body_frame[b] != Some(fresh) {
+                self.body_frame[b] = Some(fresh);
                 self.set_body_positions(b, &mut at);
                 moved = true;
             } else {
