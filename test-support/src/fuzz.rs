@@ -287,12 +287,17 @@ fn mutate_once(rng: &mut Rng, out: &mut Vec<u8>, dictionary: &[&[u8]]) {
 
 /// Byte ranges of the whitespace-separated tokens.
 fn tokens(b: &[u8]) -> Vec<(usize, usize)> {
+    runs(b, |c| !c.is_ascii_whitespace())
+}
+
+/// Byte ranges of the maximal runs of bytes that satisfy `keep`.
+fn runs(b: &[u8], keep: impl Fn(u8) -> bool) -> Vec<(usize, usize)> {
     let mut spans = Vec::new();
     let mut start = None;
-    for (i, c) in b.iter().enumerate() {
-        match (c.is_ascii_whitespace(), start) {
-            (false, None) => start = Some(i),
-            (true, Some(s)) => {
+    for (i, &c) in b.iter().enumerate() {
+        match (keep(c), start) {
+            (true, None) => start = Some(i),
+            (false, Some(s)) => {
                 spans.push((s, i));
                 start = None;
             }
@@ -323,22 +328,7 @@ fn line_spans(b: &[u8]) -> Vec<(usize, usize)> {
 
 /// Byte ranges of the runs of ASCII digits.
 fn digit_runs(b: &[u8]) -> Vec<(usize, usize)> {
-    let mut spans = Vec::new();
-    let mut start = None;
-    for (i, c) in b.iter().enumerate() {
-        match (c.is_ascii_digit(), start) {
-            (true, None) => start = Some(i),
-            (false, Some(s)) => {
-                spans.push((s, i));
-                start = None;
-            }
-            _ => {}
-        }
-    }
-    if let Some(s) = start {
-        spans.push((s, b.len()));
-    }
-    spans
+    runs(b, |c| c.is_ascii_digit())
 }
 
 #[cfg(test)]
