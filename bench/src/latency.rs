@@ -278,36 +278,29 @@ pub fn run(a: LatencyArgs) -> Result<()> {
         "frame age in contact",
         &tel.total_frame_age_contact,
     ));
-    rows.push(Row::from_histogram_ns(
-        "tool_to_deform",
-        "tool → deform latency",
-        &m.tool_to_deform,
-    ));
-    rows.push(Row::from_histogram_ns(
-        "deform_to_client",
-        "deform → client latency",
-        &m.deform_to_client,
-    ));
-    rows.push(Row::from_histogram_ns(
-        "device_to_tissue",
-        "device → tissue latency",
-        &m.device_to_tissue,
-    ));
-    rows.push(Row::from_histogram_ns(
-        "touched_frame_interval",
-        "touched body: frame interval",
-        &m.touched_interval,
-    ));
-    rows.push(Row::from_histogram_ns(
-        "deform_round",
-        "deform round",
-        &m.deform_round,
-    ));
-    rows.push(Row::from_histogram_ns(
-        "touched_step",
-        "touched body: step",
-        &m.touched_step,
-    ));
+    let measured_rows = [
+        ("tool_to_deform", "tool → deform latency", &m.tool_to_deform),
+        (
+            "deform_to_client",
+            "deform → client latency",
+            &m.deform_to_client,
+        ),
+        (
+            "device_to_tissue",
+            "device → tissue latency",
+            &m.device_to_tissue,
+        ),
+        (
+            "touched_frame_interval",
+            "touched body: frame interval",
+            &m.touched_interval,
+        ),
+        ("deform_round", "deform round", &m.deform_round),
+        ("touched_step", "touched body: step", &m.touched_step),
+    ];
+    for (key, label, h) in measured_rows {
+        rows.push(Row::from_histogram_ns(key, label, h));
+    }
 
     let report = LatencyReport {
         scene: scene.name.clone(),
