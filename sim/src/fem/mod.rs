@@ -190,9 +190,11 @@ pub enum RefactorPolicy {
     Amortized,
     /// Only when CG does not converge in its iteration limit (then within the step). For a
     /// body stepping at the haptic rate, on the real-time path of the hand: at such a step the
-    /// matrix `M/Δt² + K` is dominated by the mass, so the lagged factor — whatever the
-    /// rotations since — keeps CG at a few iterations, and a refactorisation (milliseconds on
-    /// an organ) would be a spike several times the step. Measured on the `abdomen` liver
+    /// matrix `M/Δt² + K` is dominated by the mass, so on a well-shaped mesh the lagged factor
+    /// keeps CG at a few iterations whatever the rotations since, and a refactorisation
+    /// (milliseconds on an organ) would be a spike several times the step. Slivers (flat
+    /// tetrahedra, far stiffer than their mass) break that: a generated ellipsoid with 2–3°
+    /// dihedral angles needs about 12 iterations per step while pressed. Measured on the `abdomen` liver
     /// pressed at Δt = 1 ms (`lopd simulate` of its poke): CG takes 1–2 iterations per step
     /// with the factor of the rest shape; the amortized policy, before CG's warm start took the
     /// patch's correction into account, refactorised every 11 steps, each a 3.3 ms step
