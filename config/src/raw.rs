@@ -188,6 +188,8 @@ pub(crate) struct RawHaptic {
     pub max_force_n: Option<f64>,
     pub spin_us: Option<f64>,
     pub max_force_step_n: Option<f64>,
+    pub local_model: Option<bool>,
+    pub passivity_max_damping: Option<f64>,
 }
 
 #[derive(Debug, Default, Deserialize)]

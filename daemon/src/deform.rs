@@ -27,6 +27,7 @@ use lop_config::{DaemonConfig, Scene};
 use lop_ipc::services::{self, Role, ToolBoard};
 use lop_ipc::*;
 use lop_scene::{DeviceClamp, LoadedScene, ToolLaws, Topology};
+use lop_sim::haptic::LocalModel;
 use lop_sim::model::{ModelKind, ToolAnchor};
 use lop_sim::world::{Coupling, World};
 
@@ -296,10 +297,12 @@ impl DeformLoop {
             log_switch(b);
         }
         // The press's contact patch, balanced where the haptic loop should rest its proxy.
-        let contact = tool
-            .as_ref()
-            .and_then(|t| self.world.contact_proxy(t.coupling))
-            .map(|(b, p)| (b as u32, p));
+        // With it, the local model the haptic loop renders between frames.
+        let contact = tool.as_ref().and_then(|t| {
+            let (b, p) = self.world.contact_proxy(t.coupling)?;
+            let local = self.world.contact_local(t.coupling).map(|(_, m)| m);
+            Some((b as u32, p, local))
+        });
         self.publish(sim_now, tool_stamp, tool_read, world_step_ns, contact);
     }
 
@@ -310,7 +313,7 @@ impl DeformLoop {
         tool_stamp: u64,
         tool_read: u64,
         world_step_ns: u64,
-        contact: Option<(u32, [f64; 3])>,
+        contact: Option<(u32, [f64; 3], Option<LocalModel>)>,
     ) {
         let world = &self.world;
         let Ok(mut sample) = self.frame_pub.loan_slice_uninit(self.node_count) else {
@@ -326,8 +329,23 @@ impl DeformLoop {
         header.tool_read_ns = tool_read;
         header.step_ns = world_step_ns;
         header.node_count = self.node_count as u32;
-        (header.contact_body, header.contact_proxy) = contact.unwrap_or((NO_CONTACT, [0.0; 3]));
+        let (body, proxy, local) = contact.unwrap_or((NO_CONTACT, [0.0; 3], None));
+        (header.contact_body, header.contact_proxy) = (body, proxy);
         header._pad2 = 0;
+        let m = local.unwrap_or_default();
+        header.contact_force = m.force;
+        header.contact_device = m.device;
+        for (dst, row) in header
+            .contact_stiffness
+            .chunks_exact_mut(3)
+            .zip(&m.stiffness)
+        {
+            dst.copy_from_slice(row);
+        }
+        header.contact_drift = m.drift;
+        header.contact_horizon = m.horizon;
+        header.contact_local = u32::from(local.is_some());
+        header._pad3 = 0;
         for (i, b) in world.bodies.iter().enumerate() {
             let bf = &mut header.bodies[i];
             let (lo, hi) = bounds(b.model.positions());

@@ -34,7 +34,7 @@ use lop_drivers::{DeviceLimits, HapticDevice};
 use lop_ipc::services::{self, Role, ToolBoard};
 use lop_ipc::*;
 use lop_sim::contact::ToolSphere;
-use lop_sim::haptic::{hand_force, GodObject, SurfaceSet};
+use lop_sim::haptic::{contact_force, GodObject, LocalModel, PassivityController, SurfaceSet};
 
 use crate::rt;
 use crate::safety::ForceSafety;
@@ -61,6 +61,25 @@ fn body_stamp(bf: &BodyFrame) -> u64 {
     }
     mix(u64::from(bf.switches) << 32 | u64::from(bf.resets) << 8 | u64::from(bf.model));
     h
+}
+
+/// The local model a frame carries for the patch it balanced: the body and the model; `None`
+/// when the frame has none.
+pub fn frame_local(h: &FrameHeader) -> Option<(usize, LocalModel)> {
+    if h.contact_local != 1 || h.contact_body == NO_CONTACT {
+        return None;
+    }
+    let k = &h.contact_stiffness;
+    Some((
+        h.contact_body as usize,
+        LocalModel {
+            device: h.contact_device,
+            force: h.contact_force,
+            stiffness: [[k[0], k[1], k[2]], [k[3], k[4], k[5]], [k[6], k[7], k[8]]],
+            drift: h.contact_drift,
+            horizon: h.contact_horizon,
+        },
+    ))
 }
 
 /// Device samples farther than this outside the device's workspace are rejected as broken, mm.
@@ -94,6 +113,10 @@ pub struct HapticSettings {
     pub body_stiffness: Vec<f64>,
     /// Tool damping, N·s/m.
     pub damping: f64,
+    /// Render with the frames' local model between frames.
+    pub local_model: bool,
+    /// The passivity controller's largest damping, N·s/m (0: off).
+    pub passivity_max_damping: f64,
 }
 
 impl HapticSettings {
@@ -124,6 +147,8 @@ impl HapticSettings {
             limits,
             body_stiffness: laws.bodies.iter().map(|t| t.stiffness).collect(),
             damping: laws.damping,
+            local_model: h.local_model,
+            passivity_max_damping: h.passivity_max_damping,
         }
     }
 
@@ -288,6 +313,9 @@ fn percentiles(h: &Histogram<u64>) -> Percentiles {
 pub struct HapticLoop {
     settings: HapticSettings,
     safety: ForceSafety,
+    passivity: PassivityController,
+    /// The device tip in the scene at the last healthy tick.
+    last_tip: Option<[f64; 3]>,
     _node: Node<ipc::Service>,
     frames: services::FrameSubscriber,
     index_feed: IndexFeed,
@@ -354,6 +382,8 @@ impl HapticLoop {
                     settings.limits.max_continuous_force_n,
                     (2.0 * settings.rate_hz) as u32,
                 ),
+            passivity: PassivityController::new(settings.passivity_max_damping),
+            last_tip: None,
             settings,
             _node: node,
             frames,
@@ -492,7 +522,31 @@ impl HapticLoop {
                         .workspace
                         .device_dir_to_scene(s.velocity_mm_s)
                         .map(|c| c * scale);
-                    desired = hand_force(&g, self.settings.tool.law, k, self.settings.damping, v);
+                    // Between frames the frame's local model of the patch makes the force
+                    // follow the hand; without one, the force law on the god-object's gap.
+                    let local = self
+                        .frame
+                        .as_ref()
+                        .filter(|_| self.settings.local_model)
+                        .and_then(|f| frame_local(f.user_header()));
+                    let elapsed = self.frame.as_ref().map_or(0.0, |f| {
+                        wake_ns.saturating_sub(f.user_header().tool_read_ns) as f64 * 1e-9
+                    });
+                    let (f, proxy) = contact_force(
+                        &g,
+                        local.as_ref().map(|(b, m)| (*b, m)),
+                        elapsed,
+                        p,
+                        self.settings.tool.law,
+                        k,
+                        self.settings.damping,
+                        v,
+                    );
+                    desired = f;
+                    state.proxy_position = proxy;
+                    if local.is_some_and(|(b, _)| b == a.body) {
+                        state.flags |= TOOL_FLAG_LOCAL_MODEL;
+                    }
                     state.tool_stiffness = k;
                     state.contact_body = a.body as i32;
                     state.contact_triangle = a.triangle as u32;
@@ -515,8 +569,30 @@ impl HapticLoop {
             self.stats.record(FRAME_AGE_CONTACT, frame_age);
         }
 
-        // 4. Safety: finite, clamped, ramped, rate-limited. Then the device.
-        let force = self.safety.condition(desired, healthy);
+        // 4. Passivity at the device port, then safety: finite, clamped, ramped, rate-limited.
+        // Then the device.
+        match (sample, tip) {
+            (Some(_), Some(p)) if healthy => {
+                let scale = self.settings.workspace.scale;
+                let port = p.map(|c| c / scale);
+                desired = self
+                    .passivity
+                    .condition(port, desired, 1.0 / self.settings.rate_hz);
+            }
+            _ => self.passivity.reset(),
+        }
+        // The force may follow the tool spring as fast as the device moves (see `safety`).
+        let motion = match (tip, self.last_tip) {
+            (Some(p), Some(q)) if healthy => {
+                let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+                state.tool_stiffness.max(self.settings.tool.stiffness)
+                    * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+            }
+            _ => 0.0,
+        };
+        self.last_tip = tip.filter(|_| healthy);
+        let force = self.safety.condition_moving(desired, healthy, motion);
+        self.passivity.rendered(force);
         if !healthy {
             state.flags |= TOOL_FLAG_RAMPING;
         }

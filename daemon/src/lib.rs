@@ -6,6 +6,7 @@
 
 use std::sync::atomic::AtomicBool;
 
+pub mod closed_loop;
 pub mod control;
 pub mod ctl;
 pub mod deform;

@@ -5,8 +5,14 @@
 //! - While the input is unhealthy (stale frame, NaN, device fault) the force ramps linearly to
 //!   zero within `ramp_ticks`, and it ramps back in the same way once healthy again, so a
 //!   recovering stream cannot kick the hand.
-//! - Otherwise the force changes by at most `max_step` per tick, except at contact onset (from
-//!   zero force), where the penalty law's own small value is allowed through at once.
+//! - Otherwise the force changes by at most `max_step` per tick beyond what the hand's own
+//!   motion explains (the tool spring times the device's move this tick, passed by the loop:
+//!   [`ForceSafety::condition_moving`]), except at contact onset (from zero force), where the
+//!   penalty law's own small value is allowed through at once. The limit stops jumps nothing
+//!   moved for (a frame that lands elsewhere, a proxy that snaps), not the stiffness the hand
+//!   pushes into: a slew limit on that would lag the force behind the stylus, and a lagging
+//!   force on a stiff contact generates energy (`lop-bench haptics`, part 3, measured it
+//!   driving the simulated hand unstable from 1.4 N/mm on stiff tissue).
 //! - With a continuous-force limit (the device's `HD_NOMINAL_MAX_CONTINUOUS_FORCE`, set by
 //!   [`ForceSafety::with_continuous`]): the motors heat with the square of the force, so the
 //!   root mean square of the output over the last seconds (an exponential average) is kept at
@@ -80,6 +86,18 @@ impl ForceSafety {
     /// The force to write this tick for the `desired` force. `healthy` is false when the data
     /// behind `desired` cannot be trusted; then `desired` is ignored and the output ramps down.
     pub fn condition(&mut self, desired: [f64; 3], healthy: bool) -> [f64; 3] {
+        self.condition_moving(desired, healthy, 0.0)
+    }
+
+    /// As [`condition`](Self::condition), with `motion` N more step allowed this tick: the
+    /// force change the hand's motion explains (the tool spring's stiffness times the device's
+    /// move since the last tick). Not finite or negative: none; at most the clamp.
+    pub fn condition_moving(&mut self, desired: [f64; 3], healthy: bool, motion: f64) -> [f64; 3] {
+        let motion = if motion.is_finite() {
+            motion.clamp(0.0, self.max_force)
+        } else {
+            0.0
+        };
         let finite = desired.iter().all(|c| c.is_finite());
         let healthy = healthy && finite;
         let previous = self.level;
@@ -94,7 +112,7 @@ impl ForceSafety {
         if healthy {
             let onset = self.last == [0.0; 3];
             if !onset {
-                f = limit_step(self.last, f, self.max_step);
+                f = limit_step(self.last, f, self.max_step + motion);
             }
             f = scale(f, gain);
         } else if self.level == 0 {
@@ -223,6 +241,12 @@ mod tests {
         let mut s = ForceSafety::new(3.0, 0.05, 5);
         // Onset: allowed at once.
         assert_eq!(s.condition([0.0, 0.3, 0.0], true), [0.0, 0.3, 0.0]);
+        // The hand's motion widens the step by what it explains, no more.
+        let mut m = s.clone();
+        let f = m.condition_moving([0.0, 0.6, 0.0], true, 0.2);
+        assert!((f[1] - 0.55).abs() < 1e-12, "{f:?}");
+        let f = m.condition_moving([0.0, 0.9, 0.0], true, f64::NAN);
+        assert!((f[1] - 0.6).abs() < 1e-12, "{f:?}");
         // Then limited to 0.05 N per tick.
         let f = s.condition([0.0, 1.3, 0.0], true);
         assert!((f[1] - 0.35).abs() < 1e-12);

@@ -13,6 +13,7 @@ use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::HapticDevice;
 use lop_ipc::*;
 use lop_scene as scene;
+use lop_sim::haptic::LocalModel;
 use lop_test_support::alloc::{self, allocations, counted, Counting};
 
 #[global_allocator]
@@ -27,6 +28,7 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
     let mut device = MockDevice::new(script, MockDevice::omni_limits());
     device.start().unwrap();
     let settings = HapticSettings::new(&DaemonConfig::default(), &scene_file, device.limits());
+    let hl_tool_stiffness = settings.tool.stiffness;
     let loaded = scene::load(scene_file).unwrap();
 
     // The deformation side, played by this test: topology once, frames as the loop runs.
@@ -56,29 +58,61 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
     alloc::reset();
 
     let mut contact_ticks = 0;
+    let mut local_ticks = 0;
     let max_step = DaemonConfig::default().haptic.max_force_step_n;
     let mut last_force = [0.0f64; 3];
-    let mut largest_step: f64 = 0.0;
+    let mut last_device: Option<[f64; 3]> = None;
+    let mut largest_excess: f64 = 0.0;
+    let mut last_state: Option<ToolState> = None;
     for i in 0..10_000u64 {
         if i % 10 == 0 {
-            publish_frame(i / 10 + 1);
+            // Every other frame carries a local model of the press the last tick rendered
+            // (the tissue as stiff as half the tool spring), so both paths run.
+            let local = last_state
+                .filter(|s| i % 20 == 0 && s.flags & TOOL_FLAG_CONTACT != 0 && s.contact_body >= 0)
+                .map(|s| {
+                    let k = 0.5 * s.tool_stiffness;
+                    (
+                        s.contact_body as u32,
+                        s.proxy_position,
+                        LocalModel {
+                            device: s.device_position,
+                            force: s.force.map(|c| -c),
+                            stiffness: [[k, 0.0, 0.0], [0.0, k, 0.0], [0.0, 0.0, k]],
+                            drift: [0.0; 3],
+                            horizon: 1e-3,
+                        },
+                    )
+                });
+            deform.publish_frame_local(i / 10 + 1, local);
         }
         let now = clock::monotonic_ns();
         let out = counted(|| hl.tick(&mut device, now, now));
         if out.state.flags & TOOL_FLAG_CONTACT != 0 {
             contact_ticks += 1;
         }
+        if out.state.flags & TOOL_FLAG_LOCAL_MODEL != 0 {
+            local_ticks += 1;
+        }
         // Frames come at 100 Hz, the force is rendered at 1 kHz: it stays smooth — no step
-        // larger than the per-tick limit, except at contact onset (from zero force).
+        // larger than the per-tick limit beyond what the tool spring explains of the device's
+        // move this tick, except at contact onset (from zero force).
         let f = out.state.force;
         let step = ((f[0] - last_force[0]).powi(2)
             + (f[1] - last_force[1]).powi(2)
             + (f[2] - last_force[2]).powi(2))
         .sqrt();
+        let p = out.state.device_position;
+        let moved = last_device.map_or(0.0, |q| {
+            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+        });
+        let k = out.state.tool_stiffness.max(hl_tool_stiffness);
         if last_force != [0.0; 3] {
-            largest_step = largest_step.max(step);
+            largest_excess = largest_excess.max(step - k * moved);
         }
         last_force = f;
+        last_device = Some(p);
+        last_state = Some(out.state);
         while tool_rx.pop().is_ok() {}
         while tel_rx.pop().is_ok() {}
     }
@@ -89,8 +123,12 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
     );
     assert_eq!(allocations, 0, "heap allocations on the haptic tick");
     assert!(
-        largest_step <= max_step + 1e-12,
-        "force step {largest_step} N over the {max_step} N per-tick limit"
+        local_ticks > 100,
+        "the frames' local model must be rendered ({local_ticks} ticks)"
+    );
+    assert!(
+        largest_excess <= max_step + 1e-12,
+        "force step {largest_excess} N beyond the device's motion, over the {max_step} N per-tick limit"
     );
 
     // The counter does see allocations (the test can fail).

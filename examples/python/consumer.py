@@ -22,7 +22,7 @@ import time
 
 import iceoryx2 as iox2
 
-CONTRACT_VERSION = 6
+CONTRACT_VERSION = 7
 MAX_BODIES = 16
 BODY_NAME_LEN = 32
 MODELS = {0: "GC", 1: "MSD", 2: "FEM"}
@@ -64,6 +64,13 @@ class FrameHeader(ctypes.Structure):
         ("contact_proxy", ctypes.c_double * 3),
         ("contact_body", ctypes.c_uint32),
         ("_pad2", ctypes.c_uint32),
+        ("contact_force", ctypes.c_double * 3),
+        ("contact_device", ctypes.c_double * 3),
+        ("contact_stiffness", ctypes.c_double * 9),
+        ("contact_drift", ctypes.c_double * 3),
+        ("contact_horizon", ctypes.c_double),
+        ("contact_local", ctypes.c_uint32),
+        ("_pad3", ctypes.c_uint32),
     ]
 
     @staticmethod
@@ -123,7 +130,7 @@ class TopologyHeader(ctypes.Structure):
 
 
 # The sizes every reader must agree on (docs/ipc.md).
-assert ctypes.sizeof(FrameHeader) == 872 and ctypes.alignment(FrameHeader) == 8
+assert ctypes.sizeof(FrameHeader) == 1032 and ctypes.alignment(FrameHeader) == 8
 assert ctypes.sizeof(NodeSample) == 20
 assert ctypes.sizeof(TopologyHeader) == 1184
 

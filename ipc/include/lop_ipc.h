@@ -20,7 +20,7 @@
 extern "C" {
 #endif
 
-#define LOP_CONTRACT_VERSION 6u
+#define LOP_CONTRACT_VERSION 7u
 #define LOP_MAX_BODIES 16
 #define LOP_BODY_NAME_LEN 32
 #define LOP_MAX_SUBSCRIBERS 16
@@ -35,6 +35,7 @@ extern "C" {
 #define LOP_TOOL_FLAG_DEVICE_ERROR (1u << 3)
 #define LOP_TOOL_FLAG_GRAB         (1u << 4)
 #define LOP_TOOL_FLAG_HEAT         (1u << 5)
+#define LOP_TOOL_FLAG_LOCAL_MODEL  (1u << 6)
 
 /* BodyFrame.model */
 #define LOP_MODEL_GC  0u
@@ -104,6 +105,15 @@ typedef struct lop_FrameHeader {
     double contact_proxy[3];  /* the tool's contact patch balanced here, m */
     uint32_t contact_body;    /* the body it pressed, or LOP_NO_CONTACT */
     uint32_t _pad2;
+    /* The patch's local model, valid when contact_local is 1: the force on the tissue
+       follows F + K (c - contact_device) + drift * min(t, horizon) between frames. */
+    double contact_force[3];      /* N, on the tissue */
+    double contact_device[3];     /* m, the device position the step balanced against */
+    double contact_stiffness[9];  /* dF/dc, row-major, N/m */
+    double contact_drift[3];      /* N/s, with the device held */
+    double contact_horizon;       /* s, how long the drift may be extrapolated */
+    uint32_t contact_local;       /* 1: the fields above are valid */
+    uint32_t _pad3;
 } lop_FrameHeader;
 
 #define LOP_NO_CONTACT 0xFFFFFFFFu
@@ -252,7 +262,9 @@ LOP_ASSERT(offsetof(lop_ToolState, tool_stiffness) == 152, "ToolState.tool_stiff
 LOP_ASSERT(sizeof(lop_BodyFrame) == 48, "BodyFrame size");
 LOP_ASSERT(offsetof(lop_BodyFrame, model) == 40, "BodyFrame.model");
 LOP_ASSERT(offsetof(lop_BodyFrame, switches) == 44, "BodyFrame.switches");
-LOP_ASSERT(sizeof(lop_FrameHeader) == 72 + 48 * LOP_MAX_BODIES + 32, "FrameHeader size");
+LOP_ASSERT(sizeof(lop_FrameHeader) == 72 + 48 * LOP_MAX_BODIES + 192, "FrameHeader size");
+LOP_ASSERT(offsetof(lop_FrameHeader, contact_force) == 104 + 48 * LOP_MAX_BODIES, "FrameHeader.contact_force");
+LOP_ASSERT(offsetof(lop_FrameHeader, contact_local) == 256 + 48 * LOP_MAX_BODIES, "FrameHeader.contact_local");
 LOP_ASSERT(offsetof(lop_FrameHeader, contact_body) == 96 + 48 * LOP_MAX_BODIES, "FrameHeader.contact_body");
 LOP_ASSERT(offsetof(lop_FrameHeader, node_count) == 64, "FrameHeader.node_count");
 LOP_ASSERT(offsetof(lop_FrameHeader, bodies) == 72, "FrameHeader.bodies");

@@ -28,6 +28,9 @@ pub const TOOL_FLAG_GRAB: u32 = 1 << 4;
 /// `ToolState::flags` bit: the heat button is pressed while touching: the contact point is being
 /// cauterised.
 pub const TOOL_FLAG_HEAT: u32 = 1 << 5;
+/// `ToolState::flags` bit: the force this tick came from the frame's local model of the
+/// contact patch (`FrameHeader::contact_local`), not from the surface alone.
+pub const TOOL_FLAG_LOCAL_MODEL: u32 = 1 << 6;
 
 /// The haptic loop's state after one tick: where the hand is, what it touches, what it feels.
 /// Written every tick (1 kHz) to `PREFIX/tool` (publish–subscribe, for viewers) and to the
@@ -175,6 +178,23 @@ pub struct FrameHeader {
     pub contact_body: u32,
     /// Padding, zero.
     pub _pad2: u32,
+    /// The local model of the patch, for the haptic loop between frames (valid when
+    /// `contact_local` is 1): the force the tissue received this step, N.
+    pub contact_force: [f64; 3],
+    /// The device position (tool centre) the step balanced the patch against, m.
+    pub contact_device: [f64; 3],
+    /// `∂contact_force / ∂contact_device`, row-major 3 × 3, N/m: the tool spring in series
+    /// with the tissue at the patch over one step. Symmetric, never stiffer than the tool.
+    pub contact_stiffness: [f64; 9],
+    /// The patch's free motion: how fast the force changes with the device held, N/s.
+    pub contact_drift: [f64; 3],
+    /// How long a reader may extrapolate `contact_drift`, s (the touched body's step).
+    pub contact_horizon: f64,
+    /// 1: the `contact_force` … `contact_horizon` fields hold the local model of the patch
+    /// on `contact_body`; 0: this frame has none (render against the surface).
+    pub contact_local: u32,
+    /// Padding, zero.
+    pub _pad3: u32,
 }
 
 /// `FrameHeader::contact_body` when no contact patch was pressed this step.
@@ -199,6 +219,13 @@ impl Default for FrameHeader {
             contact_proxy: [0.0; 3],
             contact_body: NO_CONTACT,
             _pad2: 0,
+            contact_force: [0.0; 3],
+            contact_device: [0.0; 3],
+            contact_stiffness: [0.0; 9],
+            contact_drift: [0.0; 3],
+            contact_horizon: 0.0,
+            contact_local: 0,
+            _pad3: 0,
         }
     }
 }

@@ -41,7 +41,8 @@ fn c_header_matches_the_rust_layouts() {
             _pad, switches }
         FrameHeader { contract_version, body_count, topology_id, sequence, sim_time, publish_ns,
             tool_stamp_ns, tool_read_ns, step_ns, node_count, _pad, bodies, contact_proxy,
-            contact_body, _pad2 }
+            contact_body, _pad2, contact_force, contact_device, contact_stiffness, contact_drift,
+            contact_horizon, contact_local, _pad3 }
         NodeSample { position, temperature, flags }
         BodyTopology { name, node_offset, node_count, triangle_offset, triangle_count,
             tet_offset, tet_count, color, importance, _pad }
@@ -75,6 +76,11 @@ fn c_header_matches_the_rust_layouts() {
     rust.insert("NODE_FLAG_BURNED".into(), NODE_FLAG_BURNED as usize);
     body.push_str("  printf(\"TOOL_FLAG_HEAT %u\\n\", LOP_TOOL_FLAG_HEAT);\n");
     rust.insert("TOOL_FLAG_HEAT".into(), TOOL_FLAG_HEAT as usize);
+    body.push_str("  printf(\"TOOL_FLAG_LOCAL_MODEL %u\\n\", LOP_TOOL_FLAG_LOCAL_MODEL);\n");
+    rust.insert(
+        "TOOL_FLAG_LOCAL_MODEL".into(),
+        TOOL_FLAG_LOCAL_MODEL as usize,
+    );
 
     let include = Path::new(env!("CARGO_MANIFEST_DIR")).join("include");
     let dir = std::env::temp_dir().join(format!("lop-c-header-{}", std::process::id()));

@@ -9,8 +9,8 @@ use iceoryx2::prelude::ZeroCopySend;
 use lop_ipc::*;
 
 #[test]
-fn contract_version_is_six() {
-    assert_eq!(CONTRACT_VERSION, 6);
+fn contract_version_is_seven() {
+    assert_eq!(CONTRACT_VERSION, 7);
 }
 
 #[test]
@@ -48,7 +48,7 @@ fn frame_layout() {
     assert_eq!(offset_of!(BodyFrame, state), 41);
     assert_eq!(offset_of!(BodyFrame, switches), 44);
 
-    assert_eq!(size_of::<FrameHeader>(), 72 + 48 * MAX_BODIES + 32);
+    assert_eq!(size_of::<FrameHeader>(), 72 + 48 * MAX_BODIES + 192);
     assert_eq!(align_of::<FrameHeader>(), 8);
     assert_eq!(offset_of!(FrameHeader, contract_version), 0);
     assert_eq!(offset_of!(FrameHeader, body_count), 4);
@@ -63,6 +63,30 @@ fn frame_layout() {
     assert_eq!(offset_of!(FrameHeader, bodies), 72);
     assert_eq!(offset_of!(FrameHeader, contact_proxy), 72 + 48 * MAX_BODIES);
     assert_eq!(offset_of!(FrameHeader, contact_body), 96 + 48 * MAX_BODIES);
+    assert_eq!(
+        offset_of!(FrameHeader, contact_force),
+        104 + 48 * MAX_BODIES
+    );
+    assert_eq!(
+        offset_of!(FrameHeader, contact_device),
+        128 + 48 * MAX_BODIES
+    );
+    assert_eq!(
+        offset_of!(FrameHeader, contact_stiffness),
+        152 + 48 * MAX_BODIES
+    );
+    assert_eq!(
+        offset_of!(FrameHeader, contact_drift),
+        224 + 48 * MAX_BODIES
+    );
+    assert_eq!(
+        offset_of!(FrameHeader, contact_horizon),
+        248 + 48 * MAX_BODIES
+    );
+    assert_eq!(
+        offset_of!(FrameHeader, contact_local),
+        256 + 48 * MAX_BODIES
+    );
 
     assert_eq!(size_of::<NodeSample>(), 20);
     assert_eq!(align_of::<NodeSample>(), 4);

@@ -57,6 +57,7 @@ impl World {
         b.lop = lop;
         b.loads.iter_mut().for_each(|f| *f = [0.0; 3]);
         b.last_contact = ContactReport::default();
+        b.forget_local();
     }
 
     /// Holds every body's clock at `time` (a paused simulation): nothing is due, and after a

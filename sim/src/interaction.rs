@@ -159,6 +159,23 @@ pub struct ContactReport {
     /// A contact patch's proxy (the tool sphere's centre) at the end of the step, m; `None`
     /// for a point contact.
     pub proxy: Option<[f64; 3]>,
+    /// How a contact patch's force answers a move of the device (the haptic loop's local
+    /// model between frames); `None` for a point contact.
+    pub response: Option<PatchResponse>,
+}
+
+/// The linear response of a solved contact patch to the device, around the step's solution:
+/// moving the device by `δ` from [`device`](Self::device) changes the force on the tissue by
+/// `stiffness · δ` while the same points touch. It is the tool spring in series with the
+/// tissue's compliance at the patch over one step of the model (the step's `K̃⁻¹`, inertia
+/// and damping included), `N_S (Cᵀ K̃⁻¹ C + Nᵀ N / k)_SS⁻¹ N_Sᵀ` over the touching points
+/// `S`: symmetric, positive semi-definite, and never stiffer than the tool spring.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PatchResponse {
+    /// The device position the step balanced the patch against, m.
+    pub device: [f64; 3],
+    /// `∂(force on tissue) / ∂(device position)`, row-major, N/m.
+    pub stiffness: [[f64; 3]; 3],
 }
 
 /// Why a step was rejected and the body reset.

@@ -57,7 +57,7 @@
 //! the nodes, a few micrometres off, which is 7–10 % of a light press's force.
 
 use crate::contact::{bary_point, closest_bary, unit_normal};
-use crate::interaction::ContactReport;
+use crate::interaction::{ContactReport, PatchResponse};
 use crate::vec3::v;
 use glam::DVec3;
 
@@ -441,14 +441,20 @@ pub fn gather(
     }
 }
 
-/// The report of a solved patch: the resultant on the tissue, the tool spring's length and the
-/// proxy it balances at.
-pub(crate) fn report(patch: &ToolPatch<'_>, lambda: &[f64]) -> ContactReport {
-    let f = v(patch.resultant(lambda));
+/// The report of a solved patch: the resultant on the tissue, the tool spring's length, the
+/// proxy it balances at, and how the resultant answers a move of the device
+/// ([`Lcp::response`]).
+pub(crate) fn report(patch: &ToolPatch<'_>, lcp: &mut Lcp) -> ContactReport {
+    let f = v(patch.resultant(lcp.lambda()));
+    let stiffness = lcp.response(patch);
     ContactReport {
         force_on_tissue: f.to_array(),
         depth: f.length() / patch.stiffness,
         proxy: Some((v(patch.device) - f / patch.stiffness).to_array()),
+        response: stiffness.map(|stiffness| PatchResponse {
+            device: patch.device,
+            stiffness,
+        }),
     }
 }
 
@@ -624,6 +630,38 @@ impl Lcp {
         false
     }
 
+    /// After a successful [`solve`](Self::solve) of `patch`'s problem: how the resultant on
+    /// the tissue `R = N λ` answers a move `δ` of the device while the same points touch,
+    /// `∂R/∂c = N_S A_SS⁻¹ N_Sᵀ` (the gaps `q_j` fall by `n_j · δ`, so `λ_S` grows by
+    /// `A_SS⁻¹ N_Sᵀ δ`), with the factor of `A_SS` the last pivot left. Zero without a
+    /// touching point; `None` if it is not finite. Three substitutions with the factor.
+    pub fn response(&mut self, patch: &ToolPatch<'_>) -> Option<[[f64; 3]; 3]> {
+        let mut k = [[0.0; 3]; 3];
+        let s = self.idx.len();
+        let solved = s > 0
+            && self.sub.len() == s * s
+            && self
+                .idx
+                .iter()
+                .all(|&j| j < patch.points.len() && self.active[j]);
+        if !solved || self.lambda.iter().all(|&l| l == 0.0) {
+            return Some(k);
+        }
+        for axis in 0..3 {
+            self.rhs.clear();
+            self.rhs
+                .extend(self.idx.iter().map(|&j| patch.points[j].normal[axis]));
+            crate::solve::dense::spd_solve_factored(&self.sub, s, &mut self.rhs);
+            for (&j, &x) in self.idx.iter().zip(&self.rhs) {
+                let n = patch.points[j].normal;
+                for (row, &nr) in k.iter_mut().zip(&n) {
+                    row[axis] += nr * x;
+                }
+            }
+        }
+        k.iter().flatten().all(|x| x.is_finite()).then_some(k)
+    }
+
     /// `λ_S = −A_SS⁻¹ q_S` on the active set `S`, zero elsewhere.
     fn solve_active(&mut self) -> bool {
         let m = self.m;
@@ -756,6 +794,88 @@ mod tests {
             let b = other.lcp.matrix().to_vec();
             for (x, y) in a.iter().zip(&b) {
                 assert!((x - y).abs() < 1e-14, "{name}: {a:?} vs {b:?}");
+            }
+        }
+    }
+
+    /// The response `∂R/∂c` is what a small move of the device does to the solved resultant
+    /// (a finite difference, same touching points), symmetric, and no stiffer than the tool
+    /// spring (the tissue in series with it).
+    #[test]
+    fn the_response_is_the_derivative_of_the_resultant() {
+        let mut seed = 11u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        };
+        let k_tool = 500.0;
+        for m in [1usize, 2, 5, 12] {
+            let points: Vec<PatchPoint> = (0..m)
+                .map(|_| {
+                    let n = DVec3::new(0.4 * rnd(), 0.4 * rnd(), -1.0).normalize();
+                    PatchPoint {
+                        nodes: [0; 3],
+                        weights: [1.0, 0.0, 0.0],
+                        normal: n.to_array(),
+                        reach: 1e-3,
+                    }
+                })
+                .collect();
+            // A tissue compliance `B Bᵀ + εI`, m/N: about 0.01 m/N (100 N/m per point).
+            let b: Vec<f64> = (0..m * m).map(|_| 0.01 * rnd()).collect();
+            let a_t: Vec<f64> = (0..m * m)
+                .map(|e| {
+                    let (i, j) = (e % m, e / m);
+                    (0..m).map(|l| b[i * m + l] * b[j * m + l]).sum::<f64>()
+                        + if i == j { 2e-3 } else { 0.0 }
+                })
+                .collect();
+            // Free gaps at device 0: every point pressed by 0.1–0.3 mm.
+            let q0: Vec<f64> = (0..m).map(|_| -2e-4 + 1e-4 * rnd()).collect();
+            let solve = |lcp: &mut Lcp, c: DVec3| -> (DVec3, Option<[[f64; 3]; 3]>) {
+                let patch = ToolPatch {
+                    device: c.to_array(),
+                    stiffness: k_tool,
+                    points: &points,
+                };
+                lcp.reset(m);
+                lcp.matrix().copy_from_slice(&a_t);
+                for (j, p) in points.iter().enumerate() {
+                    lcp.q()[j] = q0[j] - v(p.normal).dot(c);
+                }
+                patch.add_tool_compliance(lcp.matrix());
+                assert!(lcp.solve());
+                (v(patch.resultant(lcp.lambda())), lcp.response(&patch))
+            };
+            let mut lcp = Lcp::new();
+            let (r0, k) = solve(&mut lcp, DVec3::ZERO);
+            let k = k.expect("finite");
+            assert!(r0.length() > 0.0);
+            let h = 1e-9;
+            for axis in 0..3 {
+                let mut d = DVec3::ZERO;
+                d[axis] = h;
+                let (r1, _) = solve(&mut lcp, d);
+                let fd = (r1 - r0) / h;
+                for row in 0..3 {
+                    let tol = 1e-5 * k_tool;
+                    assert!(
+                        (fd[row] - k[row][axis]).abs() < tol,
+                        "m {m}: ∂R{row}/∂c{axis} {} vs finite difference {}",
+                        k[row][axis],
+                        fd[row]
+                    );
+                    assert!((k[row][axis] - k[axis][row]).abs() < 1e-9 * k_tool);
+                }
+            }
+            // No direction is stiffer than the tool spring alone.
+            for _ in 0..20 {
+                let u = DVec3::new(rnd(), rnd(), rnd()).normalize();
+                let ku = DVec3::from_array(k.map(|row| v(row).dot(u)));
+                let along = u.dot(ku);
+                assert!((-1e-9..=k_tool * (1.0 + 1e-9)).contains(&along), "{along}");
             }
         }
     }

@@ -83,6 +83,18 @@ impl DeformSide {
 
     /// Publishes frame `seq` of the rest positions, stamped now.
     pub fn publish_frame(&self, seq: u64) {
+        self.publish_frame_local(seq, None);
+    }
+
+    /// A frame at rest that carries `local`: a contact patch on a body balanced with its proxy
+    /// at a point, and its local model, as `lopd deform` publishes them
+    /// (`FrameHeader::contact_*`).
+    #[allow(dead_code)]
+    pub fn publish_frame_local(
+        &self,
+        seq: u64,
+        local: Option<(u32, [f64; 3], lop_sim::haptic::LocalModel)>,
+    ) {
         let s = self.frame_pub.loan_slice_uninit(self.nodes.len()).unwrap();
         let mut s = s.write_from_slice(&self.nodes);
         let h = s.user_header_mut();
@@ -92,6 +104,19 @@ impl DeformSide {
         h.body_count = self.topology.body_count;
         h.node_count = self.nodes.len() as u32;
         h.publish_ns = clock::monotonic_ns();
+        h.tool_read_ns = h.publish_ns;
+        if let Some((body, proxy, m)) = local {
+            h.contact_body = body;
+            h.contact_proxy = proxy;
+            h.contact_force = m.force;
+            h.contact_device = m.device;
+            for (dst, row) in h.contact_stiffness.chunks_exact_mut(3).zip(&m.stiffness) {
+                dst.copy_from_slice(row);
+            }
+            h.contact_drift = m.drift;
+            h.contact_horizon = m.horizon;
+            h.contact_local = 1;
+        }
         for (bf, (lo, hi)) in h.bodies.iter_mut().zip(&self.bounds) {
             bf.aabb_min = *lo;
             bf.aabb_max = *hi;

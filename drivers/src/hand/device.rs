@@ -35,6 +35,8 @@ struct State {
     stylus_v: [f64; 3],
     hand_x: [f64; 3],
     hand_v: [f64; 3],
+    /// Work the grip did on the stylus since the start, J (integrated with the state).
+    grip_work: f64,
 }
 
 impl State {
@@ -57,6 +59,7 @@ impl State {
             out.hand_x[k] += h * d.hand_x[k];
             out.hand_v[k] += h * d.hand_v[k];
         }
+        out.grip_work += h * d.grip_work;
         out
     }
 }
@@ -239,6 +242,7 @@ impl HandDevice {
             out.hand_v[k] +=
                 w * (k1.hand_v[k] + 2.0 * (k2.hand_v[k] + k3.hand_v[k]) + k4.hand_v[k]);
         }
+        out.grip_work += w * (k1.grip_work + 2.0 * (k2.grip_work + k3.grip_work) + k4.grip_work);
         out
     }
 
@@ -266,8 +270,18 @@ impl HandDevice {
             d.stylus_v[k] = stylus_force / p.stylus_mass;
             d.hand_x[k] = y.hand_v[k];
             d.hand_v[k] = (arm - grip) / p.hand_mass;
+            d.grip_work += grip * y.stylus_v[k];
         }
         d
+    }
+
+    /// The work the hand's grip has done on the stylus since the device started, J: the energy
+    /// the hand put into the device and, through it, into the rendered environment. The stylus
+    /// with its own damping and friction, plus a passive environment, can never give back
+    /// more than it received, so this never falls below zero when the coupling is passive
+    /// (integrated with the state, to the integrator's accuracy).
+    pub fn grip_work(&self) -> f64 {
+        self.state.grip_work
     }
 
     /// The stylus as a device sample, with the intent's buttons at the state's time.

@@ -306,6 +306,7 @@ impl Pressed {
             force_on_tissue: f,
             depth,
             proxy: None,
+            response: None,
         }
     }
 

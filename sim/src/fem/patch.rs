@@ -63,7 +63,7 @@ impl Fem {
             .zip(&s.patch.correction)
             .for_each(|(d, c)| *d += c);
         s.patch_applied = true;
-        report(&patch, s.patch.lcp.lambda())
+        report(&patch, &mut s.patch.lcp)
     }
 
     /// Puts every free node of the patch in the column cache; false if they do not all fit.

@@ -6,6 +6,8 @@
 //!   answer and checked against a bounding-volume hierarchy so a walk stuck in a local minimum
 //!   never gives a wrong answer.
 //! - [`GodObject`]: the proxy that stays on the surface while the device penetrates.
+//! - [`LocalModel`]: the frame's linearised contact, so the force follows the hand between
+//!   frames; [`PassivityController`]: keeps the coupling from generating energy.
 //! - [`hand_force`]: the thesis' `F = k d² N` (eq. 5.2) or a linear spring `F = k d N`, with
 //!   optional damping, from the proxy–device gap.
 //!
@@ -13,11 +15,15 @@
 //! benchmarks), so what the hand feels and what the tissue receives are computed one way.
 
 mod god;
+mod local;
 mod offline;
+mod passivity;
 mod surface;
 mod sweep;
 
 pub use god::{hand_force, law_magnitude, Anchor, GodObject, GodState};
+pub use local::{contact_force, FreeMotion, LocalModel};
 pub use offline::WorldProbe;
+pub use passivity::{PassivityController, RESET_AFTER_S};
 pub use surface::{Closest, QueryStats, SurfaceSet};
 pub use sweep::{sweep_sphere_triangle, Impact};

@@ -307,6 +307,7 @@ impl Reduced {
                     force_on_tissue: scale(t.normal, t.stiffness * g),
                     depth: (orig.depth - (t.depth - gap)).max(0.0),
                     proxy: None,
+                    response: None,
                 });
             }
         }
@@ -550,7 +551,7 @@ fn patch_correct(
     d.iter_mut()
         .zip(&solve.correction)
         .for_each(|(d, c)| *d += c);
-    patch::report(&patch, solve.lcp.lambda())
+    patch::report(&patch, &mut solve.lcp)
 }
 
 /// Calls `add` with every non-zero nodal load: the first `n` of `external`, then the tool's

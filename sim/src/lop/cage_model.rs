@@ -542,6 +542,7 @@ impl CageModel {
             force_on_tissue: t.on_tissue,
             depth: t.depth,
             proxy: None,
+            response: None,
         });
         let loads = StepLoads {
             gravity,

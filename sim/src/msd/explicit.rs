@@ -262,7 +262,7 @@ impl ExplicitPatch {
                     }
                 }
             }
-            report = patch::report(&patch, lambda);
+            report = patch::report(&patch, &mut self.solve.lcp);
         }
         self.report = Some(report);
     }

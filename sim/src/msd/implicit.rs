@@ -283,7 +283,7 @@ impl ImplicitSolver {
             .iter_mut()
             .zip(&self.patch.correction)
             .for_each(|(d, c)| *d += c);
-        crate::patch::report(&patch, self.patch.lcp.lambda())
+        crate::patch::report(&patch, &mut self.patch.lcp)
     }
 
     /// Numeric refactorisation into the reused buffers, then the solve: `rhs` becomes `Δv`.

@@ -622,6 +622,7 @@ impl MassSpring {
                 force_on_tissue: t.on_tissue,
                 depth: t.depth,
                 proxy: None,
+                response: None,
             })
         }))
     }

@@ -28,6 +28,27 @@ pub(crate) fn spd_solve_in_place(a: &mut Vec<f64>, m: usize, b: &mut [f64]) -> b
     ok
 }
 
+/// Solves `A x = b` in place with the Cholesky factor `L` of `A` that
+/// [`spd_solve_in_place`] left in `l` (column-major `m × m`, lower triangle read): forward and
+/// back substitution, no allocation.
+pub(crate) fn spd_solve_factored(l: &[f64], m: usize, b: &mut [f64]) {
+    debug_assert!(l.len() >= m * m && b.len() >= m);
+    for j in 0..m {
+        let x = b[j] / l[j * m + j];
+        b[j] = x;
+        for i in j + 1..m {
+            b[i] -= l[j * m + i] * x;
+        }
+    }
+    for j in (0..m).rev() {
+        let mut x = b[j];
+        for i in j + 1..m {
+            x -= l[j * m + i] * b[i];
+        }
+        b[j] = x / l[j * m + j];
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -47,6 +68,12 @@ mod tests {
             assert!((r[i] - rhs[i]).abs() < 1e-10);
         }
         assert_eq!(a.len(), m * m);
+        // The factor left in `a` solves again.
+        let mut y = rhs.clone();
+        spd_solve_factored(&a, m, &mut y);
+        for i in 0..m {
+            assert!((y[i] - x[i]).abs() < 1e-12);
+        }
         // Indefinite and non-finite matrices.
         for bad in [-1.0, f64::NAN, f64::INFINITY] {
             let mut a = a0.as_slice().to_vec();

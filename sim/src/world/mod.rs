@@ -15,6 +15,7 @@ pub use round::{BodyRound, Round, RoundReport, RoundTool, MAX_HEAT_CATCH_UP};
 
 use crate::collide::{CollisionBody, CollisionParams, CollisionStats, Collisions};
 use crate::contact::{closest_on_surface, scale, ForceLaw, ToolSphere};
+use crate::haptic::{FreeMotion, LocalModel};
 use crate::heat::HeatWorld;
 use crate::lop::PrecisionController;
 use crate::mesh::TetMesh;
@@ -52,6 +53,11 @@ pub struct Body {
     pub last_blow_up: Option<BlowUp>,
     /// What the tool did to the body in its last step.
     pub last_contact: ContactReport,
+    /// The haptic loop's local model of the last step's contact patch (see
+    /// [`crate::haptic::LocalModel`]); `None` without one.
+    pub last_local: Option<LocalModel>,
+    /// Pairs consecutive patch steps for the local model's free motion.
+    free_motion: FreeMotion,
     /// For each node, the surface triangles that use it (built once).
     node_triangles: Vec<Vec<u32>>,
     /// Scratch: filled by `step_body` with the triangles near the tool, read by the model.
@@ -59,6 +65,14 @@ pub struct Body {
     /// Scratch: the god-object press's contact patch, gathered by `step_body_coupled`.
     patch_points: Vec<PatchPoint>,
     patch_scratch: GatherScratch,
+}
+
+impl Body {
+    /// Drops the local model and the free motion's history (the model was replaced).
+    pub fn forget_local(&mut self) {
+        self.last_local = None;
+        self.free_motion.reset();
+    }
 }
 
 /// How the tool acts on the bodies.
@@ -310,6 +324,8 @@ impl World {
             resets: 0,
             last_blow_up: None,
             last_contact: ContactReport::default(),
+            last_local: None,
+            free_motion: FreeMotion::default(),
             node_triangles,
             candidates: Vec::with_capacity(64),
             patch_points: Vec::with_capacity(MAX_PATCH),
@@ -384,6 +400,14 @@ impl World {
             }
             _ => None,
         }
+    }
+
+    /// The local model of the god-object's press (`coupling`) after its body's last step: the
+    /// body and what the haptic loop renders between frames (see
+    /// [`crate::haptic::LocalModel`]); `None` when [`World::contact_proxy`] is.
+    pub fn contact_local(&self, coupling: Coupling) -> Option<(usize, LocalModel)> {
+        let (b, _) = self.contact_proxy(coupling)?;
+        Some((b, self.bodies.get(b)?.last_local?))
     }
 
     /// Advances body `i` by one of its steps with its current loads and, if given, the tool
@@ -479,6 +503,9 @@ impl World {
         match r {
             Ok(report) => {
                 b.last_contact = report;
+                b.last_local = b
+                    .free_motion
+                    .step(dt, report.response.map(|r| (r, report.force_on_tissue)));
                 if let Some(lop) = &mut b.lop {
                     let touched = touching || report.depth > 0.0;
                     lop.after_step(&mut b.model, touched, dt, b.time);
@@ -487,6 +514,8 @@ impl World {
             }
             Err(cause) => {
                 b.last_contact = ContactReport::default();
+                b.last_local = None;
+                b.free_motion.reset();
                 b.resets += 1;
                 b.last_blow_up = Some(cause);
                 Err(cause)
