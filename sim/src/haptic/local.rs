@@ -229,6 +229,67 @@ mod tests {
         assert_eq!(m.force_on_tissue([f64::NAN; 3], 0.0), [0.0; 3]);
     }
 
+    /// Without a model, with a broken one, on another body or while grabbing, the force is the
+    /// god-object's law; with a good one, the model's.
+    #[test]
+    fn falls_back_to_the_force_law() {
+        use super::super::god::Anchor;
+        let god = GodState {
+            proxy: [0.0, 0.0, 0.0],
+            anchor: Some(Anchor {
+                body: 2,
+                triangle: 7,
+                bary: [1.0, 0.0, 0.0],
+                offset: [0.0, 0.0, 0.003],
+            }),
+            grabbing: false,
+            depth: 0.001,
+            direction: [0.0, 0.0, 1.0],
+        };
+        let device = [0.0, 0.0, -0.001];
+        let law = hand_force(&god, ForceLaw::Linear, 300.0, 0.0, [0.0; 3]);
+        let call = |g: &GodState, local: Option<(usize, &LocalModel)>| {
+            contact_force(
+                g,
+                local,
+                0.0,
+                device,
+                ForceLaw::Linear,
+                300.0,
+                0.0,
+                [0.0; 3],
+            )
+            .0
+        };
+        assert_eq!(call(&god, None), law);
+        let mut nan = model();
+        nan.stiffness[2][2] = f64::NAN;
+        assert_eq!(call(&god, Some((2, &nan))), law);
+        let good = model();
+        assert_eq!(call(&god, Some((1, &good))), law, "another body");
+        let grab = GodState {
+            grabbing: true,
+            ..god
+        };
+        assert_eq!(
+            call(&grab, Some((2, &good))),
+            hand_force(&grab, ForceLaw::Linear, 300.0, 0.0, [0.0; 3])
+        );
+        let f = call(&god, Some((2, &good)));
+        assert_eq!(f, good.force_on_tissue(device, 0.0).map(|c| -c));
+        let (_, proxy) = contact_force(
+            &god,
+            Some((2, &good)),
+            0.0,
+            device,
+            ForceLaw::Linear,
+            300.0,
+            0.0,
+            [0.0; 3],
+        );
+        assert!((proxy[2] - (device[2] + f[2] / 300.0)).abs() < 1e-15);
+    }
+
     #[test]
     fn broken_models_are_refused() {
         let ok = model();
