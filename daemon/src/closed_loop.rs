@@ -141,7 +141,7 @@ pub fn run(opts: ClosedLoopOptions) -> Result<ClosedLoopRun> {
             let vel = ws
                 .device_dir_to_scene(sample.velocity_mm_s)
                 .map(|c| c * 1e-3 * scale);
-            let (f, _) = contact_force(
+            let (f, _, used) = contact_force(
                 &g,
                 local.as_ref().map(|(b, m)| (*b, m)),
                 period,
@@ -152,7 +152,7 @@ pub fn run(opts: ClosedLoopOptions) -> Result<ClosedLoopRun> {
                 vel,
             );
             desired = f;
-            local_used = local.is_some_and(|(b, m)| b == a.body && m.is_valid(k));
+            local_used = used;
         }
         desired = passivity.condition(p.map(|c| c / scale), desired, period);
         let motion = last_tip.map_or(0.0, |q: [f64; 3]| {

@@ -532,7 +532,7 @@ impl HapticLoop {
                     let elapsed = self.frame.as_ref().map_or(0.0, |f| {
                         wake_ns.saturating_sub(f.user_header().tool_read_ns) as f64 * 1e-9
                     });
-                    let (f, proxy) = contact_force(
+                    let (f, proxy, used) = contact_force(
                         &g,
                         local.as_ref().map(|(b, m)| (*b, m)),
                         elapsed,
@@ -544,7 +544,7 @@ impl HapticLoop {
                     );
                     desired = f;
                     state.proxy_position = proxy;
-                    if local.is_some_and(|(b, _)| b == a.body) {
+                    if used {
                         state.flags |= TOOL_FLAG_LOCAL_MODEL;
                     }
                     state.tool_stiffness = k;

@@ -98,8 +98,9 @@ impl LocalModel {
 /// god-object rests on (not grabbing, linear law), the opposite of the model's force on the
 /// tissue at the device `device`, `elapsed` seconds after its step; otherwise the force law
 /// on the god-object's gap ([`hand_force`]). Damping (N·s/m, on the device's `velocity`
-/// along the force) as `hand_force` applies it. Returns the force on the hand and the proxy to
-/// draw (the tool sphere's centre the tool spring `stiffness` balances at).
+/// along the force) as `hand_force` applies it. Returns the force on the hand, the proxy to
+/// draw (the tool sphere's centre the tool spring `stiffness` balances at), and whether the
+/// local model rendered it.
 #[allow(clippy::too_many_arguments)]
 pub fn contact_force(
     god: &GodState,
@@ -110,7 +111,7 @@ pub fn contact_force(
     stiffness: f64,
     damping: f64,
     velocity: [f64; 3],
-) -> ([f64; 3], [f64; 3]) {
+) -> ([f64; 3], [f64; 3], bool) {
     let usable = match (god.anchor, local) {
         (Some(a), Some((body, m))) => {
             a.body == body && !god.grabbing && law == ForceLaw::Linear && m.is_valid(stiffness)
@@ -121,6 +122,7 @@ pub fn contact_force(
         return (
             hand_force(god, law, stiffness, damping, velocity),
             god.proxy,
+            false,
         );
     };
     let on_tissue = v(m.force_on_tissue(device, elapsed));
@@ -132,9 +134,9 @@ pub fn contact_force(
         hand = u * (len - damping * v(velocity).dot(u)).max(0.0);
     }
     if hand.is_finite() {
-        (hand.to_array(), proxy)
+        (hand.to_array(), proxy, true)
     } else {
-        ([0.0; 3], god.proxy)
+        ([0.0; 3], god.proxy, false)
     }
 }
 
@@ -249,7 +251,7 @@ mod tests {
         let device = [0.0, 0.0, -0.001];
         let law = hand_force(&god, ForceLaw::Linear, 300.0, 0.0, [0.0; 3]);
         let call = |g: &GodState, local: Option<(usize, &LocalModel)>| {
-            contact_force(
+            let (f, _, used) = contact_force(
                 g,
                 local,
                 0.0,
@@ -258,8 +260,10 @@ mod tests {
                 300.0,
                 0.0,
                 [0.0; 3],
-            )
-            .0
+            );
+            let usable = local.is_some_and(|(b, m)| b == 2 && !g.grabbing && m.is_valid(300.0));
+            assert_eq!(used, usable);
+            f
         };
         assert_eq!(call(&god, None), law);
         let mut nan = model();
@@ -277,7 +281,7 @@ mod tests {
         );
         let f = call(&god, Some((2, &good)));
         assert_eq!(f, good.force_on_tissue(device, 0.0).map(|c| -c));
-        let (_, proxy) = contact_force(
+        let (_, proxy, _) = contact_force(
             &god,
             Some((2, &good)),
             0.0,
