@@ -3,7 +3,8 @@
 //! Hertz, the targets are all evaluated, and the CSV and SVG exist. It also asserts what the
 //! contact patch promises, on the quick meshes: lop within 10 % of the static contact solution
 //! on the same mesh (block and liver), and a felt force that converges with the mesh as that
-//! solution does. No wall-clock bound.
+//! solution does; and that the simulated hand's press on the default scene settles and
+//! generates no energy at the device's stiffness limit. No wall-clock bound.
 
 mod common;
 
@@ -95,7 +96,26 @@ fn haptics_quick_reports_every_mesh_and_target() {
             "liver: lop against the same-mesh reference: {r}"
         );
     }
+    // Part 3, stability (quick: the default hand on the nominal and the stiffest tissue, at the
+    // device's maximum and four times it, the passivity controller off and on): every run
+    // present with finite figures, and the three targets pass — the default scene's press
+    // settles and generates no energy at the device's stiffness limit.
+    let stability = &report["stability"];
+    let runs = stability["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 8, "{stability}");
+    for r in runs {
+        assert!(r["held_n"].as_f64().unwrap() > 0.05, "{r}");
+        assert!(r["hand_min_j"].as_f64().unwrap().is_finite(), "{r}");
+        assert!(r["contact_ticks"].as_u64().unwrap() > 100, "{r}");
+    }
+    let targets = stability["targets"].as_array().unwrap();
+    assert_eq!(targets.len(), 3, "{stability}");
+    for t in targets {
+        assert_eq!(t["pass"].as_bool(), Some(true), "{t}");
+    }
     for f in [
+        "stability.csv",
+        "stability.svg",
         "liver.csv",
         "liver_press.csv",
         "liver_force_vs_depth.svg",

@@ -16,6 +16,14 @@
 //! along the inward normal, held at 0.5–3 mm (`--quick`: 1 and 3 mm), against the reference on
 //! the same mesh — there a curved surface, and the sphere resting on faces, not only on the
 //! node (`reference.rs`: face samples). Target: within 10 % at every hold.
+//!
+//! Part 3, **stability** (`stability.rs`): the simulated hand presses the liver through the
+//! closed loop (`lop_daemon::closed_loop`) across tool stiffness (up to four times the device's
+//! nominal maximum) × tissue (1–100 kPa) × two hands × the passivity controller off and on:
+//! the force's oscillation after contact onset and the energy at the device port. Targets: on
+//! the default scene at the device's maximum the oscillation is within 2 % of the held force
+//! within 100 ms and the cycle generates no energy; with the default hand no run up to the
+//! device's maximum generates any.
 
 // `!(x > 0.0)` is how a check is written so that NaN fails it (as in lop-sim); 3×3 blocks read
 // best as index loops.
@@ -26,6 +34,7 @@ mod hertz;
 mod liver;
 mod press;
 mod reference;
+mod stability;
 mod transparency;
 
 use std::path::PathBuf;
@@ -48,25 +57,38 @@ pub struct HapticsArgs {
     /// Also write every number as JSON to this file.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Only part 3, the stability map (about a minute; with `--quick`, seconds).
+    #[arg(long)]
+    stability_only: bool,
 }
 
-/// Everything `--json` writes: part 1's figures at the top level, part 2's under `liver`.
+/// Everything `--json` writes: part 1's figures at the top level, part 2's under `liver`,
+/// part 3's under `stability` (with `--stability-only`, only that).
 #[derive(Debug, Serialize)]
 struct Report {
     #[serde(flatten)]
-    transparency: transparency::Report,
-    liver: liver::LiverReport,
+    transparency: Option<transparency::Report>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    liver: Option<liver::LiverReport>,
+    stability: stability::StabilityReport,
 }
 
 /// Runs the benchmark.
 pub fn run(a: HapticsArgs) -> Result<()> {
     let clock = Instant::now();
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let transparency = transparency::run(a.quick, &a.out)?;
-    let liver = liver::run(a.quick, &a.out)?;
-    let report = Report {
-        transparency,
-        liver,
+    let report = if a.stability_only {
+        Report {
+            transparency: None,
+            liver: None,
+            stability: stability::run_map(a.quick, &a.out)?,
+        }
+    } else {
+        Report {
+            transparency: Some(transparency::run(a.quick, &a.out)?),
+            liver: Some(liver::run(a.quick, &a.out)?),
+            stability: stability::run_map(a.quick, &a.out)?,
+        }
     };
     println!(
         "\nlop-bench haptics{} took {:.1} s",
