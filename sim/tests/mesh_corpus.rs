@@ -278,10 +278,8 @@ fn huge_headers_are_refused_before_allocating() {
                 "{}: the claimed count is not quoted: {msg}",
                 seed.name
             );
-            // The VTK readers reserve up to 65,536 points ahead (1.5 MiB); the others no more
-            // records than the file could hold.
-            let vtk = seed.name.ends_with(".vtk") || seed.name.ends_with(".vtu");
-            let limit = if vtk { 4 << 20 } else { 64 << 10 };
+            // Every reader reserves no more records than the file could hold.
+            let limit = 64 << 10;
             assert!(
                 largest < limit,
                 "{}: an allocation of {largest} bytes",

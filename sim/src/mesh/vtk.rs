@@ -203,6 +203,8 @@ struct Reader<'a> {
     line_no: usize,
     current: std::str::SplitWhitespace<'a>,
     peeked: Option<(usize, &'a str)>,
+    /// Bytes of the whole text: no header may reserve more records than it can hold.
+    bytes: usize,
 }
 
 impl<'a> Reader<'a> {
@@ -213,7 +215,15 @@ impl<'a> Reader<'a> {
             line_no: 3,
             current: "".split_whitespace(),
             peeked: None,
+            bytes: text.len(),
         }
+    }
+
+    /// Room for `declared` records of `per` numbers each, but never more than the text can
+    /// hold (a number and its separator take at least two bytes): a header claiming 10¹²
+    /// points in a small file reserves what the file could hold.
+    fn capacity(&self, declared: usize, per: usize) -> usize {
+        text::capacity_within(declared, self.bytes, 2 * per)
     }
 
     fn next(&mut self) -> Option<(usize, &'a str)> {
@@ -320,7 +330,7 @@ impl<'a> Reader<'a> {
                         declared: n,
                         per: 3,
                     };
-                    grid.points = Vec::with_capacity(text::capacity(n));
+                    grid.points = Vec::with_capacity(self.capacity(n, 3));
                     for i in 0..n {
                         let mut p = [0.0; 3];
                         for (k, axis) in ["x", "y", "z"].iter().enumerate() {
@@ -379,7 +389,7 @@ impl<'a> Reader<'a> {
                         declared: n,
                         per: 1,
                     };
-                    grid.cells.types = Vec::with_capacity(text::capacity(n));
+                    grid.cells.types = Vec::with_capacity(self.capacity(n, 1));
                     for i in 0..n {
                         let (_, kind) =
                             self.int_value(counted, i, format_args!("the type of cell {i}"))?;
@@ -466,7 +476,7 @@ impl<'a> Reader<'a> {
             declared: size,
             per: 1,
         };
-        grid.offsets = Vec::with_capacity(text::capacity(n) + 1);
+        grid.offsets = Vec::with_capacity(self.capacity(n, 1) + 1);
         grid.offsets.push(0);
         let mut used = 0usize;
         for i in 0..n {
@@ -527,7 +537,7 @@ impl<'a> Reader<'a> {
             declared: n_offsets,
             per: 1,
         };
-        let mut offsets = Vec::with_capacity(text::capacity(n_offsets));
+        let mut offsets = Vec::with_capacity(self.capacity(n_offsets, 1));
         for i in 0..n_offsets {
             let (l, v) = self.int_value(counted, i, format_args!("offset {i}"))?;
             let prev = offsets.last().copied().unwrap_or(0);
@@ -567,7 +577,7 @@ impl<'a> Reader<'a> {
             declared: n_conn,
             per: 1,
         };
-        let mut conn_lines = Vec::with_capacity(text::capacity(n_conn));
+        let mut conn_lines = Vec::with_capacity(self.capacity(n_conn, 1));
         for i in 0..n_conn {
             let (l, id) =
                 self.int_value(counted_conn, i, format_args!("connectivity entry {i}"))?;
