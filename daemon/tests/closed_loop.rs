@@ -81,10 +81,17 @@ fn the_hand_presses_the_default_scene_passively_at_the_stiffness_limit() {
         r.passivity_ticks
     );
     assert!(mean > 0.2, "held force {mean} N");
-    assert!(spread < 0.02, "the held force varies by {:.2} %", 100.0 * spread);
+    assert!(
+        spread < 0.02,
+        "the held force varies by {:.2} %",
+        100.0 * spread
+    );
     // Passive at the device port: the energy integrals are exact sums of the run's own
     // numbers, so "never below zero" is checked to rounding (1 nJ against ~3 mJ moved).
-    assert!(hand_min > -1e-9, "the hand got back {hand_min:.3e} J more than it put in");
+    assert!(
+        hand_min > -1e-9,
+        "the hand got back {hand_min:.3e} J more than it put in"
+    );
     assert!(env_min > -1e-9, "the environment gave back {env_min:.3e} J");
 }
 
@@ -140,6 +147,12 @@ fn the_local_model_keeps_the_force_continuous_across_frames() {
         "at frames {l_mean:.2e} N against {l_between:.2e} N between"
     );
     // Against the god-object on the frame's surface alone (measured 0.2× and 0.3×).
-    assert!(l_mean < g_mean / 3.0, "mean jump {l_mean:.2e} against {g_mean:.2e} N");
-    assert!(l_max < g_max / 2.0, "largest jump {l_max:.2e} against {g_max:.2e} N");
+    assert!(
+        l_mean < g_mean / 3.0,
+        "mean jump {l_mean:.2e} against {g_mean:.2e} N"
+    );
+    assert!(
+        l_max < g_max / 2.0,
+        "largest jump {l_max:.2e} against {g_max:.2e} N"
+    );
 }

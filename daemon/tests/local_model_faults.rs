@@ -7,33 +7,16 @@
 
 mod common;
 
-use common::DeformSide;
+use common::{local_model_of as model_of, DeformSide};
 use lop_config::{load_scene, resolve_scene, resolve_script, DaemonConfig};
 use lop_daemon::haptic::{rings, HapticLoop, HapticSettings};
 use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::HapticDevice;
 use lop_ipc::*;
 use lop_scene as scene;
-use lop_sim::haptic::LocalModel;
 
 fn norm(f: [f64; 3]) -> f64 {
     (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
-}
-
-/// A local model of the press `s` rendered: the tissue half as stiff as the tool spring.
-fn model_of(s: &ToolState) -> (u32, [f64; 3], LocalModel) {
-    let k = 0.5 * s.tool_stiffness;
-    (
-        s.contact_body as u32,
-        s.proxy_position,
-        LocalModel {
-            device: s.device_position,
-            force: s.force.map(|c| -c),
-            stiffness: [[k, 0.0, 0.0], [0.0, k, 0.0], [0.0, 0.0, k]],
-            drift: [0.0; 3],
-            horizon: 1e-3,
-        },
-    )
 }
 
 #[test]

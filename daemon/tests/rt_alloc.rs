@@ -13,7 +13,6 @@ use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::HapticDevice;
 use lop_ipc::*;
 use lop_scene as scene;
-use lop_sim::haptic::LocalModel;
 use lop_test_support::alloc::{self, allocations, counted, Counting};
 
 #[global_allocator]
@@ -70,20 +69,7 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
             // (the tissue as stiff as half the tool spring), so both paths run.
             let local = last_state
                 .filter(|s| i % 20 == 0 && s.flags & TOOL_FLAG_CONTACT != 0 && s.contact_body >= 0)
-                .map(|s| {
-                    let k = 0.5 * s.tool_stiffness;
-                    (
-                        s.contact_body as u32,
-                        s.proxy_position,
-                        LocalModel {
-                            device: s.device_position,
-                            force: s.force.map(|c| -c),
-                            stiffness: [[k, 0.0, 0.0], [0.0, k, 0.0], [0.0, 0.0, k]],
-                            drift: [0.0; 3],
-                            horizon: 1e-3,
-                        },
-                    )
-                });
+                .map(|s| common::local_model_of(&s));
             deform.publish_frame_local(i / 10 + 1, local);
         }
         let now = clock::monotonic_ns();

@@ -8,6 +8,23 @@ use lop_ipc::services::{self, FramePublisher, Role, TopologyPublisher};
 use lop_ipc::*;
 use lop_scene::LoadedScene;
 
+/// A local model of the press the tool state `s` rendered, as a frame would carry it: the
+/// body, the proxy, and the model with the tissue half as stiff as the tool spring.
+pub fn local_model_of(s: &ToolState) -> (u32, [f64; 3], lop_sim::haptic::LocalModel) {
+    let k = 0.5 * s.tool_stiffness;
+    (
+        s.contact_body as u32,
+        s.proxy_position,
+        lop_sim::haptic::LocalModel {
+            device: s.device_position,
+            force: s.force.map(|c| -c),
+            stiffness: [[k, 0.0, 0.0], [0.0, k, 0.0], [0.0, 0.0, k]],
+            drift: [0.0; 3],
+            horizon: 1e-3,
+        },
+    )
+}
+
 /// The topology id the fake deformation side publishes.
 pub const TOPOLOGY_ID: u64 = 42;
 
