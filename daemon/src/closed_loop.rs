@@ -1,7 +1,8 @@
 //! The haptic loop and the deformation rounds coupled in one process on simulated time, with
 //! the simulated hand holding the stylus: what `lopd run --device hand` does, without shared
 //! memory or the wall clock, so that a press can be replayed deterministically and the
-//! coupling's stability measured (`lop-bench haptics`, part 3, and the tests).
+//! coupling's stability measured (`lopd simulate --device hand[:SCRIPT]`, `lop-bench haptics`
+//! part 3, and the tests).
 //!
 //! Each tick `n` at `t = n T` (`T` the scene's haptic period), in the live loop's order:
 //!
@@ -202,6 +203,113 @@ pub fn run(opts: ClosedLoopOptions) -> Result<ClosedLoopRun> {
         passivity_ticks: passivity.active_ticks(),
         stiffness: settings.body_stiffness.clone(),
     })
+}
+
+/// What `lopd simulate --device hand` writes beside `hand.csv`.
+#[derive(Debug, serde::Serialize)]
+pub struct HandSummary {
+    /// Scene and script names.
+    pub scene: String,
+    pub script: String,
+    /// Simulated seconds and ticks.
+    pub seconds: f64,
+    pub ticks: usize,
+    /// Ticks in contact, and of those rendered through the frames' local model.
+    pub contact_ticks: usize,
+    pub local_model_ticks: usize,
+    /// Largest force on the hand, N.
+    pub max_force_n: f64,
+    /// The work the hand's grip did on the stylus: lowest over the run (below zero: the
+    /// coupling gave back more than it received) and at the end, J.
+    pub device_port_min_j: f64,
+    pub device_port_end_j: f64,
+    /// The same at the rendered environment's port (`Σ −F·Δx`), J.
+    pub environment_port_min_j: f64,
+    /// The passivity controller: ticks it acted on, energy it dissipated, J.
+    pub passivity_ticks: u64,
+    pub passivity_dissipated_j: f64,
+}
+
+/// `lopd simulate --device hand[:SCRIPT]`: one pass of `script` (its duration) on `scene` with
+/// the simulated hand, the Omni's limits and the default daemon settings; writes `hand.csv`
+/// and `hand_summary.json` to `out` and prints the summary.
+pub fn simulate(scene: Scene, script: MockScript, out: &std::path::Path) -> Result<HandSummary> {
+    use std::io::Write as _;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let seconds = script.duration().max(0.001);
+    let name = scene.name.clone();
+    let script_name = script.name().to_string();
+    let r = run(ClosedLoopOptions {
+        scene,
+        script,
+        hand: None,
+        limits: lop_drivers::mock::MockDevice::omni_limits(),
+        config: DaemonConfig::default(),
+        seconds,
+    })?;
+    let csv_path = out.join("hand.csv");
+    let mut csv = std::io::BufWriter::new(
+        std::fs::File::create(&csv_path)
+            .with_context(|| format!("creating {}", csv_path.display()))?,
+    );
+    writeln!(
+        csv,
+        "t_s,fx_n,fy_n,fz_n,x_mm,y_mm,z_mm,contact,local_model,grip_work_j,tissue_force_n"
+    )?;
+    let mut env = 0.0;
+    let mut env_min: f64 = 0.0;
+    for (n, t) in r.ticks.iter().enumerate() {
+        env += port_energy(&r.ticks, n, n + 1);
+        env_min = env_min.min(env);
+        let [fx, fy, fz] = t.force;
+        let [x, y, z] = t.stylus.map(|c| c * 1e3);
+        writeln!(
+            csv,
+            "{:.4},{fx:.6e},{fy:.6e},{fz:.6e},{x:.6},{y:.6},{z:.6},{},{},{:.6e},{:.6e}",
+            t.t,
+            u8::from(t.contact),
+            u8::from(t.local),
+            t.grip_work,
+            t.tissue_force
+        )?;
+    }
+    csv.flush()?;
+    let norm = |f: [f64; 3]| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
+    let summary = HandSummary {
+        scene: name,
+        script: script_name,
+        seconds,
+        ticks: r.ticks.len(),
+        contact_ticks: r.ticks.iter().filter(|t| t.contact).count(),
+        local_model_ticks: r.ticks.iter().filter(|t| t.local).count(),
+        max_force_n: r.ticks.iter().map(|t| norm(t.force)).fold(0.0, f64::max),
+        device_port_min_j: r.ticks.iter().map(|t| t.grip_work).fold(0.0, f64::min) + 0.0,
+        device_port_end_j: r.ticks.last().map_or(0.0, |t| t.grip_work),
+        environment_port_min_j: env_min + 0.0,
+        passivity_ticks: r.passivity_ticks,
+        passivity_dissipated_j: r.dissipated,
+    };
+    std::fs::write(
+        out.join("hand_summary.json"),
+        serde_json::to_string_pretty(&summary)? + "\n",
+    )?;
+    println!(
+        "{} with the simulated hand ({}): {} ticks, {} in contact ({} through the local model), \
+         largest force {:.3} N; device port lowest {:.3e} J (end {:.3e} J), environment port \
+         lowest {:.3e} J; passivity controller {} ticks\nwrote {}",
+        summary.scene,
+        summary.script,
+        summary.ticks,
+        summary.contact_ticks,
+        summary.local_model_ticks,
+        summary.max_force_n,
+        summary.device_port_min_j,
+        summary.device_port_end_j,
+        summary.environment_port_min_j,
+        summary.passivity_ticks,
+        out.display()
+    );
+    Ok(summary)
 }
 
 /// The energy that flowed into the virtual environment through the device port from tick

@@ -238,7 +238,10 @@ struct SimulateArgs {
     #[arg(long, conflicts_with = "device")]
     script: Option<String>,
     /// The tool's trajectory from a device stream instead: `replay:PATH` (a session recording,
-    /// by tick index) or `mock:SCRIPT` (as --script).
+    /// by tick index) or `mock:SCRIPT` (as --script); or `hand[:SCRIPT]`: the simulated hand
+    /// holds the stylus and the haptic loop and the deformation run closed-loop for one pass
+    /// of the script (`hand.csv`: every tick's force, stylus and the energy at the device
+    /// port; `hand_summary.json`).
     #[arg(long)]
     device: Option<String>,
     /// Output directory.
@@ -498,14 +501,24 @@ fn cmd_simulate(a: SimulateArgs) -> Result<()> {
     if let Some(d) = &a.device {
         match bad(d.parse::<DeviceSpec>())? {
             DeviceSpec::Mock { script: Some(name) } => script = Some(bad(resolve_script(&name))?),
+            DeviceSpec::Hand { script: name } => {
+                let Some((script, path)) = device_script(name.as_deref(), &scene)? else {
+                    bad(Err(anyhow::anyhow!(
+                        "--device hand: the scene has no default script; name one (hand:SCRIPT)"
+                    )))?
+                };
+                tracing::info!("simulated hand following {}", path.display());
+                lop_daemon::closed_loop::simulate(scene, script, &a.out)?;
+                return Ok(());
+            }
             DeviceSpec::Replay { path } => {
                 // Validate here so a bad recording is bad input (exit 2), named with its byte.
                 bad(lop_drivers::replay::Recording::load(&path))?;
                 replay = Some(path);
             }
             other => bad(Err(anyhow::anyhow!(
-                "--device {other}: an offline run takes its tool from `replay:PATH` or \
-                 `mock:SCRIPT`"
+                "--device {other}: an offline run takes its tool from `replay:PATH`, \
+                 `mock:SCRIPT` or `hand[:SCRIPT]`"
             )))?,
         }
     }

@@ -84,3 +84,64 @@ fn static_solve_of_fem_bodies() {
     assert!(table.contains("cylinder_a"), "{table}");
     std::fs::remove_dir_all(&out).unwrap();
 }
+
+/// `--device hand[:SCRIPT]`: the simulated hand closes the loop offline for one pass of the
+/// script; every tick is written, the press goes through the local model, the coupling stays
+/// passive at the device port, and two runs are byte-identical. A missing script is bad input.
+#[test]
+fn the_simulated_hand_closes_the_loop_offline() {
+    let base = std::env::temp_dir().join(format!("lopd-simulate-hand-{}", std::process::id()));
+    let run = |out: &Path| {
+        let o = Command::new(env!("CARGO_BIN_EXE_lopd"))
+            .args([
+                "simulate",
+                "--scene",
+                "abdomen",
+                "--device",
+                "hand:abdomen-poke",
+            ])
+            .arg("--out")
+            .arg(out)
+            .env("LOP_LOG", "warn")
+            .output()
+            .expect("run lopd simulate");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let (a, b) = (base.join("a"), base.join("b"));
+    let printed = run(&a);
+    run(&b);
+    assert!(printed.contains("simulated hand"), "{printed}");
+    let csv = std::fs::read_to_string(a.join("hand.csv")).unwrap();
+    assert_eq!(
+        csv.lines().count(),
+        1 + 4400,
+        "one row per tick of the 4.4 s script"
+    );
+    assert_eq!(csv, std::fs::read_to_string(b.join("hand.csv")).unwrap());
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(a.join("hand_summary.json")).unwrap())
+            .unwrap();
+    let contact = s["contact_ticks"].as_u64().unwrap();
+    assert!(contact > 1000, "{s}");
+    assert!(
+        s["local_model_ticks"].as_u64().unwrap() + 5 >= contact,
+        "{s}"
+    );
+    let f = s["max_force_n"].as_f64().unwrap();
+    assert!(f > 0.3 && f < 1.0, "{s}");
+    assert!(s["device_port_min_j"].as_f64().unwrap() > -1e-9, "{s}");
+
+    let o = Command::new(env!("CARGO_BIN_EXE_lopd"))
+        .args(["simulate", "--device", "hand:no-such-script", "--out"])
+        .arg(base.join("c"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("no-such-script"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let _ = std::fs::remove_dir_all(&base);
+}
