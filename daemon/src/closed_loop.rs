@@ -142,7 +142,7 @@ pub fn run(opts: ClosedLoopOptions) -> Result<ClosedLoopRun> {
             let vel = ws
                 .device_dir_to_scene(sample.velocity_mm_s)
                 .map(|c| c * 1e-3 * scale);
-            let (f, _, used) = contact_force(
+            let (f, used) = contact_force(
                 &g,
                 local.as_ref().map(|(b, m)| (*b, m)),
                 period,

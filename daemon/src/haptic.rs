@@ -532,7 +532,7 @@ impl HapticLoop {
                     let elapsed = self.frame.as_ref().map_or(0.0, |f| {
                         wake_ns.saturating_sub(f.user_header().tool_read_ns) as f64 * 1e-9
                     });
-                    let (f, proxy, used) = contact_force(
+                    let (f, used) = contact_force(
                         &g,
                         local.as_ref().map(|(b, m)| (*b, m)),
                         elapsed,
@@ -542,8 +542,9 @@ impl HapticLoop {
                         self.settings.damping,
                         v,
                     );
+                    // The proxy stays the god-object's (the deformation process gathers the
+                    // patch around it, as offline).
                     desired = f;
-                    state.proxy_position = proxy;
                     if used {
                         state.flags |= TOOL_FLAG_LOCAL_MODEL;
                     }

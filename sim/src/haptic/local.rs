@@ -98,8 +98,7 @@ impl LocalModel {
 /// god-object rests on (not grabbing, linear law), the opposite of the model's force on the
 /// tissue at the device `device`, `elapsed` seconds after its step; otherwise the force law
 /// on the god-object's gap ([`hand_force`]). Damping (N·s/m, on the device's `velocity`
-/// along the force) as `hand_force` applies it. Returns the force on the hand, the proxy to
-/// draw (the tool sphere's centre the tool spring `stiffness` balances at), and whether the
+/// along the force) as `hand_force` applies it. Returns the force on the hand and whether the
 /// local model rendered it.
 #[allow(clippy::too_many_arguments)]
 pub fn contact_force(
@@ -111,7 +110,7 @@ pub fn contact_force(
     stiffness: f64,
     damping: f64,
     velocity: [f64; 3],
-) -> ([f64; 3], [f64; 3], bool) {
+) -> ([f64; 3], bool) {
     let usable = match (god.anchor, local) {
         (Some(a), Some((body, m))) => {
             a.body == body && !god.grabbing && law == ForceLaw::Linear && m.is_valid(stiffness)
@@ -119,24 +118,19 @@ pub fn contact_force(
         _ => false,
     };
     let Some((_, m)) = local.filter(|_| usable) else {
-        return (
-            hand_force(god, law, stiffness, damping, velocity),
-            god.proxy,
-            false,
-        );
+        return (hand_force(god, law, stiffness, damping, velocity), false);
     };
     let on_tissue = v(m.force_on_tissue(device, elapsed));
     let mut hand = -on_tissue;
-    let proxy = (v(device) + hand / stiffness).to_array();
     let len = hand.length();
     if len > 0.0 && damping > 0.0 && velocity.iter().all(|c| c.is_finite()) {
         let u = hand / len;
         hand = u * (len - damping * v(velocity).dot(u)).max(0.0);
     }
     if hand.is_finite() {
-        (hand.to_array(), proxy, true)
+        (hand.to_array(), true)
     } else {
-        ([0.0; 3], god.proxy, false)
+        ([0.0; 3], false)
     }
 }
 
@@ -251,7 +245,7 @@ mod tests {
         let device = [0.0, 0.0, -0.001];
         let law = hand_force(&god, ForceLaw::Linear, 300.0, 0.0, [0.0; 3]);
         let call = |g: &GodState, local: Option<(usize, &LocalModel)>| {
-            let (f, _, used) = contact_force(
+            let (f, used) = contact_force(
                 g,
                 local,
                 0.0,
@@ -281,17 +275,6 @@ mod tests {
         );
         let f = call(&god, Some((2, &good)));
         assert_eq!(f, good.force_on_tissue(device, 0.0).map(|c| -c));
-        let (_, proxy, _) = contact_force(
-            &god,
-            Some((2, &good)),
-            0.0,
-            device,
-            ForceLaw::Linear,
-            300.0,
-            0.0,
-            [0.0; 3],
-        );
-        assert!((proxy[2] - (device[2] + f[2] / 300.0)).abs() < 1e-15);
     }
 
     #[test]
