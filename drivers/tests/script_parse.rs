@@ -349,7 +349,10 @@ fn sample_fault_windows_are_validated() {
     assert_eq!(script.sample_fault_at(0.99), None);
     assert_eq!(script.sample_fault_at(1.0), Some(SampleFault::Nan));
     assert_eq!(script.sample_fault_at(1.25), None);
-    assert_eq!(script.sample_fault_at(1e9), Some(SampleFault::OutOfWorkspace));
+    assert_eq!(
+        script.sample_fault_at(1e9),
+        Some(SampleFault::OutOfWorkspace)
+    );
     // The script's own samples stay finite in the windows: the device breaks them.
     assert!(script.sample(1.1).is_finite());
 
