@@ -64,12 +64,18 @@ fn soak_of_45_seconds_passes_every_check() {
     }
     let tool = &v["tool_stream"];
     assert!(tool["episodes_stale"].as_u64().unwrap() >= 2, "{text}");
-    assert!(tool["planned_samples_flagged"].as_u64().unwrap() >= 4, "{text}");
+    assert!(
+        tool["planned_samples_flagged"].as_u64().unwrap() >= 4,
+        "{text}"
+    );
     assert!(v["hammer"]["bad_sent"].as_u64().unwrap() > 0, "{text}");
     assert!(v["ctl"]["runs"].as_u64().unwrap() > 0, "{text}");
     for kind in ["token", "no_token", "wrong_token", "cross_origin"] {
         assert!(
-            v["viewers"]["kinds"][kind]["sessions"].as_u64().unwrap_or(0) > 0,
+            v["viewers"]["kinds"][kind]["sessions"]
+                .as_u64()
+                .unwrap_or(0)
+                > 0,
             "no {kind} viewer session: {text}"
         );
     }

@@ -142,7 +142,11 @@ fn next(rng: &mut Rng, bodies: &Bodies) -> Vec<Planned> {
         },
         // Rebuilds the body's precise model and its cage (off the real-time path).
         72..=73 => {
-            let prefix = if rng.below(2) == 0 { "fem.young" } else { "msd." };
+            let prefix = if rng.below(2) == 0 {
+                "fem.young"
+            } else {
+                "msd."
+            };
             match set(prefix, rng) {
                 Some(r) => vec![good("set fem/msd (rebuild)", r)],
                 None => vec![good("get", ControlRequest::new(CONTROL_OP_GET, name))],

@@ -23,9 +23,7 @@
 //! an episode that a gap cuts is not judged on its length. A sequence that goes back means the
 //! haptic process restarted; the audit then starts a new segment.
 
-use lop_client::{
-    ToolState, TOOL_FLAG_DEVICE_ERROR, TOOL_FLAG_RAMPING, TOOL_FLAG_STALE_FRAME,
-};
+use lop_client::{ToolState, TOOL_FLAG_DEVICE_ERROR, TOOL_FLAG_RAMPING, TOOL_FLAG_STALE_FRAME};
 use serde::Serialize;
 
 use super::schedule::SampleEvent;

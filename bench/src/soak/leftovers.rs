@@ -53,7 +53,10 @@ fn processes_of(prefix: &str) -> Vec<(u32, String)> {
             continue;
         };
         let args = cmdline(pid);
-        if args.windows(2).any(|w| w[0] == "--prefix" && w[1] == prefix) {
+        if args
+            .windows(2)
+            .any(|w| w[0] == "--prefix" && w[1] == prefix)
+        {
             out.push((pid, args.join(" ")));
         }
     }
@@ -69,11 +72,8 @@ fn nodes_of(pids: &BTreeSet<u32>) -> Vec<LeftNode> {
             .map(|p| p.value() as u32)
             .unwrap_or(0);
         if pids.contains(&pid) {
-            let name = |v: &dyn NodeView| {
-                v.details()
-                    .as_ref()
-                    .map(|d| d.name().as_str().to_string())
-            };
+            let name =
+                |v: &dyn NodeView| v.details().as_ref().map(|d| d.name().as_str().to_string());
             let (state, name) = match &state {
                 NodeState::Alive(v) => ("alive", name(v)),
                 NodeState::Dead(v) => ("dead", name(v)),
@@ -105,5 +105,43 @@ pub fn find(prefix: &str, pids: &BTreeSet<u32>, settle: Duration) -> Leftovers {
             return found;
         }
         std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_live_node_and_a_process_of_the_prefix_are_found_and_then_gone() {
+        // The check can fail: a node of this process is found while it exists.
+        let me: BTreeSet<u32> = [std::process::id()].into();
+        let node = lop_ipc::services::node("lop-bench-leftover-test").unwrap();
+        let found = nodes_of(&me);
+        assert!(
+            found
+                .iter()
+                .any(|n| n.name == "lop-bench-leftover-test" && n.state == "alive"),
+            "{found:?}"
+        );
+        drop(node);
+        assert!(nodes_of(&me)
+            .iter()
+            .all(|n| n.name != "lop-bench-leftover-test"));
+
+        // A process whose arguments name the prefix.
+        let prefix = format!("lopbench-leftover-test-{}", std::process::id());
+        let mut child = std::process::Command::new("sh")
+            .args(["-c", "sleep 30", "--prefix", &prefix])
+            .spawn()
+            .unwrap();
+        let start = Instant::now();
+        while processes_of(&prefix).is_empty() && start.elapsed() < Duration::from_secs(5) {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        assert_eq!(processes_of(&prefix).len(), 1);
+        let _ = child.kill();
+        let _ = child.wait();
+        assert!(find(&prefix, &me, Duration::from_secs(1)).clean());
     }
 }

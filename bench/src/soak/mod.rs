@@ -443,13 +443,7 @@ pub fn run(a: SoakArgs) -> Result<()> {
 
     // 4. Judge and report.
     let report = judge(
-        settings,
-        plan,
-        obs,
-        force_log,
-        recording,
-        supervisor,
-        leftovers,
+        settings, plan, obs, force_log, recording, supervisor, leftovers,
     );
     let text = render(&report);
     print!("{text}");
@@ -539,10 +533,17 @@ fn observe(
     let bodies: Vec<String> = loop {
         lopd.check_alive()?;
         if let Ok(Some(t)) = att.poll_topology() {
-            break t.bodies().iter().map(|b| b.name_str().to_string()).collect();
+            break t
+                .bodies()
+                .iter()
+                .map(|b| b.name_str().to_string())
+                .collect();
         }
         if waiting.elapsed() > START_TIMEOUT {
-            bail!("no topology within {START_TIMEOUT:?}; {}", lopd.log_tail(20));
+            bail!(
+                "no topology within {START_TIMEOUT:?}; {}",
+                lopd.log_tail(20)
+            );
         }
         std::thread::sleep(Duration::from_millis(10));
     };
@@ -591,14 +592,12 @@ fn observe(
         let interval = Duration::from_millis(settings.hammer_ms);
         std::thread::Builder::new()
             .name("soak-hammer".into())
-            .spawn(move || {
-                match control::read_bodies(&names, &bodies, &stop) {
-                    Some(b) => control::hammer(names, b, seed, interval, stop),
-                    None => HammerReport {
-                        violations: vec!["could not read the bodies' parameters".into()],
-                        ..HammerReport::default()
-                    },
-                }
+            .spawn(move || match control::read_bodies(&names, &bodies, &stop) {
+                Some(b) => control::hammer(names, b, seed, interval, stop),
+                None => HammerReport {
+                    violations: vec!["could not read the bodies' parameters".into()],
+                    ..HammerReport::default()
+                },
             })?
     };
     let ctl = {
@@ -671,7 +670,10 @@ fn drive(
             watch.sample(epoch.elapsed().as_secs_f64());
             last_sample = now;
         }
-        if stopped.as_ref().is_some_and(|s| Instant::now() >= s.resume_at) {
+        if stopped
+            .as_ref()
+            .is_some_and(|s| Instant::now() >= s.resume_at)
+        {
             drop(stopped.take());
         }
         if now >= settings.seconds && stopped.is_none() {
@@ -857,9 +859,7 @@ fn judge(
             settings.ramp_ticks
         ),
     ));
-    let by_kind = |k: SampleFault| {
-        plan.samples.iter().filter(|s| s.fault == k).count()
-    };
+    let by_kind = |k: SampleFault| plan.samples.iter().filter(|s| s.fault == k).count();
     checks.push(check(
         "every planned broken sample caught, and no other device error",
         a.counts.sample_not_flagged == 0 && flagged == seen && a.unexpected_device_errors == 0,
@@ -1008,14 +1008,17 @@ fn judge(
         .filter(|m| m.rss_flat == Some(false) || m.threads_flat == Some(false))
         .map(|m| {
             format!(
-                "{} {} +{} in {:.1} min (allowed {}), threads {}→{}",
+                "{} {}: peak {} in the first half, {} in the second ({:+.1} MiB over {:.1} min, \
+                 allowed {}), threads {} then {}",
                 m.role,
                 m.pid,
-                kib(m.growth_kib.max(0) as u64),
+                kib(m.first_half_max_kib),
+                kib(m.second_half_max_kib),
+                m.growth_kib as f64 / 1024.0,
                 m.observed_min,
                 kib(m.allowance_kib),
-                m.warm.map_or(0, |w| w.threads),
-                m.end.threads
+                m.threads_max.0,
+                m.threads_max.1
             )
         })
         .collect();
@@ -1027,7 +1030,8 @@ fn judge(
         grew.is_empty() && long_lived,
         format!(
             "{} of {} process instances judged (warm-up {:.0} s, then at least {:.0} s \
-             watched; bound {} + {} per minute){}",
+             watched): the RSS peak of the second half of the watched time over the first's \
+             at most {} + {} per minute of half (the others did not live that long){}",
             judged.len(),
             memory.len(),
             warmup,
@@ -1136,35 +1140,58 @@ fn render(r: &SoakReport) -> String {
         out += &format!("{} {}\n", if c.pass { "PASS" } else { "FAIL" }, c.name);
         out += &crate::table::note(&c.detail, W);
     }
-    out += "\nmemory (VmRSS) per process instance:\n";
+    out += "\nmemory (VmRSS) of the process instances judged (peaks of the two halves of the \
+            time watched after warm-up):\n";
     out += &format!(
-        "  {:<7} {:>8} {:>9} {:>10} {:>10} {:>10} {:>9} {:>8}  {}\n",
-        "process", "pid", "watched", "start", "warm", "end", "growth", "threads", "verdict"
+        "  {:<7} {:>8} {:>9} {:>10} {:>10} {:>10} {:>10} {:>9} {:>8}  {}\n",
+        "process",
+        "pid",
+        "watched",
+        "start",
+        "warm",
+        "1st half",
+        "2nd half",
+        "growth",
+        "threads",
+        "verdict"
     );
-    for m in &r.memory {
+    for m in r.memory.iter().filter(|m| m.rss_flat.is_some()) {
         out += &format!(
-            "  {:<7} {:>8} {:>8.0}s {:>10} {:>10} {:>10} {:>9} {:>8}  {}\n",
+            "  {:<7} {:>8} {:>8.0}s {:>10} {:>10} {:>10} {:>10} {:>9} {:>8}  {}\n",
             m.role,
             m.pid,
             m.watched_s,
             kib(m.start.rss_kib),
             m.warm.map_or("-".into(), |w| kib(w.rss_kib)),
-            kib(m.end.rss_kib),
-            if m.warm.is_some() {
-                format!("{:+.1}M", m.growth_kib as f64 / 1024.0)
-            } else {
-                "-".into()
-            },
-            format!(
-                "{}→{}",
-                m.warm.map_or(m.start.threads, |w| w.threads),
-                m.end.threads
-            ),
+            kib(m.first_half_max_kib),
+            kib(m.second_half_max_kib),
+            format!("{:+.1}M", m.growth_kib as f64 / 1024.0),
+            format!("{}/{}", m.threads_max.0, m.threads_max.1),
             match (m.rss_flat, m.threads_flat) {
-                (None, _) => "not judged (short-lived)",
                 (Some(true), Some(true)) => "flat",
                 _ => "GREW",
             }
+        );
+    }
+    let short: Vec<&Verdict> = r.memory.iter().filter(|m| m.rss_flat.is_none()).collect();
+    if !short.is_empty() {
+        let watched = short.iter().map(|m| m.watched_s);
+        let end = short.iter().map(|m| m.end.rss_kib);
+        out += &format!(
+            "  not judged: {} instances ({}) killed {:.0}–{:.0} s after they started, RSS at \
+             their end {}–{}\n",
+            short.len(),
+            short
+                .iter()
+                .map(|m| m.role.as_str())
+                .collect::<BTreeSet<_>>()
+                .into_iter()
+                .collect::<Vec<_>>()
+                .join(", "),
+            watched.clone().fold(f64::INFINITY, f64::min),
+            watched.fold(0.0, f64::max),
+            kib(end.clone().min().unwrap_or(0)),
+            kib(end.max().unwrap_or(0))
         );
     }
     let mut violations: Vec<&String> = r.tool_stream.first_violations.iter().collect();

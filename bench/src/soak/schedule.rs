@@ -364,7 +364,10 @@ mod tests {
             }
             assert!(!s.ctl.is_empty());
             // Process faults: in order, inside [lead, end − tail], kills in its first half.
-            assert!(s.deform.windows(2).all(|w| w[0].at_s <= w[1].at_s), "seed {seed}");
+            assert!(
+                s.deform.windows(2).all(|w| w[0].at_s <= w[1].at_s),
+                "seed {seed}"
+            );
             for e in &s.deform {
                 assert!(e.at_s >= LEAD_S && e.at_s <= 30.0 - TAIL_S, "{e:?}");
                 match e.fault {

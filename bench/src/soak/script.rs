@@ -138,14 +138,8 @@ mod tests {
             assert_eq!(at(e.first_tick + e.ticks), None);
         }
         // The buttons of the parts are kept: grab and heat are pressed somewhere in the loop.
-        let pressed = script
-            .waypoints()
-            .iter()
-            .fold(0, |acc, w| acc | w.buttons);
-        assert_eq!(
-            pressed,
-            lop_drivers::BUTTON_GRAB | lop_drivers::BUTTON_HEAT
-        );
+        let pressed = script.waypoints().iter().fold(0, |acc, w| acc | w.buttons);
+        assert_eq!(pressed, lop_drivers::BUTTON_GRAB | lop_drivers::BUTTON_HEAT);
     }
 
     #[test]

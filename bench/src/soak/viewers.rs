@@ -95,7 +95,9 @@ fn open(addr: &str, origin: &str) -> Result<Ws, String> {
         .map_err(|e| e.to_string())?;
     req.headers_mut().insert(
         "Origin",
-        origin.parse().map_err(|e| format!("origin {origin:?}: {e}"))?,
+        origin
+            .parse()
+            .map_err(|e| format!("origin {origin:?}: {e}"))?,
     );
     match tungstenite::client(req, stream) {
         Ok((ws, _)) => {
