@@ -195,6 +195,8 @@ pub fn run(a: LatencyArgs) -> Result<()> {
         device: "mock".into(),
         duration: Duration::from_secs_f64(WARMUP_S + a.seconds + BACKSTOP_EXTRA_S),
         prefix: prefix.clone(),
+        extra_args: Vec::new(),
+        log: None,
     })?;
     let measured = measure(&mut lopd, &a, period_us, &ct_plan);
     // Stop the pipeline whatever happened (the guard would also do it on drop).

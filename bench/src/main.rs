@@ -1,5 +1,5 @@
 //! `lop-bench`: benchmarks of the lop pipeline. One module per subcommand (`latency`, `models`,
-//! `lop`, `interaction`, `haptics`, …); shared helpers in `table` (percentile rows, table
+//! `lop`, `interaction`, `haptics`, `soak`, …); shared helpers in `table` (percentile rows, table
 //! printing), `plot` (SVG charts), `pipeline` (spawning `lopd` with a guard) and `cyclictest`
 //! (the machine's own wake-up latency, as a yardstick).
 
@@ -17,6 +17,7 @@ mod models;
 mod parry;
 mod pipeline;
 mod plot;
+mod soak;
 mod table;
 mod timings;
 
@@ -45,6 +46,10 @@ enum Command {
     /// block, on three gmsh meshes, against a static FE contact reference and Hertz; the force's
     /// steadiness during a hold (tables, CSV, SVG, PASS/FAIL).
     Haptics(haptics::HapticsArgs),
+    /// Soak: the whole pipeline for N minutes under randomised faults (deformation process
+    /// killed and stopped, NaN and out-of-workspace samples, control hammered, viewers coming
+    /// and going, a recording written); every safety invariant checked, PASS/FAIL, soak.json.
+    Soak(soak::SoakArgs),
     /// Micro-timings, printed: collision detection on the organs, the GC cage deformation.
     Timings(timings::TimingsArgs),
     /// Organ collision and tool queries: ours against parry3d-f64 (time, allocations, answers).
@@ -61,6 +66,7 @@ fn main() -> ExitCode {
         Command::Lop(a) => lop::run(a),
         Command::Interaction(a) => interaction::run(a),
         Command::Haptics(a) => haptics::run(a),
+        Command::Soak(a) => soak::run(a),
         Command::Timings(a) => timings::run(a),
         #[cfg(feature = "parry")]
         Command::Collide(a) => parry::run(a),

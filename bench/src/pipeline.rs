@@ -177,15 +177,22 @@ pub struct LopdOptions {
     pub duration: Duration,
     /// Service prefix.
     pub prefix: String,
+    /// More arguments of `lopd run` (`--force-log`, `--record`, `--view`, …).
+    pub extra_args: Vec<String>,
+    /// Where the log goes, kept after a clean stop; `None`: `TMPDIR/PREFIX.lopd.log`, removed
+    /// after a clean stop.
+    pub log: Option<PathBuf>,
 }
 
-/// A running `lopd run`, its output going to a log file that is removed after a clean stop.
+/// A running `lopd run`, its output going to a log file (removed after a clean stop unless
+/// [`LopdOptions::log`] placed it).
 pub struct Lopd {
     guard: ChildGuard,
     /// The service prefix.
     pub prefix: String,
     /// The log of `lopd run` and its children (stdout and stderr).
     pub log: PathBuf,
+    keep_log: bool,
 }
 
 /// How long `lopd run` gets between SIGTERM and SIGKILL (it gives its own children 3 s).
@@ -194,7 +201,10 @@ const LOPD_GRACE: Duration = Duration::from_secs(5);
 impl Lopd {
     /// Starts `lopd run --scene … --device … --duration … --prefix … --quiet`.
     pub fn spawn(opts: &LopdOptions) -> Result<Lopd> {
-        let log = std::env::temp_dir().join(format!("{}.lopd.log", opts.prefix));
+        let log = opts
+            .log
+            .clone()
+            .unwrap_or_else(|| std::env::temp_dir().join(format!("{}.lopd.log", opts.prefix)));
         let out = File::create(&log).with_context(|| format!("creating {}", log.display()))?;
         let err = out.try_clone()?;
         let mut cmd = Command::new(&opts.lopd);
@@ -204,6 +214,7 @@ impl Lopd {
             .args(["--duration", &format!("{:.3}", opts.duration.as_secs_f64())])
             .args(["--prefix", &opts.prefix])
             .arg("--quiet")
+            .args(&opts.extra_args)
             .stdin(Stdio::null())
             .stdout(Stdio::from(out))
             .stderr(Stdio::from(err));
@@ -212,7 +223,13 @@ impl Lopd {
             guard,
             prefix: opts.prefix.clone(),
             log,
+            keep_log: opts.log.is_some(),
         })
+    }
+
+    /// The process id of `lopd run`.
+    pub fn pid(&self) -> u32 {
+        self.guard.id()
     }
 
     /// The last `n` lines of the log, introduced by its path ("end of its log PATH:\n…").
@@ -265,12 +282,14 @@ impl Lopd {
         }
     }
 
-    /// SIGTERM (SIGKILL after 5 s) and wait. A clean exit removes the log; otherwise the error
-    /// names it.
+    /// SIGTERM (SIGKILL after 5 s) and wait. A clean exit removes the log (unless it was
+    /// placed); otherwise the error names it.
     pub fn stop(mut self) -> Result<ExitStatus> {
         match self.guard.stop() {
             Some(s) if s.success() => {
-                let _ = std::fs::remove_file(&self.log);
+                if !self.keep_log {
+                    let _ = std::fs::remove_file(&self.log);
+                }
                 Ok(s)
             }
             Some(s) => bail!("lopd run exited with {s}; {}", self.log_tail(20)),

@@ -310,3 +310,28 @@ fn time_that_does_not_advance_leaves_the_state_alone() {
     let s = d.read(1e12).unwrap();
     assert!(s.is_finite());
 }
+
+#[test]
+fn a_sample_fault_breaks_the_report_not_the_stylus() {
+    let text = "[[waypoint]]\nt = 0.0\nposition = [5.0, 10.0, -3.0]\n\
+                [[fault]]\nfrom = 0.1\nuntil = 0.2\nsample = \"nan\"\n";
+    let script = MockScript::parse(text, Path::new("hand-sample-fault.toml")).unwrap();
+    let run = |script: MockScript| {
+        let mut d = HandDevice::new(script, MockDevice::omni_limits());
+        d.start().unwrap();
+        (1..=300)
+            .map(|i| d.read(i as f64 * 1e-3).unwrap())
+            .collect::<Vec<_>>()
+    };
+    let broken = run(script);
+    let clean = run(MockScript::stationary(INTENT_MM));
+    for (i, (b, c)) in broken.iter().zip(&clean).enumerate() {
+        let t = (i + 1) as f64 * 1e-3;
+        if (0.1..0.2).contains(&t) {
+            assert!(b.position_mm.iter().all(|v| v.is_nan()), "t = {t}: {b:?}");
+        } else {
+            // The stylus moved on as if nothing happened.
+            assert_eq!(b, c, "t = {t}");
+        }
+    }
+}

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use lop_drivers::mock::{MockDevice, MockScript, FORCE_RECORD_CAPACITY};
+use lop_drivers::mock::{MockDevice, MockScript, FORCE_RECORD_CAPACITY, OUT_OF_WORKSPACE_MM};
 use lop_drivers::{DeviceError, HapticDevice, Pacing};
 
 const SCRIPT: &str = r#"
@@ -197,6 +197,43 @@ fn injected_faults_fail_reads_and_writes_in_their_window() {
     assert_eq!(device.rejected_forces(), 0);
     assert!(device.read(1.2).is_ok());
     device.write_force([0.1, 0.0, 0.0]).unwrap();
+}
+
+#[test]
+fn injected_sample_faults_report_broken_samples_in_their_window() {
+    let text = format!(
+        "{SCRIPT}\n[[fault]]\nfrom = 0.5\nuntil = 0.6\nsample = \"nan\"\n\
+         [[fault]]\nfrom = 1.0\nuntil = 1.1\nsample = \"out_of_workspace\"\n"
+    );
+    let script = MockScript::parse(&text, Path::new("sample-faults.toml")).unwrap();
+    assert_eq!(script.faults(), []);
+    assert_eq!(script.sample_faults().len(), 2);
+    let limits = MockDevice::omni_limits();
+    let mut device = MockDevice::new(script.clone(), limits);
+    device.start().unwrap();
+    // Outside the windows: the script, untouched.
+    for t in [0.45, 0.6, 0.95, 1.1] {
+        assert_eq!(device.read(t).unwrap(), script.sample(t), "t = {t}");
+    }
+    // NaN: the read succeeds, the sample is not finite, the buttons are the script's.
+    let nan = device.read(0.55).unwrap();
+    assert!(!nan.is_finite(), "{nan:?}");
+    assert!(nan.position_mm.iter().all(|c| c.is_nan()));
+    assert_eq!(nan.buttons, script.sample(0.55).buttons);
+    // Out of the workspace: finite, far beyond its upper corner on every axis.
+    let out = device.read(1.05).unwrap();
+    assert!(out.is_finite());
+    assert!(!limits.in_workspace(out.position_mm));
+    for k in 0..3 {
+        assert_eq!(
+            out.position_mm[k],
+            limits.workspace_max_mm[k] + OUT_OF_WORKSPACE_MM
+        );
+    }
+    assert_eq!(out.velocity_mm_s, script.sample(1.05).velocity_mm_s);
+    // A broken sample is not a device error: forces are still rendered.
+    device.write_force([0.1, 0.0, 0.0]).unwrap();
+    assert_eq!(device.last_force(), [0.1, 0.0, 0.0]);
 }
 
 #[test]

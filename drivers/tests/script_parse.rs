@@ -324,6 +324,57 @@ fn fault_windows_are_validated() {
 }
 
 #[test]
+fn sample_fault_windows_are_validated() {
+    use lop_drivers::mock::{SampleFault, SampleFaultWindow};
+    let faults = "\n[[fault]]\nfrom = 1.0\nuntil = 1.25\nsample = \"nan\"\n\
+                  [[fault]]\nfrom = 2.0\nsample = \"out_of_workspace\"\n\
+                  [[fault]]\nfrom = 3.0\nerror = \"fault\"\n";
+    let script = parse(&format!("{POKE}{faults}")).unwrap();
+    assert_eq!(
+        script.sample_faults(),
+        [
+            SampleFaultWindow {
+                from: 1.0,
+                until: 1.25,
+                fault: SampleFault::Nan
+            },
+            SampleFaultWindow {
+                from: 2.0,
+                until: f64::INFINITY,
+                fault: SampleFault::OutOfWorkspace
+            },
+        ]
+    );
+    assert_eq!(script.faults().len(), 1);
+    assert_eq!(script.sample_fault_at(0.99), None);
+    assert_eq!(script.sample_fault_at(1.0), Some(SampleFault::Nan));
+    assert_eq!(script.sample_fault_at(1.25), None);
+    assert_eq!(
+        script.sample_fault_at(1e9),
+        Some(SampleFault::OutOfWorkspace)
+    );
+    // The script's own samples stay finite in the windows: the device breaks them.
+    assert!(script.sample(1.1).is_finite());
+
+    let both = "\n[[fault]]\nfrom = 1.0\nerror = \"fault\"\nsample = \"nan\"\n";
+    assert_invalid(&format!("{POKE}{both}"), "fault[0].sample", "\"nan\"");
+    let neither = "\n[[fault]]\nfrom = 1.5\n";
+    let error = parse(&format!("{POKE}{neither}")).unwrap_err();
+    assert!(
+        matches!(&error, ScriptError::Invalid { key, .. } if key == "fault[0]"),
+        "{error}"
+    );
+    assert!(error.to_string().contains("from = 1.5"), "{error}");
+    let window = "\n[[fault]]\nfrom = 2.0\nuntil = nan\nsample = \"nan\"\n";
+    assert_invalid(&format!("{POKE}{window}"), "fault[0].until", "nan");
+    let unknown = "\n[[fault]]\nfrom = 1.0\nsample = \"glitch\"\n";
+    assert!(parse(&format!("{POKE}{unknown}"))
+        .unwrap_err()
+        .to_string()
+        .contains("glitch"));
+}
+
+#[test]
 fn hand_table_overrides_defaults_and_is_validated_by_key() {
     use lop_drivers::hand::HandParameters;
     assert_eq!(parse(POKE).unwrap().hand(), None);

@@ -318,7 +318,8 @@ impl HapticDevice for HandDevice {
         Ok(())
     }
 
-    /// Integrates to `t` under the force last written, then reports the stylus; or the injected
+    /// Integrates to `t` under the force last written, then reports the stylus (broken as a
+    /// sample fault active at `t` says; the stylus itself moves on unharmed); or the injected
     /// device fault active at `t` (the hand keeps moving meanwhile, with no force on it).
     fn read(&mut self, t: f64) -> Result<DeviceSample, DeviceError> {
         self.check_running()?;
@@ -334,7 +335,13 @@ impl HapticDevice for HandDevice {
                 self.force_n = [0.0; 3];
                 Err(fault.error)
             }
-            None => Ok(self.sample()),
+            None => {
+                let sample = self.sample();
+                Ok(match self.script.sample_fault_at(t) {
+                    Some(fault) => fault.apply(sample, &self.limits),
+                    None => sample,
+                })
+            }
         }
     }
 

@@ -157,7 +157,8 @@ impl HapticDevice for MockDevice {
         Ok(())
     }
 
-    /// The script's sample at `t`, or the injected device fault active at `t`.
+    /// The script's sample at `t` (broken as a sample fault active at `t` says), or the injected
+    /// device fault active at `t`.
     fn read(&mut self, t: f64) -> Result<DeviceSample, DeviceError> {
         self.check_running()?;
         self.last_read_t = t;
@@ -168,7 +169,13 @@ impl HapticDevice for MockDevice {
             .find(|fault| fault.contains(t) && !fault.error.is_recoverable());
         match device_fault {
             Some(fault) => Err(fault.error),
-            None => Ok(self.script.sample(t)),
+            None => {
+                let sample = self.script.sample(t);
+                Ok(match self.script.sample_fault_at(t) {
+                    Some(fault) => fault.apply(sample, &self.limits),
+                    None => sample,
+                })
+            }
         }
     }
 

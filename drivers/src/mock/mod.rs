@@ -19,6 +19,6 @@ pub(crate) use device::FORCE_LIMIT_TOLERANCE;
 pub(crate) use record::{write_force_csv, ForceRing};
 pub use record::{ForceEntry, ForceRecord, ForceRecordIter, FORCE_RECORD_CAPACITY};
 pub use script::{
-    resolve_script, FaultWindow, Interpolation, MockScript, ScriptEnd, ScriptError, Waypoint,
-    POSITION_SANITY_MM,
+    resolve_script, FaultWindow, Interpolation, MockScript, SampleFault, SampleFaultWindow,
+    ScriptEnd, ScriptError, Waypoint, OUT_OF_WORKSPACE_MM, POSITION_SANITY_MM,
 };

@@ -16,6 +16,11 @@
 //! until = 2.5              # optional; without it the fault lasts for ever
 //! error = "communication"  # "fault" | "communication" | "force_limit" | "velocity_limit" | "motors_warm"
 //!
+//! [[fault]]                # or a broken sample: the read succeeds but reports garbage
+//! from = 3.0
+//! until = 3.02
+//! sample = "nan"           # "nan" | "out_of_workspace" (instead of `error`)
+//!
 //! [hand]                   # optional: the simulated hand's parameters (`--device hand:SCRIPT`)
 //! hand_stiffness = 150.0   # any of the keys of `HandParameters`, SI units; missing keys keep
 //! hand_damping = 2.0       # their defaults
@@ -24,6 +29,13 @@
 //! The `[hand]` table is for [`crate::hand::HandDevice`], which plays the waypoints as a hand's
 //! intent; the mock, which plays them as the stylus' position, ignores it. It is validated
 //! whoever reads the script, so an unknown key or a bad value fails under either device.
+//!
+//! A `[[fault]]` has either an `error` (the read or the force write fails with that
+//! [`DeviceError`]) or a `sample` ([`SampleFault`]: the read succeeds and reports a sample no
+//! device should, a NaN position or one far outside the workspace — what a glitching encoder or
+//! a cable fault looks like to the haptic loop, which must refuse it and ramp the force down).
+//! The waypoints themselves stay finite and inside the sanity box; [`MockScript::sample`] is
+//! the script alone, and the device applies the sample faults on top.
 //!
 //! Parsing is two-stage: TOML into raw structs with `deny_unknown_fields`, then validation into a
 //! [`MockScript`] whose errors name the file, the key (`waypoint[3].t`) and the bad value. Checks
@@ -35,7 +47,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use crate::device::{DeviceError, DeviceSample, BUTTON_GRAB, BUTTON_HEAT};
+use crate::device::{DeviceError, DeviceLimits, DeviceSample, BUTTON_GRAB, BUTTON_HEAT};
 use crate::hand::{HandParameters, RawHand};
 
 /// Waypoint coordinates must lie within ±this many mm: anything larger is a typo (metres vs mm),
@@ -105,6 +117,56 @@ impl FaultWindow {
     }
 }
 
+/// How a [`SampleFaultWindow`] breaks the samples it covers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SampleFault {
+    /// Position and velocity are NaN.
+    Nan,
+    /// The position is [`OUT_OF_WORKSPACE_MM`] beyond the far corner of the device's workspace
+    /// on every axis (the velocity is the script's).
+    OutOfWorkspace,
+}
+
+/// How far beyond the workspace's upper corner an `out_of_workspace` sample lies, mm on each
+/// axis: well past any slack a loop may give a real device near the edge of its reach.
+pub const OUT_OF_WORKSPACE_MM: f64 = 100.0;
+
+impl SampleFault {
+    /// `sample` as this fault reports it on a device with `limits`.
+    pub fn apply(self, sample: DeviceSample, limits: &DeviceLimits) -> DeviceSample {
+        match self {
+            SampleFault::Nan => DeviceSample {
+                position_mm: [f64::NAN; 3],
+                velocity_mm_s: [f64::NAN; 3],
+                buttons: sample.buttons,
+            },
+            SampleFault::OutOfWorkspace => DeviceSample {
+                position_mm: limits.workspace_max_mm.map(|c| c + OUT_OF_WORKSPACE_MM),
+                ..sample
+            },
+        }
+    }
+}
+
+/// A time window during which the mock's reads succeed but report a broken sample.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SampleFaultWindow {
+    /// Run time (seconds) the fault starts, inclusive.
+    pub from: f64,
+    /// Run time the fault ends, exclusive; `f64::INFINITY` for never.
+    pub until: f64,
+    /// What the samples meanwhile look like.
+    pub fault: SampleFault,
+}
+
+impl SampleFaultWindow {
+    /// Whether the fault is active at run time `t`.
+    pub fn contains(&self, t: f64) -> bool {
+        t >= self.from && t < self.until
+    }
+}
+
 /// Why a script could not be loaded. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum ScriptError {
@@ -156,6 +218,7 @@ pub struct MockScript {
     /// Never empty; `waypoints[0].t == 0`, strictly increasing `t`.
     waypoints: Vec<Waypoint>,
     faults: Vec<FaultWindow>,
+    sample_faults: Vec<SampleFaultWindow>,
     /// The `[hand]` table over the defaults, validated; `None` without one.
     hand: Option<HandParameters>,
 }
@@ -191,7 +254,8 @@ struct RawWaypoint {
 struct RawFault {
     from: f64,
     until: Option<f64>,
-    error: FaultKind,
+    error: Option<FaultKind>,
+    sample: Option<SampleFault>,
 }
 
 #[derive(Clone, Copy, Deserialize)]
@@ -276,6 +340,7 @@ impl MockScript {
                 buttons: 0,
             }],
             faults: Vec::new(),
+            sample_faults: Vec::new(),
             hand: None,
         }
     }
@@ -305,9 +370,23 @@ impl MockScript {
         &self.waypoints
     }
 
-    /// The injected faults, in file order.
+    /// The injected device errors (`[[fault]]` with `error`), in file order.
     pub fn faults(&self) -> &[FaultWindow] {
         &self.faults
+    }
+
+    /// The injected broken samples (`[[fault]]` with `sample`), in file order.
+    pub fn sample_faults(&self) -> &[SampleFaultWindow] {
+        &self.sample_faults
+    }
+
+    /// The sample fault active at run time `t`, if any (the first in file order).
+    /// Allocation-free.
+    pub fn sample_fault_at(&self, t: f64) -> Option<SampleFault> {
+        self.sample_faults
+            .iter()
+            .find(|w| w.contains(t))
+            .map(|w| w.fault)
     }
 
     /// The simulated hand's parameters from the `[hand]` table (defaults for the keys it
@@ -407,12 +486,14 @@ impl Validator<'_> {
         if raw.end == ScriptEnd::Loop {
             self.check_loop_closes(&waypoints)?;
         }
-        let faults = raw
-            .fault
-            .iter()
-            .enumerate()
-            .map(|(i, fault)| self.fault(i, fault))
-            .collect::<Result<_, _>>()?;
+        let mut faults = Vec::new();
+        let mut sample_faults = Vec::new();
+        for (i, fault) in raw.fault.iter().enumerate() {
+            match self.fault(i, fault)? {
+                Fault::Error(w) => faults.push(w),
+                Fault::Sample(w) => sample_faults.push(w),
+            }
+        }
         let name = raw.name.unwrap_or_else(|| {
             self.path
                 .file_stem()
@@ -435,6 +516,7 @@ impl Validator<'_> {
             interpolation: raw.interpolation,
             waypoints,
             faults,
+            sample_faults,
             hand,
         })
     }
@@ -518,7 +600,7 @@ impl Validator<'_> {
         ))
     }
 
-    fn fault(&self, i: usize, raw: &RawFault) -> Result<FaultWindow, ScriptError> {
+    fn fault(&self, i: usize, raw: &RawFault) -> Result<Fault, ScriptError> {
         if !raw.from.is_finite() || raw.from < 0.0 {
             return Err(self.invalid(
                 format!("fault[{i}].from"),
@@ -537,11 +619,44 @@ impl Validator<'_> {
                 ),
             ));
         }
-        Ok(FaultWindow {
-            from: raw.from,
-            until,
-            error: raw.error.into(),
-        })
+        match (raw.error, raw.sample) {
+            (Some(error), None) => Ok(Fault::Error(FaultWindow {
+                from: raw.from,
+                until,
+                error: error.into(),
+            })),
+            (None, Some(fault)) => Ok(Fault::Sample(SampleFaultWindow {
+                from: raw.from,
+                until,
+                fault,
+            })),
+            (Some(_), Some(fault)) => Err(self.invalid(
+                format!("fault[{i}].sample"),
+                format_args!("{:?}", sample_fault_name(fault)),
+                "a fault has either `error` or `sample`, not both".into(),
+            )),
+            (None, None) => Err(self.invalid(
+                format!("fault[{i}]"),
+                format_args!("from = {}", TomlFloat(raw.from)),
+                "needs `error = \"communication\"` (or another device error) or `sample = \"nan\"` \
+                 (or \"out_of_workspace\")"
+                    .into(),
+            )),
+        }
+    }
+}
+
+/// One validated `[[fault]]`.
+enum Fault {
+    Error(FaultWindow),
+    Sample(SampleFaultWindow),
+}
+
+/// A sample fault as the script spells it.
+fn sample_fault_name(fault: SampleFault) -> &'static str {
+    match fault {
+        SampleFault::Nan => "nan",
+        SampleFault::OutOfWorkspace => "out_of_workspace",
     }
 }
 

@@ -1,0 +1,420 @@
+//! The fault plan of a soak: what is injected when, drawn once from a seeded generator before
+//! the run starts, so the same `--seed` and length give the same plan (the pipeline's own timing
+//! still varies from run to run: the plan fixes the injections, not their outcome).
+//!
+//! Times of process, viewer and `lopd ctl` events are seconds after the first frame; broken
+//! device samples are placed in haptic ticks (the mock plays its script on the loop's tick
+//! clock, `t = tick / rate`), so they hit exactly the ticks planned whatever the machine's load.
+//! Each kind of event is spread over the run by cutting its window into as many equal slots as
+//! there are events and drawing one event in each slot, so events of one kind never bunch up
+//! and the run's first and last seconds stay quiet (start-up, and a last recovery before the
+//! checks).
+
+use lop_drivers::mock::SampleFault;
+use serde::Serialize;
+
+/// SplitMix64 (Steele, Lea, Flood 2014): tiny, fast, and good enough to draw a fault plan; a
+/// seed is spread over all 64 bits by the mixer, so seeds 1, 2, 3 give unrelated plans.
+#[derive(Debug, Clone)]
+pub struct Rng(u64);
+
+impl Rng {
+    /// A generator for `seed`.
+    pub fn new(seed: u64) -> Rng {
+        Rng(seed)
+    }
+
+    /// The next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in `[0, 1)`.
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Uniform in `[lo, hi)`.
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+
+    /// Uniform in `0..n` (`n > 0`).
+    pub fn below(&mut self, n: u64) -> u64 {
+        // The modulo bias is below 2^-40 for the small n used here.
+        self.next_u64() % n.max(1)
+    }
+}
+
+/// What is done to the deformation process.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum DeformFault {
+    /// SIGKILL: the supervisor must restart it while the haptic loop ramps the force down on
+    /// the frames that stopped coming.
+    Kill,
+    /// SIGSTOP for `seconds`, then SIGCONT: frozen, its frames go stale.
+    Stop {
+        /// How long it stays stopped.
+        seconds: f64,
+    },
+}
+
+/// A planned deformation-process fault.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct DeformEvent {
+    /// Seconds after the first frame.
+    pub at_s: f64,
+    /// What is done.
+    pub fault: DeformFault,
+}
+
+/// A planned run of broken device samples.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SampleEvent {
+    /// First haptic tick that reads a broken sample.
+    pub first_tick: u64,
+    /// How many consecutive ticks do.
+    pub ticks: u64,
+    /// `nan` or `out_of_workspace`.
+    #[serde(serialize_with = "sample_fault_name")]
+    pub fault: SampleFault,
+}
+
+impl SampleEvent {
+    /// Whether haptic tick `tick` reads a broken sample of this event.
+    pub fn covers(&self, tick: u64) -> bool {
+        tick >= self.first_tick && tick < self.first_tick + self.ticks
+    }
+}
+
+fn sample_fault_name<S: serde::Serializer>(f: &SampleFault, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(match f {
+        SampleFault::Nan => "nan",
+        SampleFault::OutOfWorkspace => "out_of_workspace",
+    })
+}
+
+/// How a viewer session connects.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ViewerKind {
+    /// With the token of the URL the daemon printed: its control requests are answered.
+    Token,
+    /// Without a token: read-only, its control requests refused.
+    NoToken,
+    /// With a wrong token: read-only too.
+    WrongToken,
+    /// From a page of another origin: the handshake is refused (HTTP 403).
+    CrossOrigin,
+}
+
+impl ViewerKind {
+    /// Every kind, in report order.
+    pub const ALL: [ViewerKind; 4] = [
+        ViewerKind::Token,
+        ViewerKind::NoToken,
+        ViewerKind::WrongToken,
+        ViewerKind::CrossOrigin,
+    ];
+
+    /// Report label.
+    pub fn label(self) -> &'static str {
+        match self {
+            ViewerKind::Token => "with the printed token",
+            ViewerKind::NoToken => "without a token",
+            ViewerKind::WrongToken => "with a wrong token",
+            ViewerKind::CrossOrigin => "from another origin",
+        }
+    }
+}
+
+/// A planned viewer session.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ViewerEvent {
+    /// Seconds after the first frame.
+    pub at_s: f64,
+    /// How it connects.
+    pub kind: ViewerKind,
+    /// How long it stays connected, reading, s.
+    pub hold_s: f64,
+    /// Dropped without a WebSocket close (as a crashed browser tab), else closed politely.
+    pub abrupt: bool,
+}
+
+/// A planned burst of `lopd ctl` processes (each its own iceoryx2 node and control client).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CtlEvent {
+    /// Seconds after the first frame.
+    pub at_s: f64,
+}
+
+/// The whole plan.
+#[derive(Debug, Clone, Serialize)]
+pub struct Schedule {
+    /// The seed it was drawn from.
+    pub seed: u64,
+    /// Length of the run after the first frame, s.
+    pub seconds: f64,
+    /// Deformation-process kills and stops, in time order.
+    pub deform: Vec<DeformEvent>,
+    /// Broken device samples, in tick order, never overlapping.
+    pub samples: Vec<SampleEvent>,
+    /// Viewer sessions, in time order.
+    pub viewers: Vec<ViewerEvent>,
+    /// `lopd ctl` bursts, in time order.
+    pub ctl: Vec<CtlEvent>,
+    /// Seed of the control hammer's request sequence.
+    pub hammer_seed: u64,
+}
+
+/// Events per minute of run, and the least of each kind in any run.
+pub mod rates {
+    /// Deformation-process kills per minute of run (at least 1), all in its first half: one
+    /// every 30 s there. The supervisor's back-off is reset after 10 s of healthy running, so
+    /// every kill is restarted after 0.2 s.
+    pub const KILLS: f64 = 1.0;
+    /// Deformation-process stops per minute (at least 1).
+    pub const STOPS: f64 = 1.0;
+    /// Shortest and longest stop, s: beyond the 100 ms stale limit by 3×, up to a hang that
+    /// a user would notice.
+    pub const STOP_S: (f64, f64) = (0.3, 3.0);
+    /// Runs of NaN samples per minute (at least 2).
+    pub const NAN: f64 = 4.0;
+    /// Runs of out-of-workspace samples per minute (at least 2).
+    pub const OUT_OF_WORKSPACE: f64 = 4.0;
+    /// Longest run of broken samples, ticks (a glitch, or a cable that comes loose for 40 ms).
+    pub const SAMPLE_TICKS_MAX: u64 = 40;
+    /// Viewer sessions per minute (at least 4: one of each kind).
+    pub const VIEWERS: f64 = 8.0;
+    /// `lopd ctl` bursts per minute (at least 1).
+    pub const CTL: f64 = 2.0;
+}
+
+/// Seconds after the first frame before the first event: start-up, the first contact.
+const LEAD_S: f64 = 3.0;
+/// Share of the fault window, from its start, in which the kills fall.
+const KILL_SHARE: f64 = 0.5;
+/// Seconds before the end after the last process fault: time to recover (a restarted
+/// deformation process loads the scene again) before the run is stopped and checked.
+const TAIL_S: f64 = 8.0;
+/// The shortest run that fits every kind of event with room to recover.
+pub const MIN_SECONDS: f64 = 20.0;
+
+fn count(per_minute: f64, seconds: f64, least: usize) -> usize {
+    ((per_minute * seconds / 60.0).round() as usize).max(least)
+}
+
+/// `n` times in `[from, to)`, one in each of `n` equal slots, drawn in the first `fill` of the
+/// slot (so consecutive events are at least `(1 − fill)` slots apart).
+fn spread(rng: &mut Rng, n: usize, from: f64, to: f64, fill: f64) -> Vec<f64> {
+    let slot = (to - from) / n.max(1) as f64;
+    (0..n)
+        .map(|i| from + slot * (i as f64 + fill * rng.unit()))
+        .collect()
+}
+
+impl Schedule {
+    /// Draws the plan of a run of `seconds` (≥ [`MIN_SECONDS`]) whose haptic loop ticks at
+    /// `rate_hz`.
+    pub fn draw(seed: u64, seconds: f64, rate_hz: f64) -> Schedule {
+        let mut rng = Rng::new(seed);
+        let end = seconds.max(MIN_SECONDS);
+
+        // Deformation process: kills in the first half of the fault window, so the process
+        // restarted last lives through the second half and its memory can be judged; stops
+        // anywhere. The bench delivers them in time order, a fault waiting while a stop lasts.
+        let kills = count(rates::KILLS, seconds, 1);
+        let stops = count(rates::STOPS, seconds, 1);
+        let mid = LEAD_S + KILL_SHARE * (end - TAIL_S - LEAD_S);
+        let mut deform: Vec<DeformEvent> = spread(&mut rng, kills, LEAD_S, mid, 0.5)
+            .into_iter()
+            .map(|at_s| DeformEvent {
+                at_s,
+                fault: DeformFault::Kill,
+            })
+            .collect();
+        for at_s in spread(&mut rng, stops, LEAD_S, end - TAIL_S, 0.5) {
+            let (lo, hi) = rates::STOP_S;
+            deform.push(DeformEvent {
+                at_s,
+                fault: DeformFault::Stop {
+                    seconds: rng.range(lo, hi),
+                },
+            });
+        }
+        deform.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
+
+        // Broken samples, in ticks: NaN and out-of-workspace runs interleaved in shuffled
+        // order, from 2 s of haptic time to the end of the run (the haptic loop starts before
+        // the first frame, so every planned tick is reached before the bench stops it).
+        let nan = count(rates::NAN, seconds, 2);
+        let out = count(rates::OUT_OF_WORKSPACE, seconds, 2);
+        let mut faults: Vec<SampleFault> = std::iter::repeat_n(SampleFault::Nan, nan)
+            .chain(std::iter::repeat_n(SampleFault::OutOfWorkspace, out))
+            .collect();
+        for i in (1..faults.len()).rev() {
+            let j = rng.below(i as u64 + 1) as usize;
+            faults.swap(i, j);
+        }
+        let first_s = 2.0;
+        let starts = spread(&mut rng, faults.len(), first_s, end, 0.5);
+        let samples = faults
+            .iter()
+            .zip(starts)
+            .map(|(&fault, at_s)| SampleEvent {
+                first_tick: (at_s * rate_hz).round() as u64,
+                ticks: 1 + rng.below(rates::SAMPLE_TICKS_MAX),
+                fault,
+            })
+            .collect();
+
+        // Viewer sessions: one of each kind first (in shuffled order), then any kind.
+        let n = count(rates::VIEWERS, seconds, ViewerKind::ALL.len());
+        let mut kinds: Vec<ViewerKind> = ViewerKind::ALL.to_vec();
+        for i in (1..kinds.len()).rev() {
+            let j = rng.below(i as u64 + 1) as usize;
+            kinds.swap(i, j);
+        }
+        while kinds.len() < n {
+            kinds.push(ViewerKind::ALL[rng.below(ViewerKind::ALL.len() as u64) as usize]);
+        }
+        let times = spread(&mut rng, n, LEAD_S, end - 2.0, 0.5);
+        let viewers = kinds
+            .into_iter()
+            .zip(times)
+            .map(|(kind, at_s)| ViewerEvent {
+                at_s,
+                kind,
+                hold_s: rng.range(0.5, 3.0),
+                abrupt: rng.below(2) == 0,
+            })
+            .collect();
+
+        let n = count(rates::CTL, seconds, 1);
+        let ctl = spread(&mut rng, n, LEAD_S, end - TAIL_S, 0.5)
+            .into_iter()
+            .map(|at_s| CtlEvent { at_s })
+            .collect();
+
+        Schedule {
+            seed,
+            seconds,
+            deform,
+            samples,
+            viewers,
+            ctl,
+            hammer_seed: rng.next_u64(),
+        }
+    }
+
+    /// The mock script's `[[fault]]` window of a sample event: from half a tick before its first
+    /// tick to half a tick before the tick after its last, so rounding `tick / rate` can never
+    /// move a tick in or out.
+    pub fn window_s(event: &SampleEvent, rate_hz: f64) -> (f64, f64) {
+        let from = (event.first_tick as f64 - 0.5) / rate_hz;
+        let until = ((event.first_tick + event.ticks) as f64 - 0.5) / rate_hz;
+        (from.max(0.0), until)
+    }
+
+    /// How many deformation kills are planned.
+    #[cfg(test)]
+    pub fn kills(&self) -> usize {
+        self.deform
+            .iter()
+            .filter(|e| e.fault == DeformFault::Kill)
+            .count()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn same_seed_same_plan_other_seed_other_plan() {
+        let a = Schedule::draw(7, 120.0, 1000.0);
+        let b = Schedule::draw(7, 120.0, 1000.0);
+        assert_eq!(a.deform, b.deform);
+        assert_eq!(a.samples, b.samples);
+        assert_eq!(a.viewers, b.viewers);
+        assert_eq!(a.ctl, b.ctl);
+        assert_eq!(a.hammer_seed, b.hammer_seed);
+        let c = Schedule::draw(8, 120.0, 1000.0);
+        assert_ne!(a.samples, c.samples);
+    }
+
+    #[test]
+    fn a_short_run_still_has_every_kind_inside_its_window() {
+        for seed in 0..50 {
+            let s = Schedule::draw(seed, 30.0, 1000.0);
+            assert!(s.kills() >= 1, "seed {seed}");
+            assert!(s.deform.len() >= 2, "seed {seed}");
+            assert!(s
+                .samples
+                .iter()
+                .any(|e| e.fault == SampleFault::OutOfWorkspace));
+            assert!(s.samples.iter().any(|e| e.fault == SampleFault::Nan));
+            for k in ViewerKind::ALL {
+                assert!(s.viewers.iter().any(|v| v.kind == k), "seed {seed}: {k:?}");
+            }
+            assert!(!s.ctl.is_empty());
+            // Process faults: in order, inside [lead, end − tail], kills in its first half.
+            assert!(
+                s.deform.windows(2).all(|w| w[0].at_s <= w[1].at_s),
+                "seed {seed}"
+            );
+            for e in &s.deform {
+                assert!(e.at_s >= LEAD_S && e.at_s <= 30.0 - TAIL_S, "{e:?}");
+                match e.fault {
+                    DeformFault::Stop { seconds } => {
+                        assert!(seconds >= rates::STOP_S.0 && seconds <= rates::STOP_S.1)
+                    }
+                    DeformFault::Kill => {
+                        assert!(e.at_s <= LEAD_S + KILL_SHARE * (30.0 - TAIL_S - LEAD_S))
+                    }
+                }
+            }
+            // Sample runs: in order, apart, inside the run's ticks.
+            for w in s.samples.windows(2) {
+                assert!(w[0].first_tick + w[0].ticks < w[1].first_tick, "{w:?}");
+            }
+            for e in &s.samples {
+                assert!(e.ticks >= 1 && e.ticks <= rates::SAMPLE_TICKS_MAX);
+                assert!(e.first_tick >= 2000 && e.first_tick + e.ticks <= 30_000);
+            }
+        }
+    }
+
+    #[test]
+    fn counts_follow_the_rates_on_a_long_run() {
+        let s = Schedule::draw(1, 1800.0, 1000.0);
+        assert_eq!(s.kills(), 30);
+        assert_eq!(s.deform.len(), 60);
+        assert_eq!(s.samples.len(), 240);
+        assert_eq!(s.viewers.len(), 240);
+        assert_eq!(s.ctl.len(), 60);
+    }
+
+    #[test]
+    fn the_script_window_holds_exactly_the_planned_ticks() {
+        let e = SampleEvent {
+            first_tick: 12_345,
+            ticks: 3,
+            fault: SampleFault::Nan,
+        };
+        let (from, until) = Schedule::window_s(&e, 1000.0);
+        let hit: Vec<u64> = (12_340..12_350)
+            .filter(|&k| {
+                let t = k as f64 / 1000.0;
+                t >= from && t < until
+            })
+            .collect();
+        assert_eq!(hit, [12_345, 12_346, 12_347]);
+        assert!((12_345..12_350).all(|k| e.covers(k) == (k < 12_348)));
+    }
+}
