@@ -176,3 +176,56 @@ fn damaged_recordings_are_located_errors() {
     assert!(e.to_string().contains("missing.lrec"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A broken sample the device reported (NaN, as `[[fault]] sample = "nan"` plays it) is
+/// recorded with its own status and zeros, so the file stays readable; the replay device
+/// reports it broken again (the loop refuses it as it did live) and the offline trajectory
+/// holds the last good position through it.
+#[test]
+fn broken_samples_are_recorded_and_replayed_as_broken() {
+    let dir = temp_dir("lop-recording-broken");
+    let path = dir.join("nan.lrec");
+    let header = RecordingHeader {
+        rate_hz: 1000.0,
+        limits: limits(),
+        metadata: vec![],
+    };
+    let mut w = RecordingWriter::create(&path, &header).unwrap();
+    for k in 0..10u64 {
+        let mut s = sample(k);
+        if k == 4 {
+            s.position_mm = [f64::NAN; 3];
+        }
+        w.write(&RecordedSample {
+            tick: k,
+            time_ns: k * 1_000_000,
+            sample: s,
+            error: None,
+        })
+        .unwrap();
+    }
+    w.finish().unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let rec = Recording::load(&path).expect("a recording with a broken sample reads");
+    assert!(!rec.records()[4].sample.is_finite());
+    assert!(rec.records()[3].sample.is_finite() && rec.records()[5].sample.is_finite());
+    assert_eq!(
+        rec.sample(0.004),
+        sample(3),
+        "the offline trajectory holds the last good one"
+    );
+    let mut dev = ReplayDevice::new(rec);
+    dev.start().unwrap();
+    let s = dev.read(0.004).unwrap();
+    assert!(!s.is_finite(), "replayed broken: {s:?}");
+    assert!(dev.read(0.005).unwrap().is_finite());
+    // Only the status says broken: NaN bytes under a sample status are damage.
+    let n = bytes.len();
+    let mut damaged = bytes.clone();
+    let record4 = n - 6 * RECORD_BYTES;
+    damaged[record4 + 68..record4 + 72].copy_from_slice(&0u32.to_le_bytes());
+    damaged[record4 + 16..record4 + 24].copy_from_slice(&f64::NAN.to_le_bytes());
+    std::fs::write(&path, &damaged).unwrap();
+    assert!(Recording::load(&path).is_err());
+    let _ = std::fs::remove_dir_all(&dir);
+}

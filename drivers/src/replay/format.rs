@@ -3,6 +3,11 @@
 //! The reader refuses anything it cannot trust and says where: a wrong magic, an unknown
 //! version, a truncated header or record (with its byte offset), a non-finite position, ticks
 //! that do not increase, an unknown status code.
+//!
+//! A device that reported a broken sample (a NaN or infinite position or velocity: the haptic
+//! loop refused it live) is recorded with its own status, [`BROKEN_SAMPLE`], and zeros in place
+//! of the numbers, so the file holds only finite values; the replay device reports such a record
+//! as a non-finite sample again, and the loop refuses it as it did live.
 
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
@@ -105,6 +110,9 @@ pub enum RecordingError {
     },
 }
 
+/// Status code of a record whose sample the device reported broken (not finite).
+pub const BROKEN_SAMPLE: u32 = 9;
+
 /// Status code of a record: 0 = a sample, otherwise the device error.
 fn status_code(error: Option<DeviceError>) -> u32 {
     match error {
@@ -140,6 +148,12 @@ pub fn encode_record(r: &RecordedSample) -> [u8; RECORD_BYTES] {
     let mut b = [0u8; RECORD_BYTES];
     b[0..8].copy_from_slice(&r.tick.to_le_bytes());
     b[8..16].copy_from_slice(&r.time_ns.to_le_bytes());
+    if r.error.is_none() && !r.sample.is_finite() {
+        // Zeros and the broken-sample status (see the module docs).
+        b[64..68].copy_from_slice(&r.sample.buttons.to_le_bytes());
+        b[68..72].copy_from_slice(&BROKEN_SAMPLE.to_le_bytes());
+        return b;
+    }
     for k in 0..3 {
         let o = 16 + 8 * k;
         b[o..o + 8].copy_from_slice(&r.sample.position_mm[k].to_le_bytes());
@@ -364,10 +378,15 @@ impl Recording {
         for (i, b) in body.chunks_exact(RECORD_BYTES).enumerate() {
             let offset = c.at + i * RECORD_BYTES;
             let status = u32::from_le_bytes(b[68..72].try_into().unwrap());
-            let error = error_from_code(status).map_err(|()| {
-                c.invalid(offset + 68, format!("record {i}: unknown status {status}"))
-            })?;
-            let r = RecordedSample {
+            let broken = status == BROKEN_SAMPLE;
+            let error = if broken {
+                None
+            } else {
+                error_from_code(status).map_err(|()| {
+                    c.invalid(offset + 68, format!("record {i}: unknown status {status}"))
+                })?
+            };
+            let mut r = RecordedSample {
                 tick: le_u64(&b[0..8]),
                 time_ns: le_u64(&b[8..16]),
                 sample: DeviceSample {
@@ -385,6 +404,10 @@ impl Recording {
                         r.tick, r.sample.position_mm, r.sample.velocity_mm_s
                     ),
                 ));
+            }
+            if broken {
+                r.sample.position_mm = [f64::NAN; 3];
+                r.sample.velocity_mm_s = [f64::NAN; 3];
             }
             if let Some(prev) = records.last().map(|p: &RecordedSample| p.tick) {
                 if r.tick <= prev {
@@ -447,19 +470,19 @@ impl Recording {
     }
 
     /// The tool's device sample at run time `t` (the recorded position is held through ticks
-    /// that recorded a device error). For offline runs (`lopd simulate --device replay:PATH`).
+    /// that recorded a device error or a broken sample). For offline runs (`lopd simulate --device replay:PATH`).
     pub fn sample(&self, t: f64) -> DeviceSample {
         let Some(r) = self.at(t) else {
             return DeviceSample::default();
         };
-        if r.error.is_none() {
+        if r.error.is_none() && r.sample.is_finite() {
             return r.sample;
         }
         let i = self.records.partition_point(|x| x.tick < r.tick);
         self.records[..i]
             .iter()
             .rev()
-            .find(|x| x.error.is_none())
+            .find(|x| x.error.is_none() && x.sample.is_finite())
             .map_or(DeviceSample::default(), |x| x.sample)
     }
 }
