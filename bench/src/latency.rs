@@ -67,6 +67,10 @@ pub struct LatencyArgs {
     /// The `lopd` binary (default: the `lopd` next to this executable).
     #[arg(long)]
     lopd: Option<PathBuf>,
+    /// A daemon configuration for `lopd run` (e.g. `[haptic] local_model = false` to compare
+    /// the haptic tick without the local model in the same session).
+    #[arg(long)]
+    config: Option<PathBuf>,
     /// Do not run cyclictest beside the pipeline.
     #[arg(long)]
     no_cyclictest: bool,
@@ -195,7 +199,11 @@ pub fn run(a: LatencyArgs) -> Result<()> {
         device: "mock".into(),
         duration: Duration::from_secs_f64(WARMUP_S + a.seconds + BACKSTOP_EXTRA_S),
         prefix: prefix.clone(),
-        extra_args: Vec::new(),
+        extra_args: a
+            .config
+            .iter()
+            .flat_map(|c| ["--config".to_string(), c.display().to_string()])
+            .collect(),
         log: None,
     })?;
     let measured = measure(&mut lopd, &a, period_us, &ct_plan);
