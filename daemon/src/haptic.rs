@@ -314,8 +314,6 @@ pub struct HapticLoop {
     settings: HapticSettings,
     safety: ForceSafety,
     passivity: PassivityController,
-    /// The device tip in the scene at the last healthy tick.
-    last_tip: Option<[f64; 3]>,
     _node: Node<ipc::Service>,
     frames: services::FrameSubscriber,
     index_feed: IndexFeed,
@@ -383,7 +381,6 @@ impl HapticLoop {
                     (2.0 * settings.rate_hz) as u32,
                 ),
             passivity: PassivityController::new(settings.passivity_max_damping),
-            last_tip: None,
             settings,
             _node: node,
             frames,
@@ -583,16 +580,8 @@ impl HapticLoop {
             _ => self.passivity.reset(),
         }
         // The force may follow the tool spring as fast as the device moves (see `safety`).
-        let motion = match (tip, self.last_tip) {
-            (Some(p), Some(q)) if healthy => {
-                let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
-                state.tool_stiffness.max(self.settings.tool.stiffness)
-                    * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
-            }
-            _ => 0.0,
-        };
-        self.last_tip = tip.filter(|_| healthy);
-        let force = self.safety.condition_moving(desired, healthy, motion);
+        let k = state.tool_stiffness.max(self.settings.tool.stiffness);
+        let force = self.safety.condition_moving(desired, healthy, tip, k);
         self.passivity.rendered(force);
         if !healthy {
             state.flags |= TOOL_FLAG_RAMPING;

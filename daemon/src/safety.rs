@@ -29,6 +29,8 @@ pub struct ForceSafety {
     ramp_ticks: u32,
     level: u32,
     last: [f64; 3],
+    /// The device position of the last healthy tick, for the motion allowance.
+    last_device: Option<[f64; 3]>,
     /// Continuous-force limit, N (infinite: none).
     continuous: f64,
     /// Weight of the newest tick in the mean square (1 / averaging ticks).
@@ -54,6 +56,7 @@ impl ForceSafety {
             ramp_ticks: ramp_ticks.max(1),
             level: ramp_ticks.max(1),
             last: [0.0; 3],
+            last_device: None,
             continuous: f64::INFINITY,
             alpha: 0.0,
             mean_square: 0.0,
@@ -86,13 +89,29 @@ impl ForceSafety {
     /// The force to write this tick for the `desired` force. `healthy` is false when the data
     /// behind `desired` cannot be trusted; then `desired` is ignored and the output ramps down.
     pub fn condition(&mut self, desired: [f64; 3], healthy: bool) -> [f64; 3] {
-        self.condition_moving(desired, healthy, 0.0)
+        self.condition_moving(desired, healthy, None, 0.0)
     }
 
-    /// As [`condition`](Self::condition), with `motion` N more step allowed this tick: the
-    /// force change the hand's motion explains (the tool spring's stiffness times the device's
-    /// move since the last tick). Not finite or negative: none; at most the clamp.
-    pub fn condition_moving(&mut self, desired: [f64; 3], healthy: bool, motion: f64) -> [f64; 3] {
+    /// As [`condition`](Self::condition), with the device at `device` (m, any fixed frame;
+    /// `None`: unknown) and a tool spring of `stiffness` N/m: the step allowed this tick grows
+    /// by the force change the hand's motion explains, `stiffness × |device − last healthy
+    /// tick's device|`. Not finite or negative: none; at most the clamp.
+    pub fn condition_moving(
+        &mut self,
+        desired: [f64; 3],
+        healthy: bool,
+        device: Option<[f64; 3]>,
+        stiffness: f64,
+    ) -> [f64; 3] {
+        let moved = match (device, self.last_device) {
+            (Some(p), Some(q)) if healthy => {
+                let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+            }
+            _ => 0.0,
+        };
+        self.last_device = device.filter(|_| healthy);
+        let motion = stiffness * moved;
         let motion = if motion.is_finite() {
             motion.clamp(0.0, self.max_force)
         } else {
@@ -243,9 +262,14 @@ mod tests {
         assert_eq!(s.condition([0.0, 0.3, 0.0], true), [0.0, 0.3, 0.0]);
         // The hand's motion widens the step by what it explains, no more.
         let mut m = s.clone();
-        let f = m.condition_moving([0.0, 0.6, 0.0], true, 0.2);
-        assert!((f[1] - 0.55).abs() < 1e-12, "{f:?}");
-        let f = m.condition_moving([0.0, 0.9, 0.0], true, f64::NAN);
+        let f = m.condition_moving([0.0, 0.3, 0.0], true, Some([0.0; 3]), 1000.0);
+        assert_eq!(f, [0.0, 0.3, 0.0], "no motion known yet");
+        let f = m.condition_moving([0.0, 0.6, 0.0], true, Some([0.0, 0.0, 2e-4]), 1000.0);
+        assert!(
+            (f[1] - 0.55).abs() < 1e-12,
+            "0.2 mm at 1000 N/m: 0.2 N more: {f:?}"
+        );
+        let f = m.condition_moving([0.0, 0.9, 0.0], true, Some([0.0, 0.0, 4e-4]), f64::NAN);
         assert!((f[1] - 0.6).abs() < 1e-12, "{f:?}");
         // Then limited to 0.05 N per tick.
         let f = s.condition([0.0, 1.3, 0.0], true);
