@@ -119,7 +119,6 @@ pub fn run(opts: ClosedLoopOptions) -> Result<ClosedLoopRun> {
     let mut out = Vec::with_capacity(ticks);
     // The coupling the world's last round ran with (its contact report belongs to it).
     let mut stepped_with = probe.coupling();
-    let mut last_tip: Option<[f64; 3]> = None;
     for n in 0..ticks {
         let t = n as f64 * period;
         let sample = device
@@ -156,12 +155,7 @@ pub fn run(opts: ClosedLoopOptions) -> Result<ClosedLoopRun> {
             local_used = used;
         }
         desired = passivity.condition(p.map(|c| c / scale), desired, period);
-        let motion = last_tip.map_or(0.0, |q: [f64; 3]| {
-            let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
-            k.max(settings.tool.stiffness) * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
-        });
-        last_tip = Some(p);
-        let force = safety.condition_moving(desired, true, motion);
+        let force = safety.condition_moving(desired, true, Some(p), k.max(settings.tool.stiffness));
         passivity.rendered(force);
         let device_force = ws.scene_dir_to_device(force);
         device
@@ -256,11 +250,7 @@ pub fn simulate(scene: Scene, script: MockScript, out: &std::path::Path) -> Resu
         csv,
         "t_s,fx_n,fy_n,fz_n,x_mm,y_mm,z_mm,contact,local_model,grip_work_j,tissue_force_n"
     )?;
-    let mut env = 0.0;
-    let mut env_min: f64 = 0.0;
-    for (n, t) in r.ticks.iter().enumerate() {
-        env += port_energy(&r.ticks, n, n + 1);
-        env_min = env_min.min(env);
+    for t in &r.ticks {
         let [fx, fy, fz] = t.force;
         let [x, y, z] = t.stylus.map(|c| c * 1e3);
         writeln!(
@@ -275,6 +265,7 @@ pub fn simulate(scene: Scene, script: MockScript, out: &std::path::Path) -> Resu
     }
     csv.flush()?;
     let norm = |f: [f64; 3]| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
+    let energy = port_energy(&r.ticks);
     let summary = HandSummary {
         scene: name,
         script: script_name,
@@ -283,9 +274,9 @@ pub fn simulate(scene: Scene, script: MockScript, out: &std::path::Path) -> Resu
         contact_ticks: r.ticks.iter().filter(|t| t.contact).count(),
         local_model_ticks: r.ticks.iter().filter(|t| t.local).count(),
         max_force_n: r.ticks.iter().map(|t| norm(t.force)).fold(0.0, f64::max),
-        device_port_min_j: r.ticks.iter().map(|t| t.grip_work).fold(0.0, f64::min) + 0.0,
-        device_port_end_j: r.ticks.last().map_or(0.0, |t| t.grip_work),
-        environment_port_min_j: env_min + 0.0,
+        device_port_min_j: energy.device_min,
+        device_port_end_j: energy.device_end,
+        environment_port_min_j: energy.environment_min,
         passivity_ticks: r.passivity_ticks,
         passivity_dissipated_j: r.dissipated,
     };
@@ -312,18 +303,36 @@ pub fn simulate(scene: Scene, script: MockScript, out: &std::path::Path) -> Resu
     Ok(summary)
 }
 
-/// The energy that flowed into the virtual environment through the device port from tick
-/// `from` to tick `to` (exclusive), J: `Σ −F_{n−1} · (x_n − x_{n−1})` with the force held over
-/// each period. A passive coupling never makes it negative over a cycle that starts and ends
-/// out of contact.
-pub fn port_energy(ticks: &[ClosedLoopTick], from: usize, to: usize) -> f64 {
-    let to = to.min(ticks.len());
-    (from.max(1)..to)
-        .map(|n| {
-            let (a, b) = (&ticks[n - 1], &ticks[n]);
-            -(0..3)
-                .map(|k| a.force[k] * (b.stylus[k] - a.stylus[k]))
-                .sum::<f64>()
-        })
-        .sum()
+/// The energy through the two ports of a run, J (`+ 0.0` on the minima: no −0 in reports).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct PortEnergy {
+    /// Into the rendered environment, `Σ −F_{n−1} · (x_n − x_{n−1})` with the force held over
+    /// each period (what the passivity controller observes): lowest, highest and at the end.
+    pub environment_min: f64,
+    pub environment_max: f64,
+    pub environment_end: f64,
+    /// The work the hand's grip did on the stylus ([`ClosedLoopTick::grip_work`]): lowest and
+    /// at the end. A passive coupling never takes it below zero.
+    pub device_min: f64,
+    pub device_end: f64,
+}
+
+/// The energy through both ports over `ticks` (from the first tick, where both are zero).
+pub fn port_energy(ticks: &[ClosedLoopTick]) -> PortEnergy {
+    let (mut e, mut lo, mut hi) = (0.0, 0.0f64, 0.0f64);
+    for w in ticks.windows(2) {
+        let (a, b) = (&w[0], &w[1]);
+        e -= (0..3)
+            .map(|k| a.force[k] * (b.stylus[k] - a.stylus[k]))
+            .sum::<f64>();
+        lo = lo.min(e);
+        hi = hi.max(e);
+    }
+    PortEnergy {
+        environment_min: lo + 0.0,
+        environment_max: hi,
+        environment_end: e,
+        device_min: ticks.iter().map(|t| t.grip_work).fold(0.0, f64::min) + 0.0,
+        device_end: ticks.last().map_or(0.0, |t| t.grip_work),
+    }
 }

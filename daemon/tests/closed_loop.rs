@@ -57,14 +57,12 @@ fn the_hand_presses_the_default_scene_passively_at_the_stiffness_limit() {
     let t = &r.ticks;
     let contact = t.iter().filter(|t| t.contact).count();
     assert!(contact > 1000, "the poke presses ({contact} ticks)");
-    let hand_min = t.iter().map(|t| t.grip_work).fold(0.0, f64::min);
-    let env = port_energy(t, 0, t.len());
-    let mut env_min: f64 = 0.0;
-    let mut e = 0.0;
-    for n in 1..t.len() {
-        e += port_energy(t, n, n + 1);
-        env_min = env_min.min(e);
-    }
+    let energy = port_energy(t);
+    let (hand_min, env_min, env) = (
+        energy.device_min,
+        energy.environment_min,
+        energy.environment_end,
+    );
     // Held at 2.0–3.0 s: the last half second is steady.
     let held: Vec<f64> = t
         .iter()
@@ -77,7 +75,7 @@ fn the_hand_presses_the_default_scene_passively_at_the_stiffness_limit() {
         "held {mean:.4} N (±{:.2} %), hand work min {hand_min:.3e} J end {:.3e} J, environment \
          min {env_min:.3e} J end {env:.3e} J, passivity controller {} ticks",
         100.0 * spread,
-        t.last().unwrap().grip_work,
+        energy.device_end,
         r.passivity_ticks
     );
     assert!(mean > 0.2, "held force {mean} N");

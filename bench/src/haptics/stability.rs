@@ -303,15 +303,7 @@ fn run_case(
         .map(|t| (norm(t.force) - held_n).abs())
         .fold(0.0, f64::max)
         / held_n.max(1e-12);
-    let mut e = 0.0;
-    let (mut e_min, mut e_max) = (0.0f64, 0.0f64);
-    for n in 1..ticks.len() {
-        e += port_energy(&ticks, n, n + 1);
-        e_min = e_min.min(e);
-        e_max = e_max.max(e);
-    }
-    let hand_min_j = ticks.iter().map(|t| t.grip_work).fold(0.0, f64::min);
-    let hand_end_j = ticks.last().map_or(0.0, |t| t.grip_work);
+    let energy = port_energy(&ticks);
     let k_scene = r.stiffness.first().copied().unwrap_or(tool).max(1e-12);
     let penetration_mm = ticks.iter().map(|t| norm(t.force)).fold(0.0, f64::max) / k_scene * 1e3;
     let run = StabilityRun {
@@ -327,11 +319,11 @@ fn run_case(
         oscillation_max: osc_max,
         oscillation_settle_ms: osc_settle_ms,
         swing,
-        energy_min_j: e_min,
-        energy_end_j: e,
-        energy_max_j: e_max,
-        hand_min_j,
-        hand_end_j,
+        energy_min_j: energy.environment_min,
+        energy_end_j: energy.environment_end,
+        energy_max_j: energy.environment_max,
+        hand_min_j: energy.device_min,
+        hand_end_j: energy.device_end,
         penetration_mm,
         dissipated_j: r.dissipated,
         passivity_ticks: r.passivity_ticks,
