@@ -76,16 +76,13 @@ impl LocalModel {
     /// The force on the tissue with the device at `device`, `elapsed` seconds after the step
     /// (see the module docs); zero once it no longer presses.
     pub fn force_on_tissue(&self, device: [f64; 3], elapsed: f64) -> [f64; 3] {
-        let d = v(device) - v(self.device);
-        let k = &self.stiffness;
-        let kd = DVec3::new(v(k[0]).dot(d), v(k[1]).dot(d), v(k[2]).dot(d));
         let t = if elapsed.is_finite() {
             elapsed.clamp(0.0, self.horizon)
         } else {
             0.0
         };
         let r0 = v(self.force);
-        let r = r0 + kd + v(self.drift) * t;
+        let r = v(self.force_on_tissue_linear(device)) + v(self.drift) * t;
         if r.dot(r0) > 0.0 && r.is_finite() {
             r.to_array()
         } else {
