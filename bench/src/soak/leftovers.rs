@@ -44,23 +44,14 @@ impl Leftovers {
 }
 
 fn processes_of(prefix: &str) -> Vec<(u32, String)> {
-    let Ok(dir) = std::fs::read_dir("/proc") else {
-        return Vec::new();
-    };
-    let mut out = Vec::new();
-    for entry in dir.flatten() {
-        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
-            continue;
-        };
-        let args = cmdline(pid);
-        if args
-            .windows(2)
-            .any(|w| w[0] == "--prefix" && w[1] == prefix)
-        {
-            out.push((pid, args.join(" ")));
-        }
-    }
-    out
+    super::memory::pids()
+        .filter_map(|pid| {
+            let args = cmdline(pid);
+            args.windows(2)
+                .any(|w| w[0] == "--prefix" && w[1] == prefix)
+                .then(|| (pid, args.join(" ")))
+        })
+        .collect()
 }
 
 fn nodes_of(pids: &BTreeSet<u32>) -> Vec<LeftNode> {

@@ -234,23 +234,23 @@ fn role(args: &[String]) -> String {
 
 /// Every process whose parent is `parent`.
 pub fn children(parent: u32) -> Vec<u32> {
-    let Ok(dir) = std::fs::read_dir("/proc") else {
-        return Vec::new();
-    };
-    let mut out = Vec::new();
-    for entry in dir.flatten() {
-        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
-            continue;
-        };
-        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else {
-            continue;
-        };
-        if parent_pid(&stat) == Some(parent) {
-            out.push(pid);
-        }
-    }
+    let mut out: Vec<u32> = pids()
+        .filter(|&pid| {
+            std::fs::read_to_string(format!("/proc/{pid}/stat"))
+                .is_ok_and(|stat| parent_pid(&stat) == Some(parent))
+        })
+        .collect();
     out.sort_unstable();
     out
+}
+
+/// Every process id in `/proc` now (none if it cannot be read).
+pub fn pids() -> impl Iterator<Item = u32> {
+    std::fs::read_dir("/proc")
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(|entry| entry.file_name().to_string_lossy().parse::<u32>().ok())
 }
 
 impl ProcessWatch {
