@@ -289,7 +289,7 @@ pub fn run(a: CollideArgs) -> Result<()> {
     let reps = if a.quick { 20 } else { 300 };
     let scene = shipped_scene("organs")?;
     let (skin, limit) = (scene.collision.skin, scene.collision.depth_limit);
-    let loaded = lop_daemon::scene::load(scene)?;
+    let loaded = lop_scene::load(scene)?;
     let world = loaded.world;
     let rest: Vec<Vec<[f64; 3]>> = world
         .bodies

@@ -333,7 +333,6 @@ mod resolve;
 mod scene;
 mod source;
 mod tissue;
-mod workspace;
 
 pub use daemon::{
     load_daemon_config, parse_daemon_config, DaemonConfig, DeformConfig, DeviceConfig, HapticConfig,
@@ -350,4 +349,8 @@ pub use scene::{
     StartLevel, ToolSpec,
 };
 pub use tissue::{tissue, tissue_names, Tissue, MSD_CALIBRATION, TISSUES};
-pub use workspace::{mat_t_vec, mat_vec, rotation_xyz_deg, Mat3, WorkspaceMap, WorkspaceTransform};
+// The device-to-scene map is physics (the haptic pipeline applies it every tick); the scene
+// schema names it.
+pub use lop_sim::haptic::workspace::{
+    mat_t_vec, mat_vec, rotation_xyz_deg, Mat3, WorkspaceMap, WorkspaceTransform,
+};

@@ -17,7 +17,7 @@ use crate::check::Check;
 use crate::error::ConfigError;
 use crate::raw::RawScene;
 use crate::source::{KeyPath, Source};
-use crate::workspace::WorkspaceMap;
+use crate::WorkspaceMap;
 
 pub use body::{
     BodySpec, CageKind, FemMode, FemParams, GcDynamics, GcParams, HeatParams, Importance,

@@ -31,9 +31,9 @@ use lop_sim::haptic::LocalModel;
 use lop_sim::model::{ModelKind, ToolAnchor};
 use lop_sim::world::{Coupling, World};
 
-use crate::rounds::{Rounds, TickTool};
 use crate::rt;
 use crate::signals;
+use lop_scene::{Rounds, TickTool};
 
 /// A tool state older than this is ignored (the haptic process is gone or restarting), ns.
 const TOOL_STALE_NS: u64 = 100_000_000;

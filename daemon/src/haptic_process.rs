@@ -163,7 +163,8 @@ impl HapticProcessBuilder {
         }
         let limits = device.as_ref_dyn().limits();
         let settings = HapticSettings::new(&config, &scene, limits);
-        let max_ticks = duration.map(|d| (d.as_secs_f64() * settings.rate_hz).round() as u64);
+        let max_ticks =
+            duration.map(|d| (d.as_secs_f64() * settings.pipeline.rate_hz).round() as u64);
         let rt_request = RtRequest {
             core: config.haptic.core.or_else(rt::last_core),
             priority: config.haptic.rt_priority,
@@ -174,20 +175,20 @@ impl HapticProcessBuilder {
         }
         tracing::info!(
             "haptic loop: {} Hz on {}{}, force clamp {:.2} N, stale limit {} ms",
-            settings.rate_hz,
+            settings.pipeline.rate_hz,
             device.as_ref_dyn().name(),
             if pacing == Pacing::DeviceClock {
                 " (the device's servo callback is the clock)"
             } else {
                 ""
             },
-            settings.max_force,
+            settings.pipeline.max_force,
             settings.stale_ns / 1_000_000
         );
         let (mut tap, writer) = match &record {
             Some(path) => {
                 let header = record::header(
-                    settings.rate_hz,
+                    settings.pipeline.rate_hz,
                     limits,
                     &scene.name,
                     &scene.path,
@@ -199,7 +200,7 @@ impl HapticProcessBuilder {
             }
             None => (None, None),
         };
-        let ((tool_tx, tool_rx), (tel_tx, tel_rx)) = haptic::rings();
+        let ((tool_tx, tool_rx), (tel_tx, tel_rx)) = haptic::rings(&settings)?;
         let done = Arc::new(AtomicBool::new(false));
         let publisher = {
             let names = names.clone();

@@ -6,7 +6,6 @@
 
 use std::sync::atomic::AtomicBool;
 
-pub mod closed_loop;
 pub mod control;
 pub mod ctl;
 pub mod deform;
@@ -14,9 +13,7 @@ pub mod doctor;
 pub mod haptic;
 pub mod haptic_process;
 pub mod record;
-pub mod rounds;
 pub mod rt;
-pub mod safety;
 pub mod scene_new;
 pub mod servo;
 pub use lop_ipc::signals;
@@ -24,7 +21,6 @@ pub mod simulate;
 pub mod status;
 pub mod supervisor;
 pub mod tetrahedralize;
-pub mod tool_source;
 
 /// Set once `mlockall` succeeded in this process.
 pub static MEMORY_LOCKED: AtomicBool = AtomicBool::new(false);

@@ -508,7 +508,7 @@ fn cmd_simulate(a: SimulateArgs) -> Result<()> {
                     )))?
                 };
                 tracing::info!("simulated hand following {}", path.display());
-                lop_daemon::closed_loop::simulate(scene, script, &a.out)?;
+                lop_scene::closed_loop::simulate(scene, script, &a.out)?;
                 return Ok(());
             }
             DeviceSpec::Replay { path } => {

@@ -20,9 +20,9 @@ use lop_config::{ForceLaw, Scene};
 use lop_drivers::{
     DeviceError, DeviceLimits, HapticDevice, ServoClock, ServoControl, ServoEnd, ServoRun,
 };
-use lop_ipc::{HapticTelemetry, ServiceNames, ToolState};
+use lop_ipc::{ServiceNames, ToolState};
 
-use crate::haptic::{HapticLoop, HapticSettings, HapticSummary};
+use crate::haptic::{HapticLoop, HapticSettings, HapticSummary, TelemetryTx};
 use crate::record::{RecordTap, Recorded};
 use crate::rt;
 
@@ -31,7 +31,7 @@ struct Setup {
     names: ServiceNames,
     settings: HapticSettings,
     tool_ring: rtrb::Producer<ToolState>,
-    telemetry_ring: rtrb::Producer<HapticTelemetry>,
+    telemetry_ring: TelemetryTx,
     core: Option<usize>,
 }
 
@@ -62,7 +62,7 @@ impl<'a> ServoTask<'a> {
         stop: &'a AtomicBool,
         max_ticks: Option<u64>,
         tool_ring: rtrb::Producer<ToolState>,
-        telemetry_ring: rtrb::Producer<HapticTelemetry>,
+        telemetry_ring: TelemetryTx,
         record: Option<&'a mut RecordTap>,
     ) -> ServoTask<'a> {
         ServoTask {

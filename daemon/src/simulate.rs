@@ -7,7 +7,7 @@
 //! heat), each round to the earliest next step time of the bodies still running, so every
 //! body due then takes one step. A mock script (`--script`, or a recording with `--device
 //! replay:PATH`) moves the device on simulated time and a god-object decides the contact, as
-//! the haptic loop does live (`lop_sim::haptic::WorldProbe`), with the tool law the device
+//! the haptic loop does live (`lop_scene::OfflineSession`), with the tool law the device
 //! would render (`lop_scene::ToolLaws`, clamped to the mock's or the recording's stiffness
 //! limit); so a run is deterministic and can be compared bit for bit. `--static` solves the static equilibrium of the
 //! FEM bodies (K u = f) instead, for validation and calibration.
@@ -19,15 +19,12 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use lop_config::Scene;
 use lop_drivers::{BUTTON_GRAB, BUTTON_HEAT};
-use lop_scene::{DeviceClamp, ToolLaws};
-use lop_sim::haptic::WorldProbe;
+use lop_scene::session::RoundInput;
+use lop_scene::{DeviceClamp, OfflineSession, ToolLaws, ToolSource};
 use lop_sim::lop::SwitchReason;
 use lop_sim::mesh::{write_vtk, TetMesh};
 use lop_sim::model::Model;
 use serde::Serialize;
-
-use crate::rounds::{Rounds, TickTool};
-use crate::tool_source::ToolSource;
 
 /// Options of `lopd simulate`.
 pub struct SimulateOptions {
@@ -155,44 +152,37 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
     } else {
         // Round by round, as the deformation process runs them: each round advances every body
         // due at the earliest next step time, after the god-object has moved (with a script).
-        let mut probe = script
-            .as_ref()
-            .map(|_| WorldProbe::new(&world, laws.tool.radius));
-        let mut rounds = Rounds::offline(laws);
+        let mut session = OfflineSession::new(world, laws);
         let mut active: Vec<bool> = vec![opts.steps > 0; n_bodies];
         let mut skip: Vec<bool> = vec![false; n_bodies];
         loop {
+            let bodies = &session.world().bodies;
             let next = (0..n_bodies)
                 .filter(|&i| active[i])
-                .map(|i| world.bodies[i].time + world.bodies[i].model.dt())
+                .map(|i| bodies[i].time + bodies[i].model.dt())
                 .min_by(f64::total_cmp);
             let Some(next) = next else {
                 break;
             };
             let now = (0..n_bodies)
                 .filter(|&i| active[i])
-                .map(|i| world.bodies[i].time)
+                .map(|i| bodies[i].time)
                 .fold(f64::INFINITY, f64::min);
-            let tool = match (probe.as_mut(), script.as_ref()) {
-                (Some(p), Some(s)) => {
-                    let sample = s.sample(now);
-                    let at = workspace.device_to_scene(sample.position_mm);
-                    p.tick(&world, at, sample.pressed(BUTTON_GRAB));
-                    Some(TickTool {
-                        center: at,
-                        coupling: p.coupling(),
-                        heat: sample.pressed(BUTTON_HEAT),
-                        stiffness: None,
-                    })
+            let tool = script.as_ref().map(|s| {
+                let sample = s.sample(now);
+                let at = workspace.device_to_scene(sample.position_mm);
+                session.probe(at, sample.pressed(BUTTON_GRAB));
+                RoundInput {
+                    center: at,
+                    heat: sample.pressed(BUTTON_HEAT),
+                    stiffness: None,
                 }
-                _ => None,
-            };
+            });
             for (s, a) in skip.iter_mut().zip(&active) {
                 *s = !a;
             }
-            rounds.advance(&mut world, next, tool.as_ref(), &skip, false, || {
-                wall.elapsed().as_nanos() as u64
-            });
+            session.advance(next, tool, &skip, || wall.elapsed().as_nanos() as u64);
+            let world = session.world();
             let report = world.last_round();
             for (i, r) in report.bodies.iter().enumerate() {
                 if r.steps == 0 {
@@ -237,6 +227,7 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
                 }
             }
         }
+        world = session.into_world();
     }
     csv.flush()?;
 

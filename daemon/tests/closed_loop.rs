@@ -1,4 +1,4 @@
-//! The closed loop (`lop_daemon::closed_loop`): the simulated hand holding the stylus, the haptic
+//! The closed loop (`lop_scene::closed_loop`): the simulated hand holding the stylus, the haptic
 //! loop's force and the deformation rounds on simulated time.
 //!
 //! - The default poke on the default scene, at the device's nominal maximum stiffness: the
@@ -11,8 +11,8 @@
 use std::path::Path;
 
 use lop_config::{load_scene, DaemonConfig, Scene};
-use lop_daemon::closed_loop::{port_energy, run, ClosedLoopOptions, ClosedLoopRun};
 use lop_drivers::mock::{MockDevice, MockScript};
+use lop_scene::closed_loop::{port_energy, run, ClosedLoopOptions, ClosedLoopRun};
 
 fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))

@@ -29,10 +29,14 @@ fn a_broken_or_missing_local_model_and_a_stopped_deformation_give_a_finite_rampe
     device.start().unwrap();
     let config = DaemonConfig::default();
     let settings = HapticSettings::new(&config, &scene_file, device.limits());
-    let (clamp, stale_ns, ramp) = (settings.max_force, settings.stale_ns, settings.ramp_ticks);
+    let (clamp, stale_ns, ramp) = (
+        settings.pipeline.max_force,
+        settings.stale_ns,
+        settings.pipeline.ramp_ticks,
+    );
     let loaded = scene::load(scene_file).unwrap();
     let deform = DeformSide::new("lmfault-deform", &names, &loaded);
-    let ((tool_tx, mut tool_rx), (tel_tx, mut tel_rx)) = rings();
+    let ((tool_tx, mut tool_rx), (tel_tx, mut tel_rx)) = rings(&settings).unwrap();
     let mut hl = HapticLoop::new(&names, settings, tool_tx, tel_tx).unwrap();
     deform.publish_topology();
     let mut seq = 0;
@@ -40,7 +44,7 @@ fn a_broken_or_missing_local_model_and_a_stopped_deformation_give_a_finite_rampe
         let now = clock::monotonic_ns() + late_ns;
         let out = hl.tick(device, now, now);
         while tool_rx.pop().is_ok() {}
-        while tel_rx.pop().is_ok() {}
+        while tel_rx.pop().is_some() {}
         let f = out.state.force;
         assert!(f.iter().all(|c| c.is_finite()), "force {f:?}");
         assert!(

@@ -5,11 +5,11 @@
 
 use std::path::PathBuf;
 
-use lop_daemon::rounds::{Rounds, TickTool};
 use lop_daemon::simulate::{self, SimulateOptions};
 use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::{BUTTON_GRAB, BUTTON_HEAT};
 use lop_scene::{DeviceClamp, ToolLaws};
+use lop_scene::{Rounds, TickTool};
 use lop_sim::haptic::WorldProbe;
 use lop_sim::world::Coupling;
 

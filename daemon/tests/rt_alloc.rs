@@ -8,7 +8,7 @@ mod common;
 
 use common::DeformSide;
 use lop_config::{load_scene, resolve_scene, resolve_script, DaemonConfig};
-use lop_daemon::haptic::{rings, HapticLoop, HapticSettings};
+use lop_daemon::haptic::{rings, HapticLoop, HapticSettings, IndexSlot};
 use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::HapticDevice;
 use lop_ipc::*;
@@ -27,12 +27,12 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
     let mut device = MockDevice::new(script, MockDevice::omni_limits());
     device.start().unwrap();
     let settings = HapticSettings::new(&DaemonConfig::default(), &scene_file, device.limits());
-    let hl_tool_stiffness = settings.tool.stiffness;
+    let hl_tool_stiffness = settings.pipeline.tool.stiffness;
     let loaded = scene::load(scene_file).unwrap();
 
     // The deformation side, played by this test: topology once, frames as the loop runs.
     let deform = DeformSide::new("rtalloc-deform", &names, &loaded);
-    let ((tool_tx, mut tool_rx), (tel_tx, mut tel_rx)) = rings();
+    let ((tool_tx, mut tool_rx), (tel_tx, mut tel_rx)) = rings(&settings).unwrap();
     let mut hl = HapticLoop::new(&names, settings, tool_tx, tel_tx).unwrap();
 
     deform.publish_topology();
@@ -100,14 +100,16 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
         last_device = Some(p);
         last_state = Some(out.state);
         while tool_rx.pop().is_ok() {}
-        while tel_rx.pop().is_ok() {}
+        while tel_rx.pop().is_some() {}
     }
     let allocations = allocations();
+    let frees = alloc::deallocations();
     assert!(
         contact_ticks > 500,
         "the poke must exercise the contact path ({contact_ticks})"
     );
     assert_eq!(allocations, 0, "heap allocations on the haptic tick");
+    assert_eq!(frees, 0, "heap frees on the haptic tick");
     assert!(
         local_ticks > 100,
         "the frames' local model must be rendered ({local_ticks} ticks)"
@@ -120,4 +122,40 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
     // The counter does see allocations (the test can fail).
     counted(|| std::hint::black_box(vec![1u8; 16]));
     assert!(alloc::allocations() > 0);
+}
+
+/// The contact index handover when the return ring is full (the helper thread that frees
+/// retired indices has fallen behind): the tick keeps the retired index and retries, and
+/// neither allocates nor frees.
+#[test]
+fn a_full_return_ring_neither_allocates_nor_frees_on_the_tick() {
+    let (mut tx, mut rx) = rtrb::RingBuffer::<Box<Vec<u8>>>::new(4);
+    let (mut back, mut freed) = rtrb::RingBuffer::<Box<Vec<u8>>>::new(1);
+    let mut slot = IndexSlot::default();
+    tx.push(Box::new(vec![1; 64])).unwrap();
+    slot.take_newest(&mut rx, &mut back);
+    back.push(Box::new(vec![0; 64])).unwrap();
+    for k in 2..4u8 {
+        tx.push(Box::new(vec![k; 64])).unwrap();
+    }
+    let before = (allocations(), alloc::deallocations());
+    for _ in 0..100 {
+        counted(|| slot.take_newest(&mut rx, &mut back));
+    }
+    assert_eq!(
+        (allocations(), alloc::deallocations()),
+        before,
+        "the handover allocated or freed"
+    );
+    assert_eq!(slot.current().map(|v| v[0]), Some(2), "3 waits for room");
+    // Room again: everything retired comes back to be freed, the newest is in use.
+    let mut returned = Vec::new();
+    for _ in 0..4 {
+        while let Ok(v) = freed.pop() {
+            returned.push(v[0]);
+        }
+        slot.take_newest(&mut rx, &mut back);
+    }
+    assert_eq!(returned, vec![0, 1, 2]);
+    assert_eq!(slot.current().map(|v| v[0]), Some(3));
 }

@@ -86,7 +86,7 @@ fn servo_path_allocates_nothing_after_the_first_callback() {
     let publish_topology = || deform.publish_topology();
     let publish_frame = |seq: u64| deform.publish_frame(seq);
 
-    let ((tool_tx, mut tool_rx), (tel_tx, mut tel_rx)) = rings();
+    let ((tool_tx, mut tool_rx), (tel_tx, mut tel_rx)) = rings(&settings).unwrap();
     let header = lop_daemon::record::header(
         1000.0,
         device.limits(),
@@ -130,7 +130,7 @@ fn servo_path_allocates_nothing_after_the_first_callback() {
                     contact_ticks += 1;
                 }
             }
-            while tel_rx.pop().is_ok() {}
+            while tel_rx.pop().is_some() {}
             std::thread::sleep(std::time::Duration::from_millis(10));
         }
         servo.join().unwrap()

@@ -5,7 +5,10 @@
 //!
 //! The haptic loop, the deformation process, `lopd simulate` and every benchmark build their
 //! scene here, so they see the same bodies in the same order and the tissue receives the same
-//! spring the hand feels.
+//! spring the hand feels. The haptic pipeline's settings come from here too
+//! ([`pipeline_settings`]), and so does the one offline path: the rounds both `lopd deform` and
+//! `lopd simulate` run ([`Rounds`]), the [`OfflineSession`] every offline run and benchmark
+//! steps, and the closed loop with the simulated hand ([`closed_loop`]).
 
 use anyhow::{Context, Result};
 use lop_config::{BodySpec, MassSpec, ModelPin, Scene, ToolSpec};
@@ -20,8 +23,15 @@ use lop_sim::model::Model;
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 use lop_sim::world::World;
 
+pub mod closed_loop;
+mod haptic;
 mod place;
+mod rounds;
+pub mod session;
+pub use haptic::pipeline_settings;
 pub use place::{node_selector, place_bodies, place_body};
+pub use rounds::{Rounds, TickTool, MAX_CATCH_UP};
+pub use session::{OfflineSession, ToolSource};
 
 /// A loaded scene: the world and its topology.
 pub struct LoadedScene {
@@ -113,6 +123,17 @@ pub struct ToolLaws {
 }
 
 impl ToolLaws {
+    /// One `law` against each of `bodies` bodies, no damping, no cautery: a world built by
+    /// hand (the benchmarks' blocks).
+    pub fn uniform(law: ToolSphere, bodies: usize) -> ToolLaws {
+        ToolLaws {
+            tool: law,
+            bodies: vec![law; bodies],
+            damping: 0.0,
+            heat_power: 0.0,
+        }
+    }
+
     /// The laws of `scene` on a device that renders at most `clamp`.
     pub fn new(scene: &Scene, clamp: DeviceClamp) -> ToolLaws {
         let m = clamp.max_stiffness_n_per_mm;

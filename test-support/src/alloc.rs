@@ -24,7 +24,9 @@
 //! allocation instead, for the readers' bounded-memory tests.
 //!
 //! An allocation is one call of `alloc`, `alloc_zeroed` or `realloc`; its bytes are the size
-//! asked for (the new size for `realloc`). `dealloc` is not counted.
+//! asked for (the new size for `realloc`). Calls of `dealloc` are counted apart
+//! ([`deallocations`]): freeing can take the allocator's locks too, so a real-time path must
+//! not free either.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -66,6 +68,7 @@ impl Counting {
 
 static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
 static BYTES: AtomicU64 = AtomicU64::new(0);
+static DEALLOCATIONS: AtomicU64 = AtomicU64::new(0);
 
 thread_local! {
     static ARMED: Cell<bool> = const { Cell::new(false) };
@@ -93,6 +96,10 @@ unsafe impl GlobalAlloc for Counting {
     }
 
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        let armed = ARMED.try_with(Cell::get).unwrap_or(false);
+        if armed || self.every_thread {
+            DEALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
         unsafe { System.dealloc(ptr, layout) }
     }
 }
@@ -157,6 +164,13 @@ fn thread_counts() -> Counts {
 pub fn reset() {
     ALLOCATIONS.store(0, Ordering::Relaxed);
     BYTES.store(0, Ordering::Relaxed);
+    DEALLOCATIONS.store(0, Ordering::Relaxed);
+}
+
+/// Process-wide calls of `dealloc` counted since the last [`reset`] (armed threads, or every
+/// thread with [`Counting::every_thread`]).
+pub fn deallocations() -> u64 {
+    DEALLOCATIONS.load(Ordering::Relaxed)
 }
 
 /// Process-wide allocations counted since the last [`reset`].

@@ -34,11 +34,12 @@ use anyhow::{bail, Context, Result};
 use glam::DVec3;
 use lop_config::ModelPin;
 use lop_drivers::mock::MockDevice;
-use lop_scene::{DeviceClamp, ToolLaws};
+use lop_scene::session::RoundInput;
+use lop_scene::{DeviceClamp, OfflineSession, ToolLaws};
 use lop_sim::contact::ToolSphere;
-use lop_sim::haptic::{hand_force, WorldProbe};
+use lop_sim::haptic::hand_force;
 use lop_sim::mesh::TetMesh;
-use lop_sim::world::{Round, RoundTool, World};
+use lop_sim::world::World;
 use serde::Serialize;
 
 use super::reference::{closest_bary, vertex_normal, Contact, ContactReference, Material, Penalty};
@@ -237,7 +238,7 @@ struct Held {
 
 /// Presses `world`'s body 0 along `−normal` at `contact`, holding at each of `depths`.
 fn press_in_steps(
-    world: &mut World,
+    world: World,
     law: ToolSphere,
     contact: [f64; 3],
     normal: [f64; 3],
@@ -245,8 +246,7 @@ fn press_in_steps(
 ) -> Result<(Vec<Tick>, Vec<Held>)> {
     let (c, n) = (v(contact), v(normal));
     let r = law.radius;
-    let laws = [law];
-    let mut probe = WorldProbe::new(world, r);
+    let mut session = OfflineSession::new(world, ToolLaws::uniform(law, 1));
     let start = c + n * (r + START_GAP);
     let mut travel = 0.0;
     let mut ticks = Vec::new();
@@ -262,7 +262,7 @@ fn press_in_steps(
             travel += SPEED * TICK;
         }
         let device = (start - n * travel).to_array();
-        let state = probe.tick(world, device, false);
+        let state = session.probe(device, false);
         let force = hand_force(&state, law.law, law.stiffness, 0.0, [0.0; 3]);
         let depth = r - (v(state.proxy) - c).dot(n);
         ticks.push(Tick {
@@ -272,13 +272,7 @@ fn press_in_steps(
             step,
             holding,
         });
-        let tool = RoundTool {
-            center: device,
-            laws: &laws,
-            coupling: probe.coupling(),
-            heat_power: 0.0,
-        };
-        world.round(&Round::to(t, u32::MAX).with_tool(Some(tool)), || 0);
+        session.advance(t, Some(RoundInput::at(device)), &[], || 0);
         if !holding && depth >= depths[step] {
             holding = true;
             hold_start = t;
@@ -324,7 +318,7 @@ fn press_in_steps(
 /// Runs part 2.
 pub fn run(quick: bool, out: &Path) -> Result<LiverReport> {
     let Liver {
-        mut world,
+        world,
         mesh,
         law,
         material,
@@ -409,7 +403,7 @@ pub fn run(quick: bool, out: &Path) -> Result<LiverReport> {
     let penalty = Penalty::Stiffness(PENALTY_FACTOR * reference.point_stiffness());
     let setup_s = t0.elapsed().as_secs_f64();
     let t0 = Instant::now();
-    let (ticks, held) = press_in_steps(&mut world, law, contact, normal, depths)?;
+    let (ticks, held) = press_in_steps(world, law, contact, normal, depths)?;
     let press_s = t0.elapsed().as_secs_f64();
     let n = v(normal);
     let allowance = face_allowance(&mesh, node, r);

@@ -18,7 +18,7 @@
 //! node (`reference.rs`: face samples). Target: within 10 % at every hold.
 //!
 //! Part 3, **stability** (`stability.rs`): the simulated hand presses the liver through the
-//! closed loop (`lop_daemon::closed_loop`) across tool stiffness (up to four times the device's
+//! closed loop (`lop_scene::closed_loop`) across tool stiffness (up to four times the device's
 //! nominal maximum) × tissue (1–100 kPa) × two hands × the passivity controller off and on:
 //! the force's oscillation after contact onset and the energy at the device port. Targets: on
 //! the default scene at the device's maximum the oscillation is within 2 % of the held force

@@ -11,11 +11,13 @@
 //! runs at the haptic rate, as in `lopd`).
 
 use anyhow::{Context, Result};
+use lop_scene::session::RoundInput;
+use lop_scene::{OfflineSession, ToolLaws};
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::{Fem, FemMode, FemParameters};
-use lop_sim::haptic::{hand_force, WorldProbe};
+use lop_sim::haptic::hand_force;
 use lop_sim::model::Model;
-use lop_sim::world::{Round, RoundTool, World};
+use lop_sim::world::World;
 
 use super::block::{Block, CONTACT};
 
@@ -150,13 +152,13 @@ pub fn press(block: &Block, setup: &Setup, plan: &PressPlan) -> Result<Press> {
     let fem = Fem::new(&block.mesh, params).context("building the FEM block")?;
     let mut world = World::new([0.0; 3]);
     world.add_model("block", block.mesh.clone(), Model::Fem(fem));
-    let laws = [ToolSphere {
+    let law = ToolSphere {
         center: [0.0; 3],
         radius: setup.radius,
         stiffness: setup.tool_stiffness,
         law: ForceLaw::Linear,
-    }];
-    let mut probe = WorldProbe::new(&world, setup.radius);
+    };
+    let mut session = OfflineSession::new(world, ToolLaws::uniform(law, 1));
     let tilt = plan.tilt_deg.to_radians();
     let dir = [tilt.sin(), 0.0, -tilt.cos()];
     // The path passes through the point a radius above the contact, starting start_gap higher.
@@ -176,7 +178,7 @@ pub fn press(block: &Block, setup: &Setup, plan: &PressPlan) -> Result<Press> {
             travel += plan.speed * TICK;
         }
         let device = [0, 1, 2].map(|c| start[c] + travel * dir[c]);
-        let state = probe.tick(&world, device, false);
+        let state = session.probe(device, false);
         let force = hand_force(
             &state,
             ForceLaw::Linear,
@@ -191,13 +193,7 @@ pub fn press(block: &Block, setup: &Setup, plan: &PressPlan) -> Result<Press> {
             force,
             phase,
         });
-        let tool = RoundTool {
-            center: device,
-            laws: &laws,
-            coupling: probe.coupling(),
-            heat_power: 0.0,
-        };
-        world.round(&Round::to(t, u32::MAX).with_tool(Some(tool)), || 0);
+        session.advance(t, Some(RoundInput::at(device)), &[], || 0);
         match phase {
             Phase::Descend if depth >= plan.hold_depth => {
                 phase = Phase::Hold;

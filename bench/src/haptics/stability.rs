@@ -1,6 +1,6 @@
 //! Part 3 of `lop-bench haptics`: **stability** of the coupling between a hand and the tissue.
 //!
-//! The closed loop (`lop_daemon::closed_loop`: the simulated hand holding the stylus, the
+//! The closed loop (`lop_scene::closed_loop`: the simulated hand holding the stylus, the
 //! haptic loop's god-object, local model, passivity controller and safety, and the
 //! deformation rounds, on simulated time) runs a brisk press on the `abdomen` scene's liver:
 //! the hand's intent rests 15 mm (device) out, comes to 1 mm off the surface, pushes 5 mm
@@ -29,9 +29,10 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use lop_config::{load_scene, DaemonConfig, Scene};
-use lop_daemon::closed_loop::{port_energy, run, ClosedLoopOptions, ClosedLoopTick};
 use lop_drivers::hand::HandParameters;
 use lop_drivers::mock::{MockDevice, MockScript};
+use lop_scene::closed_loop::{port_energy, run, ClosedLoopOptions};
+use lop_scene::session::TickRecord;
 use serde::Serialize;
 
 use crate::models::workspace_root;
@@ -229,7 +230,7 @@ fn run_case(
     young: f64,
     tool: f64,
     passivity: bool,
-) -> Result<(StabilityRun, Vec<ClosedLoopTick>)> {
+) -> Result<(StabilityRun, Vec<TickRecord>)> {
     let scene = scene_with(base, young, tool)?;
     let scale = scene.workspace.scale;
     let stylus_n_per_mm = tool * 1e-3 * scale;
@@ -258,7 +259,7 @@ fn run_case(
     let held_n = held.iter().sum::<f64>() / held.len().max(1) as f64;
     let onset = ticks.iter().position(|t| t.contact && t.t > 0.2);
     let onset_s = onset.map_or(f64::NAN, |i| ticks[i].t);
-    let in_hold = |t: &ClosedLoopTick| t.t >= onset_s && t.t < T_HOLD_END;
+    let in_hold = |t: &TickRecord| t.t >= onset_s && t.t < T_HOLD_END;
     let magnitudes: Vec<f64> = ticks.iter().map(|t| norm(t.force)).collect();
     let osc = oscillation(&magnitudes, TREND_HALF);
     let osc_max = ticks
@@ -416,8 +417,9 @@ pub fn run_map(quick: bool, out: &Path) -> Result<StabilityReport> {
     );
     let mut runs = Vec::new();
     let mut nominal_trace = Vec::new();
-    let mut csv = String::from(
-        "grip,young_pa,stylus_n_per_mm,passivity,t_s,fx_n,fy_n,fz_n,x_mm,y_mm,z_mm,contact,local,grip_work_j\n",
+    let mut csv = format!(
+        "grip,young_pa,stylus_n_per_mm,passivity,{}\n",
+        TickRecord::CSV_HEADER
     );
     for &grip in grips {
         for &young in &youngs {
@@ -445,18 +447,14 @@ pub fn run_map(quick: bool, out: &Path) -> Result<StabilityReport> {
                         r.passivity_ticks,
                     );
                     for t in &ticks {
-                        let [fx, fy, fz] = t.force;
-                        let [x, y, z] = t.stylus.map(|c| c * 1e3);
-                        writeln!(
+                        write!(
                             csv,
-                            "{grip:?},{young},{:.4},{},{:.4},{fx:.6e},{fy:.6e},{fz:.6e},{x:.6},{y:.6},{z:.6},{},{},{:.6e}",
+                            "{grip:?},{young},{:.4},{},",
                             r.stylus_n_per_mm,
-                            u8::from(passivity),
-                            t.t,
-                            u8::from(t.contact),
-                            u8::from(t.local),
-                            t.grip_work,
+                            u8::from(passivity)
                         )?;
+                        t.write_csv(&mut csv)?;
+                        csv.push('\n');
                     }
                     if grip == Grip::Firm && young == nominal_young && factor == 1.0 && passivity {
                         nominal_trace = ticks;
@@ -576,7 +574,7 @@ pub fn run_map(quick: bool, out: &Path) -> Result<StabilityReport> {
 fn plot(
     out: &Path,
     runs: &[StabilityRun],
-    nominal: &[ClosedLoopTick],
+    nominal: &[TickRecord],
     grips: &[Grip],
     youngs: &[f64],
 ) -> Result<()> {

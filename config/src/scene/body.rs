@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use serde::Deserialize;
 
-use crate::workspace::{mat_vec, rotation_xyz_deg};
+use crate::{mat_vec, rotation_xyz_deg};
 
 /// How much a body matters: decides its precise model when touched (thesis §4.4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]

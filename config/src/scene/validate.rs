@@ -7,7 +7,7 @@ use crate::check::Check;
 use crate::error::ConfigError;
 use crate::raw::{RawCollision, RawDevice, RawHeat, RawLop, RawRates, RawTool, RawWorkspace};
 use crate::source::KeyPath;
-use crate::workspace::WorkspaceMap;
+use crate::WorkspaceMap;
 
 use super::{CollisionSpec, DeviceDefaults, ForceLaw, HeatSpec, LopSpec, Rates, ToolSpec};
 

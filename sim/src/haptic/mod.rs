@@ -18,12 +18,20 @@ mod god;
 mod local;
 mod offline;
 mod passivity;
+mod pipeline;
+pub mod safety;
 mod surface;
 mod sweep;
+pub mod workspace;
 
 pub use god::{hand_force, law_magnitude, Anchor, GodObject, GodState};
 pub use local::{contact_force, FreeMotion, LocalModel};
-pub use offline::WorldProbe;
+pub use offline::{WorldProbe, WorldSurfaces};
 pub use passivity::{PassivityController, RESET_AFTER_S};
+pub use pipeline::{
+    ContactSurfaces, DeviceReading, HapticPipeline, PipelineSettings, Stage, TickOutput,
+    WORKSPACE_SLACK_MM,
+};
+pub use safety::ForceSafety;
 pub use surface::{Closest, QueryStats, SurfaceSet};
 pub use sweep::{sweep_sphere_triangle, Impact};

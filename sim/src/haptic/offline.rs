@@ -1,7 +1,11 @@
 //! The god-object over a [`World`] in one process: what the haptic loop does against published
-//! frames, for `lopd simulate`, benchmarks and tests.
+//! frames, for `lopd simulate`, benchmarks and tests; and the same world as the
+//! [`ContactSurfaces`] a [`HapticPipeline`](super::HapticPipeline) renders against offline
+//! ([`WorldProbe::contact_surfaces`]).
 
 use super::god::{GodObject, GodState};
+use super::local::LocalModel;
+use super::pipeline::ContactSurfaces;
 use super::surface::SurfaceSet;
 use crate::model::ToolAnchor;
 use crate::world::{Coupling, World};
@@ -75,7 +79,14 @@ impl WorldProbe {
     pub fn tick(&mut self, world: &World, device: [f64; 3], grab: bool) -> GodState {
         self.sync(world);
         let s = self.god.update(&mut self.set, device, grab);
-        self.coupling = Coupling::GodObject(s.anchor.map(|a| {
+        self.follow(Some(&s));
+        s
+    }
+
+    /// Keeps the coupling of a god-object state (`None`: the god-object did not move, so it
+    /// touches nothing).
+    pub fn follow(&mut self, state: Option<&GodState>) {
+        self.coupling = Coupling::GodObject(state.and_then(|s| s.anchor).map(|a| {
             let local = a.triangle - self.set.body_triangles(a.body).start;
             (
                 a.body,
@@ -83,10 +94,50 @@ impl WorldProbe {
                     triangle: local as u32,
                     bary: a.bary,
                     offset: a.offset,
-                    grab: s.grabbing,
+                    grab: state.is_some_and(|s| s.grabbing),
                 },
             )
         }));
-        s
+    }
+
+    /// `world` as the surfaces a haptic pipeline renders against, with `local` the local model
+    /// of the patch the world's last round balanced (`World::contact_local`) taken `elapsed`
+    /// seconds after that step. After the tick, pass the god-object's state to
+    /// [`follow`](Self::follow).
+    pub fn contact_surfaces<'a>(
+        &'a mut self,
+        world: &'a World,
+        local: Option<(usize, LocalModel)>,
+        elapsed: f64,
+    ) -> WorldSurfaces<'a> {
+        WorldSurfaces {
+            probe: self,
+            world,
+            local,
+            elapsed,
+        }
+    }
+}
+
+/// A world seen by a haptic pipeline ([`WorldProbe::contact_surfaces`]).
+pub struct WorldSurfaces<'a> {
+    probe: &'a mut WorldProbe,
+    world: &'a World,
+    local: Option<(usize, LocalModel)>,
+    elapsed: f64,
+}
+
+impl ContactSurfaces for WorldSurfaces<'_> {
+    fn refresh(&mut self, _tip: Option<[f64; 3]>) -> bool {
+        self.probe.sync(self.world);
+        true
+    }
+
+    fn god_object(&mut self) -> Option<(&mut GodObject, &mut SurfaceSet)> {
+        Some((&mut self.probe.god, &mut self.probe.set))
+    }
+
+    fn local_model(&self) -> Option<(usize, LocalModel, f64)> {
+        self.local.map(|(b, m)| (b, m, self.elapsed))
     }
 }

@@ -1,5 +1,6 @@
 //! The last stage before the device: every force leaving the haptic loop passes through
-//! [`ForceSafety`], which enforces DESIGN.md's safety invariants 1 and 2.
+//! [`ForceSafety`], which enforces the first two of lop's safety invariants (README § Safety):
+//! every force is finite and clamped, and bad data ramps it to zero.
 //!
 //! - The output is always finite and its magnitude never exceeds the clamp.
 //! - While the input is unhealthy (stale frame, NaN, device fault) the force ramps linearly to

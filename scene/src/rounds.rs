@@ -1,13 +1,13 @@
-//! The deformation side's rounds, shared by `lopd deform` (on the wall clock) and `lopd
-//! simulate` (on simulated time): the tool as the haptic side resolved it ([`TickTool`]) and
-//! the scene's tool laws become one [`lop_sim::world::World::round`]. Nothing else advances a
-//! world in the daemon.
+//! The deformation side's rounds, shared by `lopd deform` (on the wall clock) and every offline
+//! run ([`OfflineSession`](crate::OfflineSession), on simulated time): the tool as the haptic
+//! side resolved it ([`TickTool`]) and the scene's tool laws become one
+//! [`lop_sim::world::World::round`]. Nothing else advances a world.
 //!
-//! The two callers differ only in where the tool comes from (the haptic loop's tool state, or a
-//! script through an offline god-object) and in the catch-up policy ([`Rounds::live`] drops
-//! the lag of a body that cannot keep up with the wall clock; [`Rounds::offline`] never does).
+//! The callers differ only in where the tool comes from (the haptic loop's tool state, or an
+//! offline god-object) and in the catch-up policy ([`Rounds::live`] drops the lag of a body
+//! that cannot keep up with the wall clock; [`Rounds::offline`] never does).
 
-use lop_scene::ToolLaws;
+use crate::ToolLaws;
 use lop_sim::contact::ToolSphere;
 use lop_sim::world::{Coupling, Round, RoundTool, World};
 

@@ -1,6 +1,6 @@
-//! The haptic loop and the deformation rounds coupled in one process on simulated time, with
-//! the simulated hand holding the stylus: what `lopd run --device hand` does, without shared
-//! memory or the wall clock, so that a press can be replayed deterministically and the
+//! The haptic pipeline and the deformation rounds coupled in one process on simulated time,
+//! with the simulated hand holding the stylus: what `lopd run --device hand` does, without
+//! shared memory or the wall clock, so that a press can be replayed deterministically and the
 //! coupling's stability measured (`lopd simulate --device hand[:SCRIPT]`, `lop-bench haptics`
 //! part 3, and the tests).
 //!
@@ -8,14 +8,12 @@
 //!
 //! 1. the hand device is read at `t` (it integrates the hand and the stylus at 10 kHz under the
 //!    force written the tick before);
-//! 2. the god-object moves against the world as its last round left it (`WorldProbe`: the
-//!    surfaces, and the proxy resting where the patch balanced);
-//! 3. the force on the hand is the frame's local model when it has one, the force law on the
-//!    god-object's gap otherwise ([`lop_sim::haptic::contact_force`]), then the passivity
-//!    controller at the device port and the loop's safety (clamp, rate limit: [`ForceSafety`]),
-//!    all as [`crate::haptic`] does with the same settings ([`HapticSettings`]);
-//! 4. the force is written to the device;
-//! 5. the world runs its round to `t + T` with this tick's tool ([`Rounds::offline`]).
+//! 2. the live loop's own [`HapticPipeline`], with the same settings
+//!    ([`pipeline_settings`](crate::pipeline_settings)), renders against the world as its last
+//!    round left it ([`OfflineSession::surfaces`]: the surfaces, the proxy resting where the
+//!    patch balanced, the patch's local model);
+//! 3. the force is written to the device;
+//! 4. the world runs its round to `t + T` with this tick's tool ([`OfflineSession::advance`]).
 //!
 //! So a frame is one tick old when the hand feels it, and the local model extrapolates over
 //! that tick: the live loop's frame age is 0.5–1.4 ms (`lop-bench latency`). Everything that
@@ -26,12 +24,10 @@ use lop_config::{DaemonConfig, Scene};
 use lop_drivers::hand::{HandDevice, HandParameters};
 use lop_drivers::mock::MockScript;
 use lop_drivers::{DeviceLimits, HapticDevice, BUTTON_GRAB, BUTTON_HEAT};
-use lop_scene::{DeviceClamp, ToolLaws};
-use lop_sim::haptic::{contact_force, PassivityController, WorldProbe};
+use lop_sim::haptic::{DeviceReading, HapticPipeline};
 
-use crate::haptic::HapticSettings;
-use crate::rounds::{Rounds, TickTool};
-use crate::safety::ForceSafety;
+use crate::session::{OfflineSession, RoundInput, TickRecord};
+use crate::{DeviceClamp, ToolLaws};
 
 /// What to run.
 #[derive(Debug, Clone)]
@@ -50,32 +46,11 @@ pub struct ClosedLoopOptions {
     pub seconds: f64,
 }
 
-/// One tick of the run, in the device's frame (metres, newtons).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ClosedLoopTick {
-    /// Simulated time, s.
-    pub t: f64,
-    /// The stylus tip, device frame, m.
-    pub stylus: [f64; 3],
-    /// The force rendered on the hand this tick, device frame, N.
-    pub force: [f64; 3],
-    /// The god-object touched a body.
-    pub contact: bool,
-    /// The force came from the frame's local model.
-    pub local: bool,
-    /// The work the hand's grip has done on the stylus since the start, J
-    /// ([`HandDevice::grip_work`]).
-    pub grip_work: f64,
-    /// The force's magnitude on the tissue the step balanced (the touched body's last
-    /// contact report), N.
-    pub tissue_force: f64,
-}
-
 /// A run's ticks and the passivity controller's account.
 #[derive(Debug, Clone)]
 pub struct ClosedLoopRun {
     /// Every tick.
-    pub ticks: Vec<ClosedLoopTick>,
+    pub ticks: Vec<TickRecord>,
     /// Energy the passivity controller dissipated, J.
     pub dissipated: f64,
     /// Ticks on which it acted.
@@ -86,7 +61,7 @@ pub struct ClosedLoopRun {
 
 /// Runs the closed loop (see the module docs).
 pub fn run(opts: ClosedLoopOptions) -> Result<ClosedLoopRun> {
-    let settings = HapticSettings::new(&opts.config, &opts.scene, opts.limits);
+    let settings = crate::pipeline_settings(&opts.config, &opts.scene, &opts.limits);
     let laws = ToolLaws::new(
         &opts.scene,
         DeviceClamp {
@@ -101,91 +76,50 @@ pub fn run(opts: ClosedLoopOptions) -> Result<ClosedLoopRun> {
     device
         .start()
         .map_err(|e| anyhow::anyhow!("starting the hand device: {e}"))?;
-    let loaded = lop_scene::load(opts.scene.clone())?;
-    let mut world = loaded.world;
-    let mut probe = WorldProbe::new(&world, settings.tool.radius);
-    let mut rounds = Rounds::offline(laws);
-    let mut safety = ForceSafety::new(settings.max_force, settings.max_step, settings.ramp_ticks)
-        .with_continuous(
-            settings.limits.max_continuous_force_n,
-            (2.0 * settings.rate_hz) as u32,
-        );
-    let mut passivity = PassivityController::new(settings.passivity_max_damping);
-    let period = 1.0 / settings.rate_hz;
+    let loaded = crate::load(opts.scene.clone())?;
+    let mut session = OfflineSession::new(loaded.world, laws);
+    let period = settings.period();
     let ticks = (opts.seconds / period).round() as usize;
-    let skip = vec![false; world.bodies.len()];
-    let ws = settings.workspace;
-    let scale = ws.scale;
+    let stiffness = settings.body_stiffness.clone();
+    let mut pipeline = HapticPipeline::new(settings);
     let mut out = Vec::with_capacity(ticks);
-    // The coupling the world's last round ran with (its contact report belongs to it).
-    let mut stepped_with = probe.coupling();
+    // Stage timings on a counter: the run stays deterministic.
+    let mut clock = 0u64;
     for n in 0..ticks {
         let t = n as f64 * period;
         let sample = device
             .read(t)
             .map_err(|e| anyhow::anyhow!("hand device at {t} s: {e}"))?;
-        let p = ws.device_to_scene(sample.position_mm);
-        let g = probe.tick(&world, p, sample.pressed(BUTTON_GRAB));
-        let mut desired = [0.0; 3];
-        let mut local_used = false;
-        let mut k = settings.tool.stiffness;
-        if let Some(a) = g.anchor {
-            k = settings
-                .body_stiffness
-                .get(a.body)
-                .copied()
-                .unwrap_or(settings.tool.stiffness);
-            let local = world
-                .contact_local(stepped_with)
-                .filter(|_| settings.local_model);
-            let vel = ws
-                .device_dir_to_scene(sample.velocity_mm_s)
-                .map(|c| c * 1e-3 * scale);
-            let (f, used) = contact_force(
-                &g,
-                local.as_ref().map(|(b, m)| (*b, m)),
-                period,
-                p,
-                settings.tool.law,
-                k,
-                settings.damping,
-                vel,
-            );
-            desired = f;
-            local_used = used;
-        }
-        desired = passivity.condition(p.map(|c| c / scale), desired, period);
-        let force = safety.condition_moving(desired, true, Some(p), k.max(settings.tool.stiffness));
-        passivity.rendered(force);
-        let device_force = ws.scene_dir_to_device(force);
+        let reading = DeviceReading {
+            position_mm: sample.position_mm,
+            velocity_mm_s: sample.velocity_mm_s,
+            grab: sample.pressed(BUTTON_GRAB),
+        };
+        // The frame the hand feels is the last round's, one tick old.
+        let mut surfaces = session.surfaces(period);
+        let tick = pipeline.tick(Some(reading), true, &mut surfaces, || {
+            clock += 1;
+            clock
+        });
+        session.follow(tick.god.as_ref());
         device
-            .write_force(device_force)
-            .map_err(|e| anyhow::anyhow!("hand device refused {device_force:?} N: {e}"))?;
-        let tissue_force = g
-            .anchor
-            .and_then(|a| world.bodies.get(a.body))
-            .map_or(0.0, |b| {
-                let f = b.last_contact.force_on_tissue;
-                (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
-            });
-        out.push(ClosedLoopTick {
+            .write_force(tick.device_force)
+            .map_err(|e| anyhow::anyhow!("hand device refused {:?} N: {e}", tick.device_force))?;
+        out.push(TickRecord {
             t,
             stylus: sample.position_mm.map(|c| c * 1e-3),
-            force: device_force,
-            contact: g.anchor.is_some(),
-            local: local_used,
+            force: tick.device_force,
+            contact: tick.anchor().is_some(),
+            local: tick.local,
             grip_work: device.grip_work(),
-            tissue_force,
+            tissue_force: session.tissue_force(tick.god.as_ref()),
         });
-        stepped_with = probe.coupling();
-        let tool = TickTool {
-            center: p,
-            coupling: stepped_with,
+        let tool = tick.tip.map(|center| RoundInput {
+            center,
             heat: sample.pressed(BUTTON_HEAT),
-            stiffness: g.anchor.map(|_| k),
-        };
-        let mut clock = 0u64;
-        rounds.advance(&mut world, t + period, Some(&tool), &skip, false, || {
+            stiffness: tick.anchor().map(|_| tick.stiffness),
+        });
+        session.advance(t + period, tool, &[], || {
             clock += 1;
             clock
         });
@@ -193,9 +127,9 @@ pub fn run(opts: ClosedLoopOptions) -> Result<ClosedLoopRun> {
     device.stop();
     Ok(ClosedLoopRun {
         ticks: out,
-        dissipated: passivity.dissipated(),
-        passivity_ticks: passivity.active_ticks(),
-        stiffness: settings.body_stiffness.clone(),
+        dissipated: pipeline.passivity().dissipated(),
+        passivity_ticks: pipeline.passivity().active_ticks(),
+        stiffness,
     })
 }
 
@@ -246,22 +180,12 @@ pub fn simulate(scene: Scene, script: MockScript, out: &std::path::Path) -> Resu
         std::fs::File::create(&csv_path)
             .with_context(|| format!("creating {}", csv_path.display()))?,
     );
-    writeln!(
-        csv,
-        "t_s,fx_n,fy_n,fz_n,x_mm,y_mm,z_mm,contact,local_model,grip_work_j,tissue_force_n"
-    )?;
+    writeln!(csv, "{}", TickRecord::CSV_HEADER)?;
+    let mut row = String::new();
     for t in &r.ticks {
-        let [fx, fy, fz] = t.force;
-        let [x, y, z] = t.stylus.map(|c| c * 1e3);
-        writeln!(
-            csv,
-            "{:.4},{fx:.6e},{fy:.6e},{fz:.6e},{x:.6},{y:.6},{z:.6},{},{},{:.6e},{:.6e}",
-            t.t,
-            u8::from(t.contact),
-            u8::from(t.local),
-            t.grip_work,
-            t.tissue_force
-        )?;
+        row.clear();
+        t.write_csv(&mut row)?;
+        writeln!(csv, "{row}")?;
     }
     csv.flush()?;
     let norm = |f: [f64; 3]| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
@@ -311,14 +235,14 @@ pub struct PortEnergy {
     pub environment_min: f64,
     pub environment_max: f64,
     pub environment_end: f64,
-    /// The work the hand's grip did on the stylus ([`ClosedLoopTick::grip_work`]): lowest and
+    /// The work the hand's grip did on the stylus ([`TickRecord::grip_work`]): lowest and
     /// at the end. A passive coupling never takes it below zero.
     pub device_min: f64,
     pub device_end: f64,
 }
 
 /// The energy through both ports over `ticks` (from the first tick, where both are zero).
-pub fn port_energy(ticks: &[ClosedLoopTick]) -> PortEnergy {
+pub fn port_energy(ticks: &[TickRecord]) -> PortEnergy {
     let (mut e, mut lo, mut hi) = (0.0, 0.0f64, 0.0f64);
     for w in ticks.windows(2) {
         let (a, b) = (&w[0], &w[1]);

@@ -1,0 +1,494 @@
+//! `lopd haptic`: the hard-real-time 1 kHz loop that owns the device.
+//!
+//! Life of the process, copper-style: `new` (allocate everything: iceoryx2 ports, histograms,
+//! rings) → `start` (lock memory, pin, `SCHED_FIFO`, pre-fault the stack) → `tick` × N (no
+//! allocation, no lock, no formatting; the only syscalls are the deadline sleep and the device)
+//! → stop (zero force first, on every path, panics included).
+//!
+//! One tick: read the device → take the newest contact index and frame → the haptic pipeline
+//! ([`lop_sim::haptic::HapticPipeline`]: validate, the newest surface around the tool, the
+//! god-object, the force from the frame's local model or the force law, passivity, safety —
+//! the same value the offline closed loop drives) → write the device → the tool state to the
+//! blackboard (for `lopd deform`, which applies the opposite force to the tissue at the
+//! god-object's anchor) and to a lock-free ring (drained by a normal thread that publishes
+//! `PREFIX/tool` for viewers) → timing into preallocated histograms. This module is the
+//! pipeline's live adapter: shared memory, the deadline and the statistics.
+//!
+//! The surfaces' index (adjacency, hierarchies, the god-object's buffers) is sized by the
+//! topology, so it is built off the RT thread: a helper thread subscribes to the topology,
+//! builds the index for each new one and hands it over through a lock-free ring; the RT thread
+//! swaps it in and hands the old one back to be freed there. A new frame only refreshes the
+//! positions (copied from shared memory, no allocation).
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use iceoryx2::port::writer::EntryHandleMut;
+use iceoryx2::prelude::*;
+use lop_config::{DaemonConfig, Scene};
+use lop_drivers::{DeviceLimits, HapticDevice};
+use lop_ipc::services::{self, Role, ToolBoard};
+use lop_ipc::*;
+use lop_sim::haptic::{DeviceReading, HapticPipeline, PipelineSettings};
+
+use crate::rt;
+
+mod index;
+mod telemetry;
+
+pub use index::{frame_local, IndexSlot};
+use index::{ContactIndex, FrameSample, IndexFeed, LiveSurfaces};
+use telemetry::{telemetry, COMPUTE, FRAME_AGE, FRAME_AGE_CONTACT, JITTER};
+pub use telemetry::{TelemetryRx, TelemetryTx, TelemetryWindow};
+
+/// Tool states the ring to the publisher thread holds: 0.5 s at 1 kHz.
+const TOOL_RING: usize = 512;
+
+/// Everything the loop needs that is decided before it starts.
+#[derive(Debug, Clone)]
+pub struct HapticSettings {
+    /// The tick itself ([`lop_scene::pipeline_settings`]).
+    pub pipeline: PipelineSettings,
+    /// Frames older than this ramp the force to zero, ns.
+    pub stale_ns: u64,
+    /// Busy-wait before each deadline, ns.
+    pub spin_ns: u64,
+}
+
+impl HapticSettings {
+    /// Derives the settings from the daemon config, the scene and the device.
+    pub fn new(config: &DaemonConfig, scene: &Scene, limits: DeviceLimits) -> HapticSettings {
+        let h = &config.haptic;
+        HapticSettings {
+            pipeline: lop_scene::pipeline_settings(config, scene, &limits),
+            stale_ns: (h.stale_frame_ms * 1e6) as u64,
+            spin_ns: (h.spin_us * 1e3) as u64,
+        }
+    }
+
+    /// Tick period, ns.
+    pub fn period_ns(&self) -> u64 {
+        (1e9 / self.pipeline.rate_hz).round() as u64
+    }
+}
+
+/// The haptic loop's state. Built on the RT thread (iceoryx2 ports are not `Send`).
+pub struct HapticLoop {
+    settings: HapticSettings,
+    /// The tick itself: validate, surface, god-object, force, passivity, safety.
+    pipeline: HapticPipeline,
+    _node: Node<ipc::Service>,
+    frames: services::FrameSubscriber,
+    index_feed: IndexFeed,
+    index: IndexSlot<ContactIndex>,
+    _board: ToolBoard,
+    _writer: iceoryx2::port::writer::Writer<ipc::Service, u32>,
+    tool_entry: EntryHandleMut<ipc::Service, u32, ToolState>,
+    frame: Option<FrameSample>,
+    tool_ring: rtrb::Producer<ToolState>,
+    telemetry: TelemetryTx,
+    tick: u64,
+    overruns: u64,
+    stale_ticks: u64,
+    device_faults: u64,
+    ring_drops: u64,
+    rt_flags: u32,
+    pinned_core: i32,
+    window_start_ns: u64,
+    window_start_tick: u64,
+    telemetry_every: u64,
+}
+
+/// What a tick hands back to the caller (for the pacing loop and tests).
+#[derive(Debug, Clone, Copy)]
+pub struct TickOutcome {
+    /// The state published this tick.
+    pub state: ToolState,
+    /// A device error that makes continuing unsafe.
+    pub fatal: Option<lop_drivers::DeviceError>,
+}
+
+impl HapticLoop {
+    /// Creates the ports and buffers. Call on the thread that will run the ticks.
+    pub fn new(
+        names: &ServiceNames,
+        settings: HapticSettings,
+        tool_ring: rtrb::Producer<ToolState>,
+        telemetry: TelemetryTx,
+    ) -> Result<HapticLoop> {
+        let node = services::node("lopd-haptic-rt")?;
+        services::cleanup_dead_nodes(&node);
+        let frame_service = services::frame_service(&node, names, Role::Owner)?;
+        let frames = frame_service
+            .subscriber_builder()
+            .buffer_size(2)
+            .create()
+            .context("frame subscriber")?;
+        let index_feed = IndexFeed::start(names, settings.pipeline.tool.radius)?;
+        let board = services::tool_board_owner(&node, names)?;
+        let writer = board
+            .writer_builder()
+            .create()
+            .context("tool blackboard writer (is another lopd haptic running with this prefix?)")?;
+        let tool_entry = writer
+            .entry::<ToolState>(&services::TOOL_LATEST_KEY)
+            .context("tool blackboard entry")?;
+        let rate = settings.pipeline.rate_hz.round() as u64;
+        Ok(HapticLoop {
+            pipeline: HapticPipeline::new(settings.pipeline.clone()),
+            settings,
+            _node: node,
+            frames,
+            index_feed,
+            index: IndexSlot::default(),
+            _board: board,
+            _writer: writer,
+            tool_entry,
+            frame: None,
+            tool_ring,
+            telemetry,
+            tick: 0,
+            overruns: 0,
+            stale_ticks: 0,
+            device_faults: 0,
+            ring_drops: 0,
+            rt_flags: 0,
+            pinned_core: -1,
+            window_start_ns: rt::now_ns(),
+            window_start_tick: 0,
+            telemetry_every: (rate / 4).max(1),
+        })
+    }
+
+    /// Records which real-time privileges the loop got (for telemetry).
+    pub fn set_rt_state(&mut self, flags: u32, pinned_core: i32) {
+        self.rt_flags = flags;
+        self.pinned_core = pinned_core;
+    }
+
+    /// Counts a missed deadline.
+    pub fn count_overrun(&mut self) {
+        self.overruns += 1;
+    }
+
+    /// Whether the contact index of a topology has arrived from its thread (until then the
+    /// loop renders no contact).
+    pub fn contact_ready(&self) -> bool {
+        self.index.is_ready()
+    }
+
+    /// Ticks run so far.
+    pub fn ticks(&self) -> u64 {
+        self.tick
+    }
+
+    /// Tool states dropped because the publisher thread fell behind.
+    pub fn ring_drops(&self) -> u64 {
+        self.ring_drops
+    }
+
+    /// One haptic tick. `wake_ns` is when the loop woke, `deadline_ns` when it should have.
+    /// Allocation-free.
+    pub fn tick(
+        &mut self,
+        device: &mut dyn HapticDevice,
+        wake_ns: u64,
+        deadline_ns: u64,
+    ) -> TickOutcome {
+        let t = self.tick as f64 / self.settings.pipeline.rate_hz;
+        let mut state = ToolState {
+            contract_version: CONTRACT_VERSION,
+            sequence: self.tick,
+            stamp_ns: wake_ns,
+            tool_radius: self.settings.pipeline.tool.radius,
+            contact_body: -1,
+            ..Default::default()
+        };
+        let mut fatal = None;
+
+        // 1. Read the device.
+        let sample = match device.read(t) {
+            Ok(s) => Some(s),
+            Err(e) => {
+                if !e.is_recoverable() {
+                    fatal = Some(e);
+                }
+                None
+            }
+        };
+
+        // 2. Take the newest contact index and frame. Receiving never allocates; a retired
+        // index goes back to its thread to be freed.
+        self.index
+            .take_newest(&mut self.index_feed.rx, &mut self.index_feed.back);
+        while let Ok(Some(s)) = self.frames.receive() {
+            self.frame = Some(s);
+        }
+        let frame_age = match &self.frame {
+            Some(f) => wake_ns.saturating_sub(f.user_header().publish_ns),
+            None => u64::MAX,
+        };
+        let fresh = frame_age <= self.settings.stale_ns;
+        if fresh {
+            self.telemetry.record(FRAME_AGE, frame_age);
+        } else {
+            self.stale_ticks += 1;
+            state.flags |= TOOL_FLAG_STALE_FRAME;
+        }
+
+        // 3. The pipeline: validate, surface, god-object, force, passivity, safety.
+        let reading = sample.map(|s| DeviceReading {
+            position_mm: s.position_mm,
+            velocity_mm_s: s.velocity_mm_s,
+            grab: s.pressed(lop_drivers::BUTTON_GRAB),
+        });
+        let topology_id = self.index.current().map_or(0, |ix| ix.topology_id);
+        let mut surfaces = LiveSurfaces {
+            index: self.index.current(),
+            frame: self.frame.as_ref(),
+            local_model: self.settings.pipeline.local_model,
+            wake_ns,
+        };
+        let out = self
+            .pipeline
+            .tick(reading, fresh, &mut surfaces, rt::now_ns);
+        if !out.valid {
+            self.device_faults += 1;
+            state.flags |= TOOL_FLAG_DEVICE_ERROR;
+        }
+        if let (Some(s), Some(p)) = (sample.filter(|_| out.valid), out.tip) {
+            state.device_position = p;
+            state.proxy_position = p;
+            state.buttons = s.buttons;
+            if let Some(g) = out.god {
+                state.proxy_position = g.proxy;
+                state.topology_id = topology_id;
+            }
+            if let Some(a) = out.anchor() {
+                // The proxy stays the god-object's (the deformation process gathers the patch
+                // around it, as offline).
+                state.tool_stiffness = out.stiffness;
+                state.contact_body = a.body as i32;
+                state.contact_triangle = a.triangle as u32;
+                state.contact_barycentric = a.bary;
+                if out.pressing() {
+                    state.flags |= TOOL_FLAG_CONTACT;
+                }
+                if out.grabbing() {
+                    state.flags |= TOOL_FLAG_GRAB;
+                }
+                if s.pressed(lop_drivers::BUTTON_HEAT) {
+                    state.flags |= TOOL_FLAG_HEAT;
+                }
+                if out.local {
+                    state.flags |= TOOL_FLAG_LOCAL_MODEL;
+                }
+            }
+        }
+        if fresh && state.flags & (TOOL_FLAG_CONTACT | TOOL_FLAG_GRAB) != 0 {
+            self.telemetry.record(FRAME_AGE_CONTACT, frame_age);
+        }
+        if !out.healthy {
+            state.flags |= TOOL_FLAG_RAMPING;
+        }
+        state.force = out.force;
+
+        // 4. Write the device.
+        if let Err(e) = device.write_force(out.device_force) {
+            self.device_faults += 1;
+            state.flags |= TOOL_FLAG_DEVICE_ERROR;
+            if !e.is_recoverable() {
+                fatal = Some(e);
+            }
+        }
+
+        // 5. Publish: blackboard for the deformation process, ring for viewers.
+        self.tool_entry.update_with_copy(state);
+        if self.tool_ring.push(state).is_err() {
+            self.ring_drops += 1;
+        }
+
+        // 6. Timing.
+        let done = rt::now_ns();
+        self.telemetry
+            .record(JITTER, wake_ns.saturating_sub(deadline_ns));
+        self.telemetry.record(COMPUTE, done.saturating_sub(wake_ns));
+        self.tick += 1;
+        if self.tick.is_multiple_of(self.telemetry_every) {
+            self.emit_telemetry(done, out.force);
+        }
+        TickOutcome { state, fatal }
+    }
+
+    /// Ends the statistics window: the counters now; the quantiles are the publisher's.
+    fn emit_telemetry(&mut self, now: u64, force: [f64; 3]) {
+        let ticks = self.tick - self.window_start_tick;
+        let secs = now.saturating_sub(self.window_start_ns) as f64 * 1e-9;
+        let counters = HapticTelemetry {
+            contract_version: CONTRACT_VERSION,
+            rt_flags: self.rt_flags,
+            stamp_ns: now,
+            ticks: self.tick,
+            overruns: self.overruns,
+            stale_ticks: self.stale_ticks,
+            device_faults: self.device_faults,
+            rate_hz: if secs > 0.0 { ticks as f64 / secs } else { 0.0 },
+            force_norm: (force[0] * force[0] + force[1] * force[1] + force[2] * force[2]).sqrt(),
+            pinned_core: self.pinned_core,
+            ..Default::default()
+        };
+        if self.telemetry.send(counters) {
+            self.window_start_ns = now;
+            self.window_start_tick = self.tick;
+        }
+    }
+}
+
+/// Writes zero force when dropped, so a panic on the RT thread still leaves the device safe.
+struct ZeroForceGuard<'a>(&'a mut dyn HapticDevice);
+
+impl Drop for ZeroForceGuard<'_> {
+    fn drop(&mut self) {
+        let _ = self.0.write_force([0.0; 3]);
+        self.0.stop();
+    }
+}
+
+/// How the haptic process ended.
+#[derive(Debug, Clone)]
+pub struct HapticSummary {
+    /// Ticks run.
+    pub ticks: u64,
+    /// Missed deadlines.
+    pub overruns: u64,
+    /// Tool states the publisher thread missed.
+    pub ring_drops: u64,
+    /// Set when a device error stopped the loop.
+    pub fatal: Option<lop_drivers::DeviceError>,
+}
+
+/// Real-time set-up requested for the loop thread.
+#[derive(Debug, Clone)]
+pub struct RtRequest {
+    /// Core to pin to.
+    pub core: Option<usize>,
+    /// `SCHED_FIFO` priority.
+    pub priority: u8,
+}
+
+/// Runs the loop on the calling thread until `stop` is set, `max_ticks` is reached or the device
+/// fails. The device is zeroed and stopped before this returns, and also if it panics.
+#[allow(clippy::too_many_arguments)] // each is a distinct input of the loop's start-up
+pub fn run_loop(
+    names: &ServiceNames,
+    settings: HapticSettings,
+    device: &mut dyn HapticDevice,
+    rt_request: &RtRequest,
+    stop: &AtomicBool,
+    max_ticks: Option<u64>,
+    tool_ring: rtrb::Producer<ToolState>,
+    telemetry: TelemetryTx,
+) -> Result<HapticSummary> {
+    let guard = ZeroForceGuard(device);
+    let spin_ns = settings.spin_ns;
+    let period = settings.period_ns();
+    let mut hl = HapticLoop::new(names, settings, tool_ring, telemetry)?;
+
+    // Start: privileges (each optional, reported once), then a warm stack.
+    let state = rt::set_up_thread(
+        "haptic loop",
+        rt_request.core,
+        rt::Priority::Fifo(rt_request.priority),
+        256 * 1024,
+    );
+    hl.set_rt_state(state.flags, state.pinned_core);
+
+    // Process: absolute deadlines; a late tick is counted, never caught up in a burst.
+    let mut fatal = None;
+    let mut deadline = rt::now_ns() + period;
+    while !stop.load(Ordering::Relaxed) && max_ticks.is_none_or(|m| hl.ticks() < m) {
+        let wake = rt::sleep_until(deadline, spin_ns);
+        let outcome = hl.tick(&mut *guard.0, wake, deadline);
+        if let Some(e) = outcome.fatal {
+            fatal = Some(e);
+            break;
+        }
+        deadline += period;
+        let now = rt::now_ns();
+        if now > deadline {
+            let missed = (now - deadline) / period + 1;
+            for _ in 0..missed {
+                hl.count_overrun();
+            }
+            deadline += missed * period;
+        }
+    }
+    let summary = HapticSummary {
+        ticks: hl.ticks(),
+        overruns: hl.overruns,
+        ring_drops: hl.ring_drops(),
+        fatal,
+    };
+    // Stop: zero force first (the guard's drop), then release the ports.
+    drop(guard);
+    drop(hl);
+    Ok(summary)
+}
+
+/// Drains the rings and publishes `PREFIX/tool` and `PREFIX/telemetry/haptic`. Runs on a normal
+/// thread: iceoryx2's publish path allocates, which the RT thread must not do.
+pub fn run_publisher(
+    names: &ServiceNames,
+    mut tool_ring: rtrb::Consumer<ToolState>,
+    mut telemetry: TelemetryRx,
+    done: Arc<AtomicBool>,
+) -> Result<()> {
+    let node = services::node("lopd-haptic-pub")?;
+    let tool_pub = services::tool_service(&node, names, Role::Owner)?
+        .publisher_builder()
+        .create()
+        .context("tool publisher")?;
+    let telemetry_pub = services::telemetry_service(&node, names, Role::Owner)?
+        .publisher_builder()
+        .create()
+        .context("telemetry publisher")?;
+    let mut last_faults = 0;
+    let mut last_stale = 0;
+    loop {
+        let finished = done.load(Ordering::Acquire);
+        while let Ok(s) = tool_ring.pop() {
+            let _ = tool_pub.send_copy(s);
+        }
+        while let Some(t) = telemetry.pop() {
+            if t.device_faults > last_faults {
+                tracing::warn!(
+                    "device faults: {} (+{})",
+                    t.device_faults,
+                    t.device_faults - last_faults
+                );
+                last_faults = t.device_faults;
+            }
+            if t.stale_ticks > last_stale + t.ticks / 100 && t.ticks > 2000 {
+                tracing::debug!("ticks with a stale frame: {}", t.stale_ticks);
+                last_stale = t.stale_ticks;
+            }
+            let _ = telemetry_pub.send_copy(t);
+        }
+        if finished {
+            return Ok(());
+        }
+        std::thread::sleep(Duration::from_micros(500));
+    }
+}
+
+/// Both ends of a lock-free ring.
+pub type Ring<T> = (rtrb::Producer<T>, rtrb::Consumer<T>);
+
+/// Creates the channels between the RT thread and the publisher thread: the tool states' ring
+/// and the statistics windows (totals from one second after start, start-up left out).
+pub fn rings(settings: &HapticSettings) -> Result<(Ring<ToolState>, (TelemetryTx, TelemetryRx))> {
+    let warmup_ticks = settings.pipeline.rate_hz.round() as u64;
+    Ok((rtrb::RingBuffer::new(TOOL_RING), telemetry(warmup_ticks)?))
+}
