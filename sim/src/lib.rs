@@ -46,6 +46,7 @@ pub mod lop;
 pub mod mesh;
 pub mod model;
 pub mod msd;
+pub mod parallel;
 pub mod patch;
 mod solve;
 mod vec3;
