@@ -70,6 +70,9 @@ struct Slot {
 struct Shared {
     slot: Mutex<Slot>,
     changed: Condvar,
+    /// Tests only: the thread sleeps this long (µs) before each factorisation, to show that
+    /// the results do not depend on its speed.
+    slowdown_us: std::sync::atomic::AtomicU64,
 }
 
 impl Shared {
@@ -139,6 +142,13 @@ impl FactorThread {
             waits: 0,
             landed: 0,
         }
+    }
+
+    /// Tests only: sleep `us` µs before each factorisation.
+    pub fn slow_down(&self, us: u64) {
+        self.shared
+            .slowdown_us
+            .store(us, std::sync::atomic::Ordering::Relaxed);
     }
 
     /// The job's buffers to fill, if no job is in flight.
@@ -237,6 +247,12 @@ fn run(shared: &Shared, data: &AssemblyData) {
                 slot = shared.changed.wait(slot).unwrap_or_else(|e| e.into_inner());
             }
         };
+        let slow = shared
+            .slowdown_us
+            .load(std::sync::atomic::Ordering::Relaxed);
+        if slow > 0 {
+            std::thread::sleep(std::time::Duration::from_micros(slow));
+        }
         factorize(&mut job, data);
         let mut slot = shared.lock();
         slot.job = Some(job);

@@ -327,6 +327,15 @@ impl Fem {
         Ok(())
     }
 
+    /// Tests only: the factor thread sleeps `micros` µs before each factorisation (a slow or
+    /// busy machine), to show that runs do not depend on its speed.
+    #[doc(hidden)]
+    pub fn slow_factor_thread(&mut self, micros: u64) {
+        if let Some(t) = &self.background {
+            t.slow_down(micros);
+        }
+    }
+
     /// The step from which a period change asked by [`Fem::set_dt`] applies, and the period,
     /// while it is pending on the factor thread (a queued change: once the factor in flight
     /// lands, then unknown).
