@@ -26,10 +26,12 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 
-/// Spins of an idle worker (checking for a new job) before it sleeps: about 20–50 µs, longer
-/// than the gap between two regions of one CG iteration (a preconditioner solve on an organ),
-/// much shorter than the gap between two steps.
-const SPINS: u32 = 20_000;
+/// Spins (`pause`, ~10–40 ns each) of an idle worker checking for a new job before it sleeps,
+/// and of the caller waiting for the last chunks before it yields: some tens of µs — about the
+/// gap between two regions of one CG iteration on an organ (a preconditioner solve), far
+/// shorter than the gap between two steps, so a worker does not burn a shared core between
+/// steps.
+const SPINS: u32 = 2_000;
 
 /// The job in flight: a chunk function with its lifetime erased (see `run` for why that is
 /// sound), and the number of chunks.
@@ -146,8 +148,16 @@ impl WorkerPool {
             s.wake.notify_all();
         }
         work(s, epoch);
+        // The last chunks are on workers: spin, then yield (a worker preempted mid-chunk on a
+        // busy machine must get the core back).
+        let mut spins = 0u32;
         while s.done.load(Ordering::Acquire) < chunks {
-            std::hint::spin_loop();
+            if spins < SPINS {
+                spins += 1;
+                std::hint::spin_loop();
+            } else {
+                std::thread::yield_now();
+            }
         }
     }
 }

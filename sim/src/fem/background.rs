@@ -299,11 +299,13 @@ impl super::Fem {
         self.background = Some(Box::new(FactorThread::new(data, spare, batches, delay)));
     }
 
-    /// Asks the factor thread for the factor of `K̃` at period `dt` with the current rotations
+    /// Asks the factor thread for the factor of `K̃` at the new `period` (`None`: the current
+    /// one) with the current rotations
     /// (corotational) or at rest (linear), to be used from step `steps + D`. Does nothing if a
     /// job is in flight (a period change is queued instead). Copies the snapshot; allocation-
     /// free.
-    pub(super) fn request_factor(&mut self, dt: f64) {
+    pub(super) fn request_factor(&mut self, period: Option<f64>) {
+        let dt = period.unwrap_or(self.params.dt);
         let corotational = self.params.mode == super::FemMode::Corotational;
         let single = corotational && self.solver == super::CorotationalSolver::LaggedFactorPcg;
         let due = self.counters.steps + u64::from(self.background.as_ref().map_or(0, |t| t.delay));
@@ -311,8 +313,11 @@ impl super::Fem {
             return;
         };
         let Some(job) = t.idle_job() else {
-            if dt != t.due.map_or(self.params.dt, |d| d.1) {
-                t.queued_dt = Some(dt);
+            // A period change waits for the job in flight (the latest asked wins; none if it
+            // is the period on its way); a refresh is moot, one is on its way.
+            if let Some(dt) = period {
+                let coming = t.due.map_or(self.params.dt, |d| d.1);
+                t.queued_dt = (dt != coming).then_some(dt);
             }
             return;
         };
@@ -374,7 +379,7 @@ impl super::Fem {
         };
         if let Some(dt) = queued {
             if dt != self.params.dt {
-                self.request_factor(dt);
+                self.request_factor(Some(dt));
             }
         }
         Ok(())

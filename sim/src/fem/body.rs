@@ -319,7 +319,7 @@ impl Fem {
             });
         }
         if self.background.is_some() {
-            self.request_factor(dt);
+            self.request_factor(Some(dt));
         } else if dt != self.params.dt {
             self.params.dt = dt;
             self.factor = Factor::Stale;

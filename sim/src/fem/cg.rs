@@ -74,7 +74,7 @@ impl Fem {
                 .cg(pressed, BACKGROUND_CG_MAX_ITERATIONS, false)
                 .map_err(|_| Failed)?;
             if it > BACKGROUND_STALL_ITERATIONS {
-                self.request_factor(self.params.dt);
+                self.request_factor(None);
             }
             return Ok((it, it));
         }

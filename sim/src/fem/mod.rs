@@ -129,6 +129,24 @@
 //! `d` (strong-Wolfe curvature test on its slope `−rᵀd`, secant steps back) keeps large
 //! rotations from overshooting.
 //!
+//! # Threads, and factors off the critical path (issue 27)
+//!
+//! [`Fem::set_worker_pool`] (or [`crate::world::World::set_threads`]) runs the step's element
+//! loops on a persistent pool: the corotational forces with the rotation search, every
+//! matrix-free product of CG, and the per-node rotations of the preconditioner. Each is split
+//! into an element phase (each batch writes its own outputs) and a node phase (each node sums its
+//! elements' contributions in element order, from zero — the order of the one-thread scatter),
+//! so the step is bit for bit the one-thread step at any thread count (`batch.rs`,
+//! `tests/fem_threads.rs`). Not parallel (yet): the preconditioner's triangular solves (the
+//! crate's own packed solves, one right-hand side, sequential along the elimination tree), the
+//! patch's solves, the DOF-vector updates of CG, the assembly (off the critical path under the
+//! background policy).
+//!
+//! [`RefactorPolicy::Background`] moves every factorisation of the lagged preconditioner out of
+//! the step, onto a thread of the body's own, and swaps the new factor in a fixed number of
+//! steps after it was asked for (`background.rs`); [`Fem::set_dt`] changes the step period
+//! through the same machinery, so the new period and its factor start together.
+//!
 //! # Allocation
 //!
 //! Everything `step` touches is allocated by [`Fem::new`] (or by the first step after a change

@@ -178,7 +178,7 @@ impl Fem {
             if let super::RefactorPolicy::Background { .. } = self.refactor {
                 // Once asked, the charge starts again with the factor that lands.
                 self.extra_iterations = 0;
-                self.request_factor(self.params.dt);
+                self.request_factor(None);
             } else {
                 self.factor = Factor::Stale;
             }
