@@ -51,6 +51,8 @@ struct Shared {
     job: UnsafeCell<Option<*const JobFn>>,
     /// Workers asleep on `wake` (incremented under `sleep`), and the condition they sleep on.
     sleepers: AtomicUsize,
+    /// Workers that have started (see `WorkerPool::new`).
+    started: AtomicUsize,
     sleep: Mutex<()>,
     wake: Condvar,
     shutdown: AtomicBool,
@@ -90,6 +92,7 @@ impl WorkerPool {
             done: AtomicUsize::new(0),
             job: UnsafeCell::new(None),
             sleepers: AtomicUsize::new(0),
+            started: AtomicUsize::new(0),
             sleep: Mutex::new(()),
             wake: Condvar::new(),
             shutdown: AtomicBool::new(false),
@@ -103,6 +106,11 @@ impl WorkerPool {
                     .expect("spawn a solver worker thread")
             })
             .collect();
+        // A thread's start-up allocates (the runtime's per-thread state): wait for it here, so
+        // that no allocation of the pool happens after `new` returns.
+        while shared.started.load(Ordering::Acquire) < threads - 1 {
+            std::thread::yield_now();
+        }
         WorkerPool {
             threads,
             shared,
@@ -203,6 +211,7 @@ fn work(s: &Shared, epoch: u64) {
 
 /// A worker's life: wait for a new epoch (spinning, then asleep), work on it, repeat.
 fn worker(s: &Shared) {
+    s.started.fetch_add(1, Ordering::Release);
     let mut seen = 0u64;
     loop {
         let mut spins = 0;

@@ -100,7 +100,7 @@ fn step_is_allocation_free() {
         assert_eq!(
             after - before,
             0,
-            "{mode:?}/{solver:?}: allocations in step"
+            "{mode:?}/{solver:?} (pool and background: {pooled}): allocations in step"
         );
     }
 }

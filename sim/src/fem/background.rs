@@ -64,6 +64,8 @@ struct Slot {
     job: Option<Box<Job>>,
     done: bool,
     shutdown: bool,
+    /// Set by the thread once it runs (its start-up allocates: `spawn` waits for it).
+    started: bool,
 }
 
 #[derive(Debug, Default)]
@@ -101,8 +103,16 @@ pub(super) struct FactorThread {
 }
 
 impl FactorThread {
-    /// Spawns the thread, with `system` (a clone of the body's) as the spare.
-    pub fn new(data: Arc<AssemblyData>, system: Box<System>, n_batches: usize, delay: u32) -> Self {
+    /// Spawns the thread, with `system` (a clone of the body's) as the spare, and has it
+    /// factorise the rest matrix at period `warm_dt` once (in single precision if
+    /// `warm_single`), as a warm-up.
+    pub fn new(
+        data: Arc<AssemblyData>,
+        system: Box<System>,
+        n_batches: usize,
+        delay: u32,
+        (warm_dt, warm_single): (f64, bool),
+    ) -> Self {
         let n_nodes = data.mass.len();
         let home = Box::new(Job {
             system,
@@ -116,6 +126,16 @@ impl FactorThread {
         let mut t = FactorThread::spawn(data, None);
         t.home = Some(home);
         t.delay = delay;
+        // One factorisation now, thrown away: the first one on a thread allocates its
+        // per-thread scratch (faer's matrix kernels keep some in thread-locals), and the steps
+        // after `new` must not see that.
+        if let Some(job) = t.idle_job() {
+            job.dt = warm_dt;
+            job.single = warm_single;
+        }
+        t.send(0);
+        t.collect();
+        (t.due, t.landed, t.waits) = (None, 0, 0);
         t
     }
 
@@ -131,6 +151,12 @@ impl FactorThread {
             .name("lop-sim-factor".into())
             .spawn(move || run(&s, &d))
             .expect("spawn the factor thread");
+        {
+            let mut slot = shared.lock();
+            while !slot.started {
+                slot = shared.changed.wait(slot).unwrap_or_else(|e| e.into_inner());
+            }
+        }
         FactorThread {
             shared,
             data,
@@ -232,6 +258,8 @@ impl Drop for FactorThread {
 
 /// The thread: wait for a job, assemble and factorise it, hand it back.
 fn run(shared: &Shared, data: &AssemblyData) {
+    shared.lock().started = true;
+    shared.changed.notify_all();
     loop {
         let mut job = {
             let mut slot = shared.lock();
@@ -296,7 +324,15 @@ impl super::Fem {
         });
         let spare = Box::new((*self.system).clone());
         let batches = self.s.batch.warped_batches().len();
-        self.background = Some(Box::new(FactorThread::new(data, spare, batches, delay)));
+        let single = self.params.mode == super::FemMode::Corotational
+            && self.solver == super::CorotationalSolver::LaggedFactorPcg;
+        self.background = Some(Box::new(FactorThread::new(
+            data,
+            spare,
+            batches,
+            delay,
+            (self.params.dt, single),
+        )));
     }
 
     /// Asks the factor thread for the factor of `K̃` at the new `period` (`None`: the current
