@@ -77,6 +77,14 @@
 //! integrator).
 //!
 //! `--json PATH` writes every number printed (and the per-run summaries of part 3).
+//! # Part 4 — the touched step on 1 and 2 threads (`--only threads`)
+//!
+//! The scaling boxes of ~2k, 5k, 10k and 20k tetrahedra at the haptic rate (1 ms), pressed 3 mm
+//! by the god-object's patch and held; the step's p50/p99/max at each thread count (1 up to
+//! the machine's cores, at most 2) under the `realtime` and `background` refactor policies,
+//! and whether every thread count ends bit for bit where one thread does
+//! (`models/threads.rs`). Not part of the default run.
+//!
 //! `--only scaling,orderings` runs only the named parts (`step-times`, `scaling`, `orderings`,
 //! `study`); `--tets 50000` replaces the scaling series' sizes (also for part 2b) and
 //! `--scaling-models corotational` limits its models.
@@ -86,6 +94,7 @@ mod orderings;
 mod scaling;
 mod step_times;
 mod study;
+mod threads;
 
 use std::path::PathBuf;
 
@@ -140,6 +149,9 @@ pub enum Part {
     Orderings,
     /// Part 3: the thesis' chapter-3 study (and Fig. 3.11, which needs part 1's beam rows).
     Study,
+    /// Part 4: the touched step at 1 and 2 threads, ~2k to ~20k tetrahedra (`--tets` replaces
+    /// the sizes). Runs only when named.
+    Threads,
 }
 
 /// A model of the scaling series, for `--scaling-models`.
@@ -181,6 +193,8 @@ pub struct ModelsReport {
     pub scaling_fits: Vec<ScaleFit>,
     /// Part 2b.
     pub orderings: Vec<orderings::OrderingRow>,
+    /// Part 4 (`--only threads`).
+    pub threads: Vec<threads::ThreadRow>,
     /// Part 3 (`None` when not run).
     pub study: Option<study::StudyReport>,
     /// Fig. 3.11 analogue (from part 1, beam).
@@ -207,7 +221,7 @@ pub fn run(a: ModelsArgs) -> Result<()> {
         );
     }
 
-    let runs = |p: Part| a.only.is_empty() || a.only.contains(&p);
+    let runs = |p: Part| (a.only.is_empty() && p != Part::Threads) || a.only.contains(&p);
 
     let (meshes, step_rows) = if runs(Part::StepTimes) {
         let (meshes, rows) = step_times(a.quick)?;
@@ -231,6 +245,15 @@ pub fn run(a: ModelsArgs) -> Result<()> {
     let ordering_rows = if runs(Part::Orderings) {
         let rows = ordering_rows(a.quick, &a.tets)?;
         print!("{}", orderings::render(&rows));
+        println!();
+        rows
+    } else {
+        Vec::new()
+    };
+
+    let thread_rows = if runs(Part::Threads) {
+        let rows = threads::threads(a.quick, &a.tets)?;
+        print!("{}", threads::render(&rows));
         println!();
         rows
     } else {
@@ -276,6 +299,7 @@ pub fn run(a: ModelsArgs) -> Result<()> {
         scaling: scale_rows,
         scaling_fits: fits,
         orderings: ordering_rows,
+        threads: thread_rows,
         study: study_report,
         fig3_11,
         files,

@@ -79,10 +79,33 @@ impl Default for HapticConfig {
 }
 
 /// Settings of the deformation process.
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct DeformConfig {
     /// CPU to pin the deformation thread to; `None`: not pinned.
     pub core: Option<usize>,
+    /// Threads the touched body's FEM step runs on (`[deform] threads`), resolved: at least
+    /// 1, at most the machine's cores. 0 or missing in the file: [`default_deform_threads`].
+    pub threads: usize,
+}
+
+impl Default for DeformConfig {
+    fn default() -> Self {
+        DeformConfig {
+            core: None,
+            threads: default_deform_threads(),
+        }
+    }
+}
+
+/// The machine's cores (logical CPUs available to this process).
+pub fn machine_cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// `[deform] threads` when 0 or missing: every core but one, at least 1 — the haptic loop
+/// keeps a core of its own (on the 2-core development machine: 1).
+pub fn default_deform_threads() -> usize {
+    machine_cores().saturating_sub(1).max(1)
 }
 
 /// Reads and validates a daemon configuration file.
@@ -169,6 +192,18 @@ pub fn parse_daemon_config(text: &str, path: &Path) -> Result<DaemonConfig, Conf
         ));
     }
 
+    let cores = machine_cores();
+    let threads = match raw.deform.threads.unwrap_or(0) {
+        0 => default_deform_threads(),
+        n if n > cores => {
+            return Err(c.invalid(
+                &KeyPath::top("deform").key("threads"),
+                n,
+                format!("{n} threads asked, but this machine has {cores} cores"),
+            ))
+        }
+        n => n,
+    };
     Ok(DaemonConfig {
         haptic: HapticConfig {
             core: h.core.or(dh.core),
@@ -184,6 +219,7 @@ pub fn parse_daemon_config(text: &str, path: &Path) -> Result<DaemonConfig, Conf
         },
         deform: DeformConfig {
             core: raw.deform.core,
+            threads,
         },
         status_interval_ms,
         device: device_config(raw.device, path),

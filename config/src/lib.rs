@@ -314,6 +314,7 @@
 //! | `haptic.local_model` | bool | `true` | between frames, render with the frame's local model of the contact patch (the force follows the hand tick by tick); `false`: against the frame's surface alone |
 //! | `haptic.passivity_max_damping` | float | `5` | most damping the passivity controller at the device port adds, N·s/m (0..=40; 0: off) |
 //! | `deform.core` | integer | not pinned | CPU the deformation thread is pinned to |
+//! | `deform.threads` | integer | `0`: every core but one, at least 1 | threads the touched body's FEM step runs on (results are bit for bit the same for any count); more than the machine's cores is refused |
 //! | `device.hd_library` | path | search `libHD.so` | OpenHaptics library for `--device openhaptics` (relative to the config file; `LOP_HD_LIBRARY` wins) |
 //!
 //! ```toml
@@ -335,7 +336,8 @@ mod source;
 mod tissue;
 
 pub use daemon::{
-    load_daemon_config, parse_daemon_config, DaemonConfig, DeformConfig, DeviceConfig, HapticConfig,
+    default_deform_threads, load_daemon_config, machine_cores, parse_daemon_config, DaemonConfig,
+    DeformConfig, DeviceConfig, HapticConfig,
 };
 pub use error::{ConfigError, Location};
 pub use resolve::{

@@ -196,6 +196,7 @@ pub(crate) struct RawHaptic {
 #[serde(deny_unknown_fields)]
 pub(crate) struct RawDeform {
     pub core: Option<usize>,
+    pub threads: Option<usize>,
 }
 
 /// `[device]` of the daemon config (issue 7: the OpenHaptics library).

@@ -34,6 +34,35 @@ fn empty_daemon_config_is_the_default() {
     assert_eq!(cfg.haptic.spin_us, 50.0);
     assert_eq!(cfg.haptic.max_force_step_n, 0.05);
     assert_eq!(cfg.deform.core, None);
+    assert_eq!(cfg.deform.threads, lop_config::default_deform_threads());
+}
+
+/// `[deform] threads`: 0 or missing is the documented default (every core but one, at least
+/// one); up to the machine's cores is taken as is; more is refused with both numbers.
+#[test]
+fn deform_threads_are_checked_against_the_machine() {
+    let cores = lop_config::machine_cores();
+    let parse = |t: usize| {
+        parse_daemon_config(
+            &format!("[deform]\nthreads = {t}\n"),
+            Path::new("lopd.toml"),
+        )
+    };
+    assert_eq!(
+        parse(0).unwrap().deform.threads,
+        cores.saturating_sub(1).max(1)
+    );
+    assert_eq!(parse(1).unwrap().deform.threads, 1);
+    assert_eq!(parse(cores).unwrap().deform.threads, cores);
+    let asked = cores + 3;
+    daemon_err(
+        &format!("[deform]\nthreads = {asked}\n"),
+        &[
+            "deform.threads",
+            &format!("{asked} threads asked"),
+            &format!("has {cores} cores"),
+        ],
+    );
 }
 
 #[test]

@@ -117,9 +117,11 @@ impl DeformLoop {
         }
         let LoadedScene {
             scene,
-            world,
+            mut world,
             topology,
         } = lop_scene::load(opts.scene.clone())?;
+        // `[deform] threads` (validated against the machine's cores by lop-config).
+        world.set_threads(opts.config.deform.threads);
         let laws = ToolLaws::new(&scene, DeviceClamp::NONE);
         let mut header = wire_topology(&scene, &topology)?;
         let names = opts.names.clone();

@@ -1,6 +1,9 @@
-//! `lop-sim`: the pure, deterministic physics of lop. No threads, no IPC, no clocks: the
-//! daemon adapts devices, shared memory and configuration to the types here, and the same inputs
-//! always give the same outputs, bit for bit.
+//! `lop-sim`: the pure, deterministic physics of lop. No IPC, no clocks: the daemon adapts
+//! devices, shared memory and configuration to the types here, and the same inputs always give
+//! the same outputs, bit for bit. Threads only where a caller asks for them (issue 27): a
+//! touched FEM body's element loops on a [`parallel::WorkerPool`], and its factorisations on a
+//! factor thread under [`fem::RefactorPolicy::Background`] — both keep that promise (the same
+//! numbers for any thread count and any thread speed).
 //!
 //! The modules, from the ground up:
 //! - [`mesh`]: tetrahedral meshes, their readers (TetGen, Gmsh, legacy VTK) and validation with
@@ -25,6 +28,8 @@
 //! - [`heat`]: heat diffusion, cautery and burns.
 //! - [`world`]: the scene — bodies on their own time steps, collision, heat — and its one round
 //!   ([`world::World::round`]) that every caller runs.
+//! - [`parallel`]: the worker pool of the touched body's step, and why its results do not
+//!   depend on the number of threads.
 //! - [`control`]: run-time changes to a world (swap a body's models, reset, hold time).
 //! - `solve` (internal): the one sparse SPD solver (faer; symbolic once, numeric refactor into
 //!   reused buffers) behind FEM, implicit mass-spring, heat and the cage's compliance, and a
@@ -46,6 +51,7 @@ pub mod lop;
 pub mod mesh;
 pub mod model;
 pub mod msd;
+pub mod parallel;
 pub mod patch;
 mod solve;
 mod vec3;

@@ -1,11 +1,15 @@
 //! `Fem::step` allocates nothing once warmed up: in linear and corotational mode, with and
 //! without the tool, including the corotational solver's refactorisations and the contact's
-//! extra solves. Counted by a global allocator (this test binary only).
+//! extra solves, and on a worker pool with the factors made on the factor thread (issue 27).
+//! Counted by a global allocator (this test binary only).
 
 use lop_sim::contact::{ForceLaw, ToolSphere};
-use lop_sim::fem::{CorotationalSolver, Fem, FemMode, FemParameters};
+use std::sync::Arc;
+
+use lop_sim::fem::{CorotationalSolver, Fem, FemMode, FemParameters, RefactorPolicy};
 use lop_sim::mesh::read_mesh;
 use lop_sim::model::ToolContact;
+use lop_sim::parallel::WorkerPool;
 use lop_test_support::alloc::{self, Counting};
 use lop_test_support::fixtures::mesh_path;
 
@@ -24,10 +28,20 @@ fn step_is_allocation_free() {
     let p = mesh.nodes[top as usize];
     let candidates: Vec<u32> = (0..mesh.surface.len() as u32).collect();
     let loads = vec![[0.0, 0.0, 1e-6]; mesh.nodes.len()];
-    for (mode, solver) in [
-        (FemMode::Linear, CorotationalSolver::LaggedFactorPcg),
-        (FemMode::Corotational, CorotationalSolver::LaggedFactorPcg),
-        (FemMode::Corotational, CorotationalSolver::Refactor),
+    for (mode, solver, pooled) in [
+        (FemMode::Linear, CorotationalSolver::LaggedFactorPcg, false),
+        (
+            FemMode::Corotational,
+            CorotationalSolver::LaggedFactorPcg,
+            false,
+        ),
+        (FemMode::Corotational, CorotationalSolver::Refactor, false),
+        // Issue 27: on a 2-thread pool, with the factors made on the factor thread.
+        (
+            FemMode::Corotational,
+            CorotationalSolver::LaggedFactorPcg,
+            true,
+        ),
     ] {
         let params = FemParameters {
             young: 140.0,
@@ -39,8 +53,13 @@ fn step_is_allocation_free() {
         };
         let mut fem = Fem::new(&mesh, params).unwrap();
         fem.set_corotational_solver(solver);
+        if pooled {
+            fem.set_worker_pool(Some(Arc::new(WorkerPool::new(2))));
+            fem.set_refactor_policy(RefactorPolicy::Background { delay_steps: 2 });
+        }
         let g = [0.0, -9.81, 0.0];
         fem.step(g, &loads, None).unwrap();
+        let landed = fem.solver_counters().background_factorizations;
         let before = alloc::allocations();
         let mut touched = 0;
         let mut refactors = 0;
@@ -69,13 +88,19 @@ fn step_is_allocation_free() {
             touched > 10,
             "{mode:?}: the tool touched in {touched} steps"
         );
-        if mode == FemMode::Corotational && solver == CorotationalSolver::LaggedFactorPcg {
+        if pooled {
+            let c = fem.solver_counters();
+            assert!(
+                c.background_factorizations > landed,
+                "a factor landed: {c:?}"
+            );
+        } else if mode == FemMode::Corotational && solver == CorotationalSolver::LaggedFactorPcg {
             assert!(refactors > 0, "a refactorisation happened in the window");
         }
         assert_eq!(
             after - before,
             0,
-            "{mode:?}/{solver:?}: allocations in step"
+            "{mode:?}/{solver:?} (pool and background: {pooled}): allocations in step"
         );
     }
 }

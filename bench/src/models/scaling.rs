@@ -88,7 +88,7 @@ fn box_cells(target: usize) -> [usize; 3] {
 }
 
 /// The scaling box of about `target` tetrahedra: its cells, size (m) and mesh, fixed at `x = 0`.
-fn scaling_box(target: usize) -> ([usize; 3], [f64; 3], TetMesh) {
+pub(super) fn scaling_box(target: usize) -> ([usize; 3], [f64; 3], TetMesh) {
     let cells = box_cells(target);
     let a = BOX_WIDTH / cells[1] as f64;
     let size = [a * cells[0] as f64, BOX_WIDTH, BOX_WIDTH];

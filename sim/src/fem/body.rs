@@ -11,6 +11,8 @@ use super::{
     SolverCounters, INVERSE_SLOTS,
 };
 use crate::mesh::TetMesh;
+use crate::parallel::WorkerPool;
+use std::sync::Arc;
 
 impl Fem {
     /// Builds the body on `mesh` (rest shape = the mesh's nodes; fixed = `mesh.fixed`),
@@ -155,6 +157,8 @@ impl Fem {
             extra_iterations: 0,
             one_iteration_runs: 0,
             counters: SolverCounters::default(),
+            pool: None,
+            background: None,
             s,
         };
         fem.factor_dynamic(false)
@@ -177,9 +181,13 @@ impl Fem {
         &self.mass
     }
 
-    /// The body's time step, s.
+    /// The body's time step, s: the period of its next step (a change asked by
+    /// [`Fem::set_dt`] counts from the step it applies to).
     pub fn dt(&self) -> f64 {
-        self.params.dt
+        match self.background.as_deref().and_then(|t| t.due) {
+            Some((step, dt)) if step == self.counters.steps => dt,
+            _ => self.params.dt,
+        }
     }
 
     /// The parameters the body was built with.
@@ -238,8 +246,14 @@ impl Fem {
     /// Steps, CG iterations and factorisations since the body was built: for benchmarks.
     #[doc(hidden)]
     pub fn solver_counters(&self) -> SolverCounters {
+        let (landed, waits) = self
+            .background
+            .as_deref()
+            .map_or((0, 0), |t| (t.landed, t.waits));
         SolverCounters {
             factorizations: self.system.factorizations(),
+            background_factorizations: landed,
+            factor_waits: waits,
             ..self.counters
         }
     }
@@ -250,10 +264,87 @@ impl Fem {
         self.solver = solver;
     }
 
+    /// Runs the step's element loops (rotations and forces, the matrix-free products, the
+    /// per-node rotations) on `pool`, or on the caller alone with `None`. The results are the
+    /// same bit for bit whatever the pool's size (`crate::parallel`); the first call with a
+    /// pool allocates the gather tables (about 100 bytes per tetrahedron).
+    pub fn set_worker_pool(&mut self, pool: Option<Arc<WorkerPool>>) {
+        let pool = pool.filter(|p| p.threads() > 1);
+        if pool.is_some() {
+            self.s.batch.enable_pool(self.x.len());
+        }
+        self.pool = pool;
+    }
+
+    /// Threads the step runs on (1 without a pool).
+    pub fn threads(&self) -> usize {
+        self.pool.as_ref().map_or(1, |p| p.threads())
+    }
+
     /// Chooses when the lagged factor of a corotational body is refreshed
     /// ([`RefactorPolicy`]); `Amortized` unless set.
+    ///
+    /// [`RefactorPolicy::Background`] starts the body's factor thread (once; it allocates a
+    /// second copy of the sparse system and its factor). Switching from it to another policy
+    /// lets a factor in flight land as planned.
     pub fn set_refactor_policy(&mut self, policy: RefactorPolicy) {
+        if let RefactorPolicy::Background { delay_steps } = policy {
+            self.start_factor_thread(delay_steps.max(1));
+            self.refactor = RefactorPolicy::Background {
+                delay_steps: delay_steps.max(1),
+            };
+            return;
+        }
         self.refactor = policy;
+    }
+
+    /// Changes the step period to `dt` (s). The system matrix `K̃ = M/Δt² + D/(2Δt) + K`
+    /// changes with it, so it needs a new factor: under [`RefactorPolicy::Background`] the
+    /// factor is made on the factor thread and the new period starts with it, at step
+    /// [`Fem::dt_change_due`] (`delay_steps` after this call, or after the factor in flight
+    /// lands); otherwise the next step takes the new period and factorises within the step.
+    /// The state carries over as it is: displacements, and velocities (the scheme's
+    /// `v = (u − u⁻)/Δt` is a velocity, not an increment), so positions and the forces that
+    /// depend on them are continuous across the change. [`Fem::dt`] is always the period of
+    /// the next step.
+    ///
+    /// # Errors
+    /// [`FemError::InvalidParameter`] for a period that is not finite and positive.
+    pub fn set_dt(&mut self, dt: f64) -> Result<(), FemError> {
+        if !(dt > 0.0 && dt.is_finite()) {
+            return Err(FemError::InvalidParameter {
+                name: "dt",
+                value: dt,
+                expected: "finite and > 0",
+            });
+        }
+        if self.background.is_some() {
+            self.request_factor(Some(dt));
+        } else if dt != self.params.dt {
+            self.params.dt = dt;
+            self.factor = Factor::Stale;
+        }
+        Ok(())
+    }
+
+    /// Tests only: the factor thread sleeps `micros` µs before each factorisation (a slow or
+    /// busy machine), to show that runs do not depend on its speed.
+    #[doc(hidden)]
+    pub fn slow_factor_thread(&mut self, micros: u64) {
+        if let Some(t) = &self.background {
+            t.slow_down(micros);
+        }
+    }
+
+    /// The step from which a period change asked by [`Fem::set_dt`] applies, and the period,
+    /// while it is pending on the factor thread (a queued change: once the factor in flight
+    /// lands, then unknown).
+    pub fn dt_change_due(&self) -> Option<(u64, f64)> {
+        let t = self.background.as_deref()?;
+        match t.due {
+            Some((step, dt)) if dt != self.params.dt => Some((step, dt)),
+            _ => None,
+        }
     }
 
     /// The refactor policy in use.

@@ -4,7 +4,7 @@
 
 use super::contact::Pressed;
 use super::system::NONE;
-use super::{Factor, Failed, Fem};
+use super::{Factor, Failed, Fem, RefactorPolicy};
 use crate::interaction::ContactReport;
 
 /// CG stops at `‖r‖ ≤ CG_TOLERANCE · ‖b‖`. On the liver swinging under gravity (Table 6.2)
@@ -14,6 +14,12 @@ use crate::interaction::ContactReport;
 const CG_TOLERANCE: f64 = 1e-5;
 /// CG iterations before giving up on the lagged factor and refactorising within the step.
 const CG_MAX_ITERATIONS: usize = 20;
+/// [`RefactorPolicy::Background`]: a CG run of more iterations than this asks for a new factor
+/// (about what a refactorisation costs on the organ meshes: `system::MIN_REFACTOR_PRICE`)…
+const BACKGROUND_STALL_ITERATIONS: usize = 10;
+/// …and CG's limit while the new factor is on its way (a stale preconditioner slows CG down;
+/// it still converges). Beyond it (or on non-finite numbers) the step fails as a blow-up.
+const BACKGROUND_CG_MAX_ITERATIONS: usize = 200;
 
 impl Fem {
     /// Corotational, iterative: CG on `K̃_w + k' C Cᵀ` with the lagged factor as
@@ -61,6 +67,17 @@ impl Fem {
     /// current matrix and run it again (then it converges in one or two iterations). Returns
     /// the iterations done in all, and those of the run that converged.
     fn cg_with_refactor(&mut self, pressed: Option<Pressed>) -> Result<(usize, usize), Failed> {
+        if let RefactorPolicy::Background { .. } = self.refactor {
+            // Never a factorisation here: CG goes on with the factor it has, and a stall asks
+            // the factor thread for a new one (`background.rs`).
+            let it = self
+                .cg(pressed, BACKGROUND_CG_MAX_ITERATIONS, false)
+                .map_err(|_| Failed)?;
+            if it > BACKGROUND_STALL_ITERATIONS {
+                self.request_factor(None);
+            }
+            return Ok((it, it));
+        }
         let spent = match self.cg(pressed, CG_MAX_ITERATIONS, true) {
             Ok(it) => return Ok((it, it)),
             Err(spent) => spent,
@@ -208,18 +225,24 @@ impl Fem {
     fn apply_dynamic(&mut self, pressed: Option<Pressed>) {
         let dt = self.params.dt;
         let coef = 1.0 / (dt * dt) + self.params.damping / (2.0 * dt);
-        for (i, &d) in self.system.dof.iter().enumerate() {
-            if d != NONE {
-                let m = coef * self.mass[i];
-                for c in 0..3 {
-                    let k = d as usize + c;
-                    self.s.cg_q[k] = m * self.s.cg_p[k];
+        if let Some(pool) = &self.pool {
+            let s = &mut *self.s;
+            s.batch
+                .dynamic_product_pooled(pool, &self.mass, coef, &s.cg_p, &mut s.cg_q);
+        } else {
+            for (i, &d) in self.system.dof.iter().enumerate() {
+                if d != NONE {
+                    let m = coef * self.mass[i];
+                    for c in 0..3 {
+                        let k = d as usize + c;
+                        self.s.cg_q[k] = m * self.s.cg_p[k];
+                    }
                 }
             }
+            self.s
+                .batch
+                .add_stiffness_product(&self.s.cg_p, &mut self.s.cg_q);
         }
-        self.s
-            .batch
-            .add_stiffness_product(&self.s.cg_p, &mut self.s.cg_q);
         if let Some(p) = pressed {
             for a in 0..p.m {
                 let s = p.stiffness * p.dot(a, &self.s.cg_p);

@@ -45,6 +45,13 @@ impl Fem {
 
     /// Fills `force` with `−f_int(x)` and (corotational) `grads` with the rotated gradients.
     pub(super) fn internal_forces(&mut self) {
+        if let (FemMode::Corotational, Some(pool)) = (self.params.mode, &self.pool) {
+            let (u, force) = (&self.u, &mut self.s.force);
+            self.s
+                .batch
+                .corotational_forces_pooled(pool, u, self.lambda, self.mu, force);
+            return;
+        }
         self.s.force.iter_mut().for_each(|f| *f = [0.0; 3]);
         if self.params.mode == FemMode::Corotational {
             let (u, force) = (&self.u, &mut self.s.force);

@@ -129,6 +129,24 @@
 //! `d` (strong-Wolfe curvature test on its slope `−rᵀd`, secant steps back) keeps large
 //! rotations from overshooting.
 //!
+//! # Threads, and factors off the critical path (issue 27)
+//!
+//! [`Fem::set_worker_pool`] (or [`crate::world::World::set_threads`]) runs the step's element
+//! loops on a persistent pool: the corotational forces with the rotation search, every
+//! matrix-free product of CG, and the per-node rotations of the preconditioner. Each is split
+//! into an element phase (each batch writes its own outputs) and a node phase (each node sums its
+//! elements' contributions in element order, from zero — the order of the one-thread scatter),
+//! so the step is bit for bit the one-thread step at any thread count (`batch.rs`,
+//! `tests/fem_threads.rs`). Not parallel (yet): the preconditioner's triangular solves (the
+//! crate's own packed solves, one right-hand side, sequential along the elimination tree), the
+//! patch's solves, the DOF-vector updates of CG, the assembly (off the critical path under the
+//! background policy).
+//!
+//! [`RefactorPolicy::Background`] moves every factorisation of the lagged preconditioner out of
+//! the step, onto a thread of the body's own, and swaps the new factor in a fixed number of
+//! steps after it was asked for (`background.rs`); [`Fem::set_dt`] changes the step period
+//! through the same machinery, so the new period and its factor start together.
+//!
 //! # Allocation
 //!
 //! Everything `step` touches is allocated by [`Fem::new`] (or by the first step after a change
@@ -140,6 +158,7 @@
 // would obscure the formulas they transcribe.
 #![allow(clippy::needless_range_loop)]
 
+mod background;
 mod batch;
 mod body;
 mod cg;
@@ -157,6 +176,9 @@ mod statics;
 mod step;
 mod system;
 
+use std::sync::Arc;
+
+use crate::parallel::WorkerPool;
 use batch::Batches;
 use element::Element;
 use system::System;
@@ -200,6 +222,19 @@ pub enum RefactorPolicy {
     /// patch's correction into account, refactorised every 11 steps, each a 3.3 ms step
     /// against a 0.4 ms median.
     RealTime,
+    /// Never within a step: a new factor (CG stalled — a run of more than
+    /// `BACKGROUND_STALL_ITERATIONS` iterations —, the ski-rental price reached, or a new
+    /// period from [`Fem::set_dt`]) is assembled and factorised on the body's factor thread
+    /// from a snapshot taken at the request, and swapped in `delay_steps` steps later
+    /// (`background.rs`). Meanwhile CG goes on with the factor it has (up to
+    /// `BACKGROUND_CG_MAX_ITERATIONS`). Deterministic whatever the thread's speed; a step
+    /// whose factor is not ready waits for it (counted in [`SolverCounters::factor_waits`]).
+    /// The exception: a step with organ-to-organ contact springs factorises its own matrix,
+    /// as in every policy.
+    Background {
+        /// `D`: steps from the request to the swap, at least 1.
+        delay_steps: u32,
+    },
 }
 
 /// A finite-element body: one organ's tetrahedral mesh, its state (displacements and
@@ -243,6 +278,12 @@ pub struct Fem {
     one_iteration_runs: u32,
     /// Running totals since construction, for benchmarks ([`Fem::solver_counters`]).
     counters: SolverCounters,
+    /// The worker pool the step's element loops run on (`None`, or one thread: on the
+    /// caller alone). Bit-for-bit the same results either way (`crate::parallel`).
+    pool: Option<Arc<WorkerPool>>,
+    /// The factor thread of [`RefactorPolicy::Background`] (`background.rs`), and a body's
+    /// in-step factorisations are counted by `system`.
+    background: Option<Box<background::FactorThread>>,
     /// Scratch buffers (boxed: keeps `Model` small).
     s: Box<Scratch>,
 }
@@ -255,9 +296,14 @@ pub struct SolverCounters {
     pub steps: u64,
     /// Conjugate-gradient iterations, summed over the corotational steps.
     pub cg_iterations: u64,
-    /// Numeric factorisations (set-up, refactorisations of the lagged preconditioner, direct
-    /// solves).
+    /// Numeric factorisations on the stepping thread (set-up, refactorisations of the lagged
+    /// preconditioner, direct solves).
     pub factorizations: u64,
+    /// Factorisations made on the factor thread and swapped in
+    /// ([`RefactorPolicy::Background`]).
+    pub background_factorizations: u64,
+    /// Steps that had to wait for a background factor at their swap.
+    pub factor_waits: u64,
 }
 
 /// Scratch of a [`Fem`]: every buffer `step` uses, allocated once.

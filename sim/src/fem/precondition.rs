@@ -7,6 +7,7 @@ use super::element::{self, mat_mul_t, mat_t_vec, mat_vec};
 use super::rotation::{self, quat_to_mat, QUAT_IDENTITY};
 use super::system::{Precision, System, NONE};
 use super::{CorotationalSolver, Factor, Failed, Fem, FemMode};
+use crate::parallel::{chunk_range, SharedMut};
 
 impl Fem {
     /// `contact_pc[a] = (Q K̃_lag Qᵀ)⁻¹ c_a`, for the preconditioner.
@@ -59,6 +60,41 @@ impl Fem {
     /// aligned with the node's previous rotation), into `node_rot`; and `node_turn`, each free
     /// node's rotation since the factor was made (`R_now R_lagᵀ`), indexed by DOF block.
     pub(super) fn update_node_rotations(&mut self) {
+        if let Some(pool) = &self.pool {
+            // The same per node, each from its elements in element order (the gather).
+            let s = &mut *self.s;
+            let n = self.system.dof.len();
+            let chunks = (4 * pool.threads()).min(n / 64).max(1);
+            let rot = SharedMut::new(&mut s.node_rot);
+            let turn = SharedMut::new(&mut s.node_turn);
+            let (batch, lag, dof) = (&s.batch, &s.node_rot_lag, &self.system.dof);
+            pool.run(chunks, &|c| {
+                for node in chunk_range(n, chunks, c) {
+                    // SAFETY: each chunk writes its own nodes (and their DOF blocks) only.
+                    let rot = unsafe { &mut rot.range(node..node + 1)[0] };
+                    let mut q = [0.0; 4];
+                    for e in batch.node_elements(node).expect("pool enabled") {
+                        let qe = batch.rotation(e);
+                        let sign = if quat_dot(rot, &qe) < 0.0 { -1.0 } else { 1.0 };
+                        for c in 0..4 {
+                            q[c] += sign * qe[c];
+                        }
+                    }
+                    let len = quat_dot(&q, &q).sqrt();
+                    if len > 1e-12 && len.is_finite() {
+                        *rot = q.map(|c| c / len);
+                    }
+                    let d = dof[node];
+                    if d != NONE {
+                        let now = quat_to_mat(rot);
+                        let lag = quat_to_mat(&lag[node]);
+                        let k = d as usize / 3;
+                        unsafe { turn.range(k..k + 1)[0] = mat_mul_t(&now, &lag) };
+                    }
+                }
+            });
+            return;
+        }
         self.s.node_sum.iter_mut().for_each(|q| *q = [0.0; 4]);
         for (e, el) in self.elements.iter().enumerate() {
             let qe = self.s.batch.rotation(e);
@@ -139,7 +175,13 @@ impl Fem {
             Some(base) => self.extra_iterations += run.saturating_sub(base),
         }
         if self.extra_iterations >= self.system.refactor_price() {
-            self.factor = Factor::Stale;
+            if let super::RefactorPolicy::Background { .. } = self.refactor {
+                // Once asked, the charge starts again with the factor that lands.
+                self.extra_iterations = 0;
+                self.request_factor(None);
+            } else {
+                self.factor = Factor::Stale;
+            }
         }
     }
 }

@@ -33,6 +33,11 @@ impl Fem {
         contact: Option<&ToolContact<'_>>,
         springs: &[ContactSpring],
     ) -> Result<ContactReport, BlowUp> {
+        // A factor (and period) made off the critical path and due now (`background.rs`).
+        if self.land_due_factor().is_err() {
+            self.counters.steps += 1;
+            return self.blow_up(BlowUp::NonFinite);
+        }
         let dt = self.params.dt;
         let colliding = springs.iter().any(|s| s.touch(&self.x).is_some());
         // Linear mode without contact springs solves for the new displacement directly (see

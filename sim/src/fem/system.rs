@@ -277,6 +277,11 @@ impl System {
         self.matrix.factorizations()
     }
 
+    /// Sets the count of [`System::factorizations`] (a swapped-in system keeps the body's).
+    pub fn set_factorizations(&mut self, n: u64) {
+        self.matrix.set_factorizations(n);
+    }
+
     /// True if faer runs the supernodal factorisation.
     pub fn is_supernodal(&self) -> bool {
         self.matrix.is_supernodal()

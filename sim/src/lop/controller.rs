@@ -114,6 +114,10 @@ impl PrecisionController {
     pub fn parked(&self) -> &Model {
         &self.parked
     }
+    /// The model not running now, to configure it (its threads, its refactor policy).
+    pub fn parked_mut(&mut self) -> &mut Model {
+        &mut self.parked
+    }
     /// Transitions so far.
     pub fn switches(&self) -> u32 {
         self.switches

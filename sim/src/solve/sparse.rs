@@ -250,6 +250,11 @@ impl SparseSpd {
         self.factorizations
     }
 
+    /// Sets the count of [`SparseSpd::factorizations`].
+    pub fn set_factorizations(&mut self, n: u64) {
+        self.factorizations = n;
+    }
+
     /// CSC column pointers and row indices of the stored triangle.
     pub fn pattern(&self) -> (&[u32], &[u32]) {
         (&self.col_ptr, &self.row_idx)

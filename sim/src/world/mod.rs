@@ -21,7 +21,9 @@ use crate::lop::PrecisionController;
 use crate::mesh::TetMesh;
 use crate::model::{BlowUp, ContactReport, ContactSpring, Model, ToolAnchor, ToolContact};
 use crate::msd::{MassSpring, MsdParameters};
+use crate::parallel::WorkerPool;
 use crate::patch::{gather, GatherScratch, PatchPoint, ToolPatch, MAX_PATCH};
+use std::sync::Arc;
 
 /// How far beyond the tool radius a body's bounding box is still checked for contact, m. Covers
 /// the tissue's motion during one step.
@@ -100,6 +102,8 @@ pub struct World {
     heat: Option<Box<WorldHeat>>,
     /// What the last [`World::round`] did (one entry per body, reused).
     report: RoundReport,
+    /// The worker pool of the FEM bodies' steps ([`World::set_threads`]).
+    pool: Option<Arc<WorkerPool>>,
 }
 
 /// The heat model of a world and its clock.
@@ -134,7 +138,47 @@ impl World {
             collisions: None,
             heat: None,
             report: RoundReport::default(),
+            pool: None,
         }
+    }
+
+    /// Runs every FEM body's step (active or parked behind the levels-of-precision
+    /// controller, and those added later) on one shared pool of `threads` threads, the caller
+    /// included (1: on the caller alone, no pool). Bodies step one after the other, so one
+    /// pool serves them all; the results are bit for bit those of one thread
+    /// (`crate::parallel`). Spawns the pool's threads now.
+    pub fn set_threads(&mut self, threads: usize) {
+        let pool = (threads > 1).then(|| Arc::new(WorkerPool::new(threads)));
+        for b in &mut self.bodies {
+            give_pool(&mut b.model, &pool);
+            if let Some(lop) = &mut b.lop {
+                give_pool(lop.parked_mut(), &pool);
+            }
+        }
+        self.pool = pool;
+    }
+
+    /// Changes the step period of body `i`'s FEM model — running now, or parked behind its
+    /// levels-of-precision controller — to `dt` (s), through [`crate::fem::Fem::set_dt`]:
+    /// under the background refactor policy the new period starts, with its factor made off
+    /// the critical path, a fixed number of steps later. Returns false if the body has no FEM
+    /// model.
+    ///
+    /// # Errors
+    /// [`crate::fem::FemError::InvalidParameter`] for a period that is not finite and positive.
+    pub fn set_fem_dt(&mut self, i: usize, dt: f64) -> Result<bool, crate::fem::FemError> {
+        let b = &mut self.bodies[i];
+        let fem = match (&mut b.model, b.lop.as_mut().map(|l| l.parked_mut())) {
+            (Model::Fem(f), _) | (_, Some(Model::Fem(f))) => f,
+            _ => return Ok(false),
+        };
+        fem.set_dt(dt)?;
+        Ok(true)
+    }
+
+    /// Threads the FEM bodies' steps run on ([`World::set_threads`]; 1 without a pool).
+    pub fn threads(&self) -> usize {
+        self.pool.as_ref().map_or(1, |p| p.threads())
     }
 
     /// Attaches the heat model (one heat body per world body, in the same order): each
@@ -304,6 +348,10 @@ impl World {
     /// Adds a body with a model built by the caller (its rest shape must be `mesh`); returns its
     /// index.
     pub fn add_model(&mut self, name: &str, mesh: TetMesh, model: Model) -> usize {
+        let mut model = model;
+        if self.pool.is_some() {
+            give_pool(&mut model, &self.pool);
+        }
         self.report.bodies.push(BodyRound::default());
         let n = mesh.nodes.len();
         let mut node_triangles = vec![Vec::new(); n];
@@ -343,6 +391,10 @@ impl World {
         lop: PrecisionController,
     ) -> usize {
         let i = self.add_model(name, mesh, model);
+        let mut lop = lop;
+        if self.pool.is_some() {
+            give_pool(lop.parked_mut(), &self.pool);
+        }
         self.bodies[i].lop = Some(lop);
         i
     }
@@ -521,6 +573,13 @@ impl World {
                 Err(cause)
             }
         }
+    }
+}
+
+/// Hands `pool` to `model` if it is an FEM body.
+fn give_pool(model: &mut Model, pool: &Option<Arc<WorkerPool>>) {
+    if let Model::Fem(f) = model {
+        f.set_worker_pool(pool.clone());
     }
 }
 
