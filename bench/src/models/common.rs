@@ -5,11 +5,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{anyhow, bail, Result};
-use lop_config::{FemParams, MassSpec, MsdParams};
 use lop_sim::fem::{Fem, FemMode, FemParameters};
 use lop_sim::mesh::TetMesh;
 use lop_sim::model::{ContactReport, Model, ToolContact};
-use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass, SubstepPolicy};
+use lop_sim::msd::{Integrator, MassSpring, MsdParameters, SubstepPolicy};
 use serde::Serialize;
 
 use crate::pipeline;
@@ -79,41 +78,6 @@ pub fn integrator_label(i: Integrator) -> &'static str {
         Integrator::Verlet => "Verlet",
         Integrator::Rk4 => "RK4",
         Integrator::ImplicitEuler => "implicit Euler",
-    }
-}
-
-/// Scene `[body.msd]` → model parameters.
-pub fn msd_params(p: &MsdParams) -> MsdParameters {
-    MsdParameters {
-        stiffness: p.stiffness,
-        mass: match p.mass {
-            MassSpec::Density(d) => NodeMass::Density(d),
-            MassSpec::NodeMass(m) => NodeMass::PerNode(m),
-        },
-        damping: p.damping,
-        dt: p.dt,
-        integrator: match p.integrator {
-            lop_config::Integrator::ExplicitEuler => Integrator::ExplicitEuler,
-            lop_config::Integrator::SymplecticEuler => Integrator::SymplecticEuler,
-            lop_config::Integrator::Verlet => Integrator::Verlet,
-            lop_config::Integrator::Rk4 => Integrator::Rk4,
-            lop_config::Integrator::ImplicitEuler => Integrator::ImplicitEuler,
-        },
-    }
-}
-
-/// Scene `[body.fem]` → model parameters.
-pub fn fem_params(p: &FemParams) -> FemParameters {
-    FemParameters {
-        young: p.young,
-        poisson: p.poisson,
-        density: p.density,
-        damping: p.damping,
-        dt: p.dt,
-        mode: match p.mode {
-            lop_config::FemMode::Linear => FemMode::Linear,
-            lop_config::FemMode::Corotational => FemMode::Corotational,
-        },
     }
 }
 
