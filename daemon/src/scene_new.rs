@@ -299,13 +299,13 @@ fn default_fix(mesh: &TetMesh) -> (NodeSelector, &'static str) {
         (
             patch,
             "the posterior patch: surface nodes facing backwards (-z, within 60\n\
-             # degrees) in the back 15 % of the body's depth",
+             degrees) in the back 15 % of the body's depth",
         )
     } else {
         (
             slab(0.1),
             "the posterior slab: every node in the back tenth of the body's depth\n\
-             # (its posterior surface patch holds fewer than three nodes)",
+             (its posterior surface patch holds fewer than three nodes)",
         )
     }
 }
