@@ -112,6 +112,8 @@ use lop_sim::model::ModelKind;
 use serde::Serialize;
 
 use crate::models::workspace_root;
+// The parts below use the bench's one quantile definition (`crate::stats`).
+use crate::stats::{median, quantile_sorted};
 
 /// Options of `lop-bench lop`.
 #[derive(Args, Debug, Clone)]
@@ -261,29 +263,6 @@ fn dist3(a: [f64; 3], b: [f64; 3]) -> f64 {
     norm3([a[0] - b[0], a[1] - b[1], a[2] - b[2]])
 }
 
-/// Median of `v` (sorted in place); `None` when empty.
-fn median(v: &mut [f64]) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    Some(if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    })
-}
-
-/// Nearest-rank quantile `q` of sorted `v`.
-fn quantile_sorted(v: &[f64], q: f64) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let k = (q * v.len() as f64).ceil() as usize;
-    v[k.clamp(1, v.len()) - 1]
-}
-
 /// `out/name` as listed in the report.
 fn listed(out: &Path, name: &str) -> String {
     out.join(name).display().to_string()
@@ -393,7 +372,7 @@ pub fn run(a: LopArgs) -> Result<()> {
 }
 
 fn render_targets(targets: &[Target], quick: bool) -> String {
-    use crate::models::{table, Align};
+    use crate::table::{table, Align};
     let mut s = format!(
         "Against the targets{}\n",
         if quick {
@@ -421,23 +400,4 @@ fn render_targets(targets: &[Target], quick: bool) -> String {
         &cells,
     );
     s
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn median_of_even_and_odd() {
-        assert_eq!(median(&mut [3.0, 1.0, 2.0]), Some(2.0));
-        assert_eq!(median(&mut [4.0, 1.0, 2.0, 3.0]), Some(2.5));
-        assert_eq!(median(&mut []), None);
-    }
-
-    #[test]
-    fn quantile_by_nearest_rank() {
-        let v: Vec<f64> = (1..=100).map(f64::from).collect();
-        assert_eq!(quantile_sorted(&v, 0.99), 99.0);
-        assert_eq!(quantile_sorted(&v, 0.5), 50.0);
-    }
 }

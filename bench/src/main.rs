@@ -1,6 +1,6 @@
 //! `lop-bench`: benchmarks of the lop pipeline. One module per subcommand (`latency`, `models`,
-//! `lop`, `interaction`, `haptics`, `soak`, …); shared helpers in `table` (percentile rows, table
-//! printing), `plot` (SVG charts), `pipeline` (spawning `lopd` with a guard) and `cyclictest`
+//! `lop`, `interaction`, `haptics`, `soak`, …); shared helpers in `stats` (the one quantile
+//! definition), `table` (percentile rows, aligned tables, notes), `plot` (SVG charts), `pipeline` (spawning `lopd` with a guard) and `cyclictest`
 //! (the machine's own wake-up latency, as a yardstick).
 
 use std::process::ExitCode;
@@ -18,6 +18,7 @@ mod parry;
 mod pipeline;
 mod plot;
 mod soak;
+mod stats;
 mod table;
 mod timings;
 

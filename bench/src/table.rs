@@ -1,5 +1,6 @@
-//! Percentile rows and their table: every latency figure of the benchmarks is one [`Row`]
-//! (count, p50, p99, p99.9, max in µs), printed aligned and serialised as is to JSON.
+//! The bench's tables: percentile rows (every latency figure of the benchmarks is one [`Row`]:
+//! count, p50, p99, p99.9, max in µs, printed aligned and serialised as is to JSON), the
+//! aligned table of any columns ([`table`]) and word-wrapped notes ([`note`]).
 
 use hdrhistogram::Histogram;
 use lop_ipc::Percentiles;
@@ -138,6 +139,56 @@ pub fn note(text: &str, width: usize) -> String {
     out
 }
 
+/// Column alignment.
+#[derive(Clone, Copy)]
+pub enum Align {
+    Left,
+    Right,
+}
+
+/// An aligned text table of any columns: a header line, then one line per row, columns two
+/// spaces apart, each as wide as its widest cell. (The percentile table above keeps fixed
+/// widths so the latency tables of different runs line up.)
+pub fn table(headers: &[(&str, Align)], rows: &[Vec<String>]) -> String {
+    let mut w: Vec<usize> = headers.iter().map(|h| h.0.chars().count()).collect();
+    for r in rows {
+        for (k, c) in r.iter().enumerate() {
+            if k < w.len() {
+                w[k] = w[k].max(c.chars().count());
+            }
+        }
+    }
+    let line = |cells: Vec<&str>| {
+        let mut s = String::new();
+        for (k, c) in cells.iter().enumerate() {
+            let pad = w[k].saturating_sub(c.chars().count());
+            if k > 0 {
+                s.push_str("  ");
+            }
+            match headers[k].1 {
+                Align::Left => {
+                    s.push_str(c);
+                    if k + 1 < cells.len() {
+                        s.push_str(&" ".repeat(pad));
+                    }
+                }
+                Align::Right => {
+                    s.push_str(&" ".repeat(pad));
+                    s.push_str(c);
+                }
+            }
+        }
+        let mut s = s.trim_end().to_string();
+        s.push('\n');
+        s
+    };
+    let mut out = line(headers.iter().map(|h| h.0).collect());
+    for r in rows {
+        out += &line(r.iter().map(|c| c.as_str()).collect());
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -181,5 +232,14 @@ mod tests {
         assert_eq!(widths[1], max_end, "{text}");
         assert_eq!(widths[2], max_end, "{text}");
         assert!(text.contains("tool → deform latency"));
+    }
+
+    #[test]
+    fn table_aligns_columns() {
+        let t = table(
+            &[("a", Align::Left), ("bb", Align::Right)],
+            &[vec!["xyz".into(), "1".into()]],
+        );
+        assert_eq!(t, "a    bb\nxyz   1\n");
     }
 }

@@ -346,10 +346,17 @@ pub use resolve::{
 };
 pub use scene::{
     load_scene, parse_scene, parse_selector, selector_toml, BodySpec, CageKind, CollisionSpec,
-    DeviceDefaults, FemMode, FemParams, FixSelector, ForceLaw, GcDynamics, GcParams, HeatParams,
-    HeatSpec, Importance, Integrator, LopSpec, MassSpec, ModelPin, MsdParams, Rates, Scene,
-    StartLevel, ToolSpec,
+    DeviceDefaults, GcDynamics, GcParams, HeatParams, HeatSpec, Importance, LopSpec, Rates, Scene,
+    ToolSpec,
 };
+// The value types a scene names are `lop-sim`'s (one owner each, read through its `serde`
+// feature); re-exported so a reader of a scene needs only this crate.
+pub use lop_sim::contact::ForceLaw;
+pub use lop_sim::fem::{FemMode, FemParameters};
+pub use lop_sim::lop::StartLevel;
+pub use lop_sim::mesh::NodeSelector;
+pub use lop_sim::model::ModelPin;
+pub use lop_sim::msd::{Integrator, MsdParameters, NodeMass};
 pub use tissue::{tissue, tissue_names, Tissue, MSD_CALIBRATION, TISSUES};
 // The device-to-scene map is physics (the haptic pipeline applies it every tick); the scene
 // schema names it.

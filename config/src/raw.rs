@@ -3,9 +3,13 @@
 
 use serde::Deserialize;
 
-use crate::scene::{
-    CageKind, FemMode, ForceLaw, GcDynamics, Importance, Integrator, ModelPin, StartLevel,
-};
+use lop_sim::contact::ForceLaw;
+use lop_sim::fem::FemMode;
+use lop_sim::lop::StartLevel;
+use lop_sim::model::ModelPin;
+use lop_sim::msd::Integrator;
+
+use crate::scene::{CageKind, GcDynamics, Importance};
 
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -19,14 +19,9 @@ use crate::raw::RawScene;
 use crate::source::{KeyPath, Source};
 use crate::WorkspaceMap;
 
-pub use body::{
-    BodySpec, CageKind, FemMode, FemParams, GcDynamics, GcParams, HeatParams, Importance,
-    Integrator, MassSpec, ModelPin, MsdParams,
-};
-pub use fix::{parse_selector, selector_toml, FixSelector};
-pub use sections::{
-    CollisionSpec, DeviceDefaults, ForceLaw, HeatSpec, LopSpec, Rates, StartLevel, ToolSpec,
-};
+pub use body::{BodySpec, CageKind, GcDynamics, GcParams, HeatParams, Importance};
+pub use fix::{parse_selector, selector_toml};
+pub use sections::{CollisionSpec, DeviceDefaults, HeatSpec, LopSpec, Rates, ToolSpec};
 use validate::{
     check_name, validate_collision, validate_device, validate_heat, validate_lop, validate_rates,
     validate_tool, validate_workspace,

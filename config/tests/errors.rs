@@ -3,7 +3,7 @@
 mod common;
 
 use common::{good_with, line_of, scene_path, GOOD};
-use lop_config::{parse_scene, ConfigError, Integrator, MassSpec};
+use lop_config::{parse_scene, ConfigError, Integrator, NodeMass};
 
 /// Parses `text` expecting an error; asserts the message names the scene file and contains
 /// every string of `needles`. Returns the error for further checks.
@@ -33,7 +33,7 @@ fn the_fixture_itself_is_valid() {
     );
     assert_eq!(
         scene.bodies[1].msd.as_ref().unwrap().mass,
-        MassSpec::NodeMass(0.001)
+        NodeMass::PerNode(0.001)
     );
 }
 

@@ -5,7 +5,7 @@
 mod common;
 
 use common::{scene_path, GOOD};
-use lop_config::{parse_scene, parse_selector, selector_toml, FixSelector};
+use lop_config::{parse_scene, parse_selector, selector_toml, NodeSelector};
 
 /// `GOOD` with `fix` (TOML text of one or more `[[body.fix]]` tables) added to the last body.
 fn with_fix(fix: &str) -> String {
@@ -52,21 +52,21 @@ within = { kind = "slab", point = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0] }
     let fix = &scene.bodies[1].fix;
     assert_eq!(
         fix[0],
-        FixSelector::Box {
+        NodeSelector::Box {
             min: [-0.1, -0.1, -0.1],
             max: [0.1, 0.0, 0.1]
         }
     );
     assert_eq!(
         fix[1],
-        FixSelector::Sphere {
+        NodeSelector::Sphere {
             center: [0.0, 0.01, 0.0],
             radius: 0.005
         }
     );
     assert_eq!(
         fix[2],
-        FixSelector::Slab {
+        NodeSelector::Slab {
             point: [0.0, 0.0, -0.03],
             normal: [0.0, 0.0, 1.0],
             thickness: Some(0.01)
@@ -74,10 +74,10 @@ within = { kind = "slab", point = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0] }
     );
     assert_eq!(
         fix[3],
-        FixSelector::Facing {
+        NodeSelector::Facing {
             direction: [0.0, -1.0, 0.0],
             angle_deg: 45.0,
-            within: Some(Box::new(FixSelector::Slab {
+            within: Some(Box::new(NodeSelector::Slab {
                 point: [0.0; 3],
                 normal: [0.0, 1.0, 0.0],
                 thickness: None
@@ -148,14 +148,14 @@ fn bad_values_are_refused_naming_the_key() {
 fn command_line_form() {
     assert_eq!(
         parse_selector("kind = \"sphere\", center = [0, 0, 0.5], radius = 0.25").unwrap(),
-        FixSelector::Sphere {
+        NodeSelector::Sphere {
             center: [0.0, 0.0, 0.5],
             radius: 0.25
         }
     );
     assert_eq!(
         parse_selector("{ kind = \"box\", min = [0, 0, 0], max = [1, 1, 1] }").unwrap(),
-        FixSelector::Box {
+        NodeSelector::Box {
             min: [0.0; 3],
             max: [1.0; 3]
         }

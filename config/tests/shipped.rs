@@ -3,7 +3,7 @@
 
 use lop_config::{
     list_scenes, load_scene, parse_daemon_config, parse_scene, resolve_scene, FemMode, ForceLaw,
-    GcDynamics, HeatParams, HeatSpec, Importance, MassSpec, ModelPin, Scene,
+    GcDynamics, HeatParams, HeatSpec, Importance, ModelPin, NodeMass, Scene,
 };
 
 /// Length and FNV-1a hash of config/scenes/organs.toml (see `organs_scene_file_is_unchanged`).
@@ -70,7 +70,7 @@ fn beam() {
     assert_eq!(b.importance, Importance::Important);
     let msd = b.msd.as_ref().unwrap();
     assert_eq!(msd.stiffness, 250.0);
-    assert_eq!(msd.mass, MassSpec::NodeMass(0.1));
+    assert_eq!(msd.mass, NodeMass::PerNode(0.1));
     assert_eq!(msd.damping, 0.01);
     assert_eq!(msd.dt, 0.005);
     let fem = b.fem.as_ref().unwrap();
@@ -101,7 +101,7 @@ fn cylinders_match_table_6_1() {
         let msd = b.msd.as_ref().unwrap();
         assert_eq!(
             (msd.stiffness, msd.mass, msd.damping, msd.dt),
-            (700.0, MassSpec::Density(120.0), 0.4, 0.02)
+            (700.0, NodeMass::Density(120.0), 0.4, 0.02)
         );
         let gc = b.gc.as_ref().unwrap();
         assert_eq!(
@@ -138,7 +138,7 @@ fn organs_match_table_6_2() {
             (gc.stiffness, gc.density, gc.damping, gc.dt),
             (Some(50.0), Some(20.0), Some(0.3), Some(0.02))
         );
-        assert_eq!(b.msd.as_ref().unwrap().mass, MassSpec::Density(10.0));
+        assert_eq!(b.msd.as_ref().unwrap().mass, NodeMass::Density(10.0));
     }
 }
 
@@ -192,7 +192,7 @@ fn abdomen_has_real_tissue_values() {
         assert!((1000.0..=1100.0).contains(&fem.density), "{}", b.name);
         assert_eq!(fem.mode, FemMode::Corotational);
         let msd = b.msd.as_ref().unwrap();
-        assert_eq!(msd.mass, MassSpec::Density(fem.density), "{}", b.name);
+        assert_eq!(msd.mass, NodeMass::Density(fem.density), "{}", b.name);
         assert!(msd.stiffness > 0.0 && msd.damping > 0.0);
         let gc = b.gc.as_ref().unwrap();
         assert_eq!(gc.dynamics, GcDynamics::Projected, "{}", b.name);

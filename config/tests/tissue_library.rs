@@ -2,7 +2,7 @@
 //! the scene is where they are argued and cited, the library is what new scenes get, and the two
 //! must not drift apart.
 
-use lop_config::{load_scene, resolve_scene, tissue, CageKind, GcDynamics, Integrator, MassSpec};
+use lop_config::{load_scene, resolve_scene, tissue, CageKind, GcDynamics, Integrator, NodeMass};
 use lop_config::{tissue_names, MSD_CALIBRATION};
 
 #[test]
@@ -22,7 +22,7 @@ fn library_matches_the_abdomen_scene() {
         assert_eq!(body.color, t.color, "{}", t.name);
         assert_eq!(body.heat, t.heat, "{}", t.name);
         let msd = body.msd.as_ref().unwrap();
-        assert_eq!(msd.mass, MassSpec::Density(t.density), "{}", t.name);
+        assert_eq!(msd.mass, NodeMass::Density(t.density), "{}", t.name);
         assert_eq!(msd.dt, t.dt, "{}", t.name);
         assert_eq!(msd.integrator, Integrator::ImplicitEuler, "{}", t.name);
         // k = c E l with the organ's mean edge length between 10 and 20 mm (the scene's

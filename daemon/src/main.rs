@@ -539,9 +539,7 @@ fn cmd_simulate(a: SimulateArgs) -> Result<()> {
 
 fn cmd_mesh_info(paths: &[PathBuf], select: Option<&str>) -> Result<i32> {
     let selector = match select {
-        Some(text) => Some(lop_scene::node_selector(&bad(lop_config::parse_selector(
-            text,
-        ))?)),
+        Some(text) => Some(bad(lop_config::parse_selector(text))?),
         None => None,
     };
     let mut failed = 0;

@@ -20,16 +20,17 @@
 //!   never feels more than 0.6 N/mm), and a mock poke script that presses 6 mm into the front
 //!   (+z) of the first body at its x/y centre along the surface normal there.
 //!
-//! The file is then loaded as `lopd run --scene` loads it (validation, meshes, fixed-node
-//! selectors), and the poke script as the mock device loads it.
+//! Both files are TOML documents built with `toml_edit` (the values, the fixed-node selector
+//! through its serde form) with the decisions as comments, never text pasted together. The file
+//! is then loaded as `lopd run --scene` loads it (validation, meshes, fixed-node selectors), and
+//! the poke script as the mock device loads it.
 
-use std::fmt::Write as _;
 use std::path::{Component, Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use lop_config::{selector_toml, tissue, tissue_names, FixSelector, Importance, Tissue};
-use lop_scene::node_selector;
-use lop_sim::mesh::{bounds, read_mesh, TetMesh};
+use lop_config::{selector_toml, tissue, tissue_names, Importance, Tissue};
+use lop_sim::mesh::{bounds, read_mesh, NodeSelector, TetMesh};
+use toml_edit::{value, ArrayOfTables, DocumentMut, Item, Table, Value};
 
 use crate::tetrahedralize::Units;
 
@@ -94,7 +95,7 @@ struct Body {
     lo: [f64; 3],
     hi: [f64; 3],
     translate: [f64; 3],
-    fix: FixSelector,
+    fix: NodeSelector,
     fix_note: &'static str,
 }
 
@@ -157,7 +158,7 @@ pub fn run(opts: &SceneNewOptions) -> Result<SceneNew> {
             lo,
             hi,
             translate: [0.0; 3],
-            fix: FixSelector::Box {
+            fix: NodeSelector::Box {
                 min: [0.0; 3],
                 max: [0.0; 3],
             },
@@ -265,48 +266,46 @@ fn mesh_stem(path: &Path) -> String {
 }
 
 /// Rounded to the micrometre, so the file reads cleanly.
+fn um(x: f64) -> f64 {
+    (x * 1e6).round() / 1e6 + 0.0
+}
+
+/// [`um`] of each component.
 fn round_m(v: [f64; 3]) -> [f64; 3] {
-    v.map(|x| (x * 1e6).round() / 1e6 + 0.0)
+    v.map(um)
 }
 
-fn num(x: f64) -> String {
-    format!("{:?}", (x * 1e6).round() / 1e6 + 0.0)
-}
-
+/// A point for a comment, rounded to the micrometre.
 fn arr(v: [f64; 3]) -> String {
-    format!("[{}, {}, {}]", num(v[0]), num(v[1]), num(v[2]))
+    format!("{:?}", round_m(v))
 }
 
 /// The posterior patch, or the back slab where the patch is too small (see the module docs).
-fn default_fix(mesh: &TetMesh) -> (FixSelector, &'static str) {
+fn default_fix(mesh: &TetMesh) -> (NodeSelector, &'static str) {
     let (lo, hi) = bounds(&mesh.nodes);
     let depth = hi[2] - lo[2];
     let centre = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0];
-    let slab = |fraction: f64| FixSelector::Slab {
+    let slab = |fraction: f64| NodeSelector::Slab {
         point: round_m([centre[0], centre[1], lo[2] + fraction * depth]),
         normal: [0.0, 0.0, 1.0],
         thickness: None,
     };
-    let patch = FixSelector::Facing {
+    let patch = NodeSelector::Facing {
         direction: [0.0, 0.0, -1.0],
         angle_deg: 60.0,
         within: Some(Box::new(slab(0.15))),
     };
-    if node_selector(&patch)
-        .select(&mesh.nodes, &mesh.surface)
-        .len()
-        >= 3
-    {
+    if patch.select(&mesh.nodes, &mesh.surface).len() >= 3 {
         (
             patch,
             "the posterior patch: surface nodes facing backwards (-z, within 60\n\
-             # degrees) in the back 15 % of the body's depth",
+             degrees) in the back 15 % of the body's depth",
         )
     } else {
         (
             slab(0.1),
             "the posterior slab: every node in the back tenth of the body's depth\n\
-             # (its posterior surface patch holds fewer than three nodes)",
+             (its posterior surface patch holds fewer than three nodes)",
         )
     }
 }
@@ -444,6 +443,32 @@ fn sig3(x: f64) -> f64 {
     (x * e).round() / e
 }
 
+/// `# line` for each line of `text`, each ending in a newline: a TOML comment block.
+fn comment(text: &str) -> String {
+    text.lines()
+        .map(|l| {
+            if l.is_empty() {
+                "#\n".to_owned()
+            } else {
+                format!("# {l}\n")
+            }
+        })
+        .collect()
+}
+
+/// A TOML array of three floats.
+fn floats(v: [f64; 3]) -> Value {
+    Value::Array(v.into_iter().collect())
+}
+
+/// A table preceded by a blank line and the comment block `text` (see [`comment`]).
+fn table_with(text: &str) -> Table {
+    let mut t = Table::new();
+    t.decor_mut().set_prefix(format!("\n{}", comment(text)));
+    t
+}
+
+/// The generated scene, written by `toml_edit` (values) with the decisions as comments.
 #[allow(clippy::too_many_arguments)]
 fn scene_text(
     opts: &SceneNewOptions,
@@ -454,241 +479,246 @@ fn scene_text(
     stiffness: f64,
     script: &Path,
 ) -> Result<String> {
-    let mut t = String::new();
-    let w = &mut t;
-    writeln!(
-        w,
-        "# Scene {:?}, generated by `lopd scene new` from:",
+    let mut head = format!(
+        "Scene {:?}, generated by `lopd scene new` from:\n",
         opts.name
-    )?;
+    );
     for b in bodies {
-        writeln!(
-            w,
-            "#   {} ({}, in {})",
+        head += &format!(
+            "  {} ({}, in {})\n",
             b.mesh_path.display(),
             b.tissue.name,
             opts.units.name()
-        )?;
+        );
     }
-    writeln!(
-        w,
-        "# Key-by-key documentation: `cargo doc -p lop-config --open`, or the top of \
+    head += &format!(
+        "Key-by-key documentation: `cargo doc -p lop-config --open`, or the top of \
          config/src/lib.rs.\n\
-         #\n\
-         # Frame: metres, y up, +z anterior (towards the surgeon and the camera), as the shipped\n\
-         # organs. Each mesh is scaled to metres by its body's `scale` and placed side by side\n\
-         # with the others along x, {} mm apart, centred on the origin.\n\
-         #\n\
-         # Tissue values: lop's tissue library, the `abdomen` scene's literature values\n\
-         # (config/scenes/abdomen.toml argues each choice). nu 0.45 keeps linear tetrahedra from\n\
-         # locking; density 1050 kg/m^3; FEM damping alpha 30 1/s; mass-spring k = {} E l (l the\n\
-         # mesh's mean edge length, calibrated on the liver against its FEM) and gamma = alpha x\n\
-         # mean node mass. Gravity is off: a body held only by a patch would sag far beyond linear\n\
-         # elasticity (see abdomen.toml).",
+         \n\
+         Frame: metres, y up, +z anterior (towards the surgeon and the camera), as the shipped\n\
+         organs. Each mesh is scaled to metres by its body's `scale` and placed side by side\n\
+         with the others along x, {} mm apart, centred on the origin.\n\
+         \n\
+         Tissue values: lop's tissue library, the `abdomen` scene's literature values\n\
+         (config/scenes/abdomen.toml argues each choice). nu 0.45 keeps linear tetrahedra from\n\
+         locking; density 1050 kg/m^3; FEM damping alpha 30 1/s; mass-spring k = {} E l (l the\n\
+         mesh's mean edge length, calibrated on the liver against its FEM) and gamma = alpha x\n\
+         mean node mass. Gravity is off: a body held only by a patch would sag far beyond linear\n\
+         elasticity (see abdomen.toml).\n",
         BODY_GAP * 1e3,
         lop_config::MSD_CALIBRATION
-    )?;
+    );
     for b in bodies {
-        writeln!(w, "#\n# {}:", b.name)?;
+        head += &format!("\n{}:\n", b.name);
         for line in b.tissue.source.lines() {
-            writeln!(w, "#   {line}")?;
+            head += &format!("  {line}\n");
         }
     }
-    writeln!(
-        w,
-        "\n[scene]\nname = \"{}\"\ndescription = \"Generated by lopd scene new: {}\"\ngravity = [0.0, 0.0, 0.0]\n",
-        opts.name,
+
+    let mut doc = DocumentMut::new();
+    let mut scene = Table::new();
+    scene
+        .decor_mut()
+        .set_prefix(format!("{}\n", comment(&head)));
+    scene["name"] = value(opts.name.as_str());
+    scene["description"] = value(format!(
+        "Generated by lopd scene new: {}",
         bodies
             .iter()
             .map(|b| format!("{} ({})", b.name, b.tissue.name))
             .collect::<Vec<_>>()
             .join(", ")
-    )?;
-    writeln!(
-        w,
-        "# The tool of the shipped scenes: a 3 mm tip, the linear law; the stylus feels\n\
-         # stiffness x workspace scale = {} N/mm (an Omni renders about 0.7 N/mm stably).\n\
-         [tool]\nradius = {}\nforce_law = \"linear\"\nstiffness = {}\ndamping = 0.0\nmax_force = 3.0\nheat_power = 20.0\n",
-        stiffness * scale * 1e-3,
-        num(TOOL_RADIUS),
-        num(stiffness)
-    )?;
-    writeln!(
-        w,
-        "# Device mapping: scene = device_mm x 0.001 x scale + offset. The device origin is on the\n\
-         # centre of the bodies' bounding box; scale {} is the smallest of 1, 1.5, 2, ... at which\n\
-         # the Omni's 160 x 120 x 70 mm workspace covers every body and the poke's approach.\n\
-         [workspace]\nscale = {}\nrotate_deg = [0.0, 0.0, 0.0]\noffset = {}\n",
-        scale,
-        num(scale),
-        arr(offset)
-    )?;
-    writeln!(
-        w,
-        "[rates]\nhaptic_hz = 1000.0\ndeform_max_hz = 1000.0\npublish_hz = 250.0\n\n\
-         # The mock device's default: press {} mm into the front of {:?} (see the script).\n\
-         [device]\nmock_script = \"{}\"\n\n\
-         [lop]\nrest_speed = 0.002\nhold = 0.3\nblend = 0.2\nstart = \"gc\"\n\n\
-         [heat]\nair_temperature = 22.0\nair_coefficient = 10.0\ncontact_conductance = 500.0\n\n\
-         # Organ collision detected every 10 ms: the touched body steps every millisecond.\n\
-         [collision]\ninterval = 0.01",
+    ));
+    scene["gravity"] = value(floats([0.0; 3]));
+    doc["scene"] = Item::Table(scene);
+
+    let mut tool = table_with(&format!(
+        "The tool of the shipped scenes: a 3 mm tip, the linear law; the stylus feels\n\
+             stiffness x workspace scale = {} N/mm (an Omni renders about 0.7 N/mm stably).",
+        stiffness * scale * 1e-3
+    ));
+    tool["radius"] = value(um(TOOL_RADIUS));
+    tool["force_law"] = value("linear");
+    tool["stiffness"] = value(um(stiffness));
+    tool["damping"] = value(0.0);
+    tool["max_force"] = value(3.0);
+    tool["heat_power"] = value(20.0);
+    doc["tool"] = Item::Table(tool);
+
+    let mut workspace = table_with(
+        &format!(
+            "Device mapping: scene = device_mm x 0.001 x scale + offset. The device origin is on the\n\
+             centre of the bodies' bounding box; scale {scale} is the smallest of 1, 1.5, 2, ... at which\n\
+             the Omni's 160 x 120 x 70 mm workspace covers every body and the poke's approach."
+        ));
+    workspace["scale"] = value(um(scale));
+    workspace["rotate_deg"] = value(floats([0.0; 3]));
+    workspace["offset"] = value(floats(offset.map(um)));
+    doc["workspace"] = Item::Table(workspace);
+
+    let mut rates = table_with("");
+    rates["haptic_hz"] = value(1000.0);
+    rates["deform_max_hz"] = value(1000.0);
+    rates["publish_hz"] = value(250.0);
+    doc["rates"] = Item::Table(rates);
+
+    let mut device = table_with(&format!(
+        "The mock device's default: press {} mm into the front of {:?} (see the script).",
         POKE_DEPTH * 1e3,
-        bodies[0].name,
-        relative(&std::path::absolute(script)?, scene_dir).display()
-    )?;
+        bodies[0].name
+    ));
+    let script = relative(&std::path::absolute(script)?, scene_dir);
+    device["mock_script"] = value(script.display().to_string());
+    doc["device"] = Item::Table(device);
+
+    let mut lop = table_with("");
+    lop["rest_speed"] = value(0.002);
+    lop["hold"] = value(0.3);
+    lop["blend"] = value(0.2);
+    lop["start"] = value("gc");
+    doc["lop"] = Item::Table(lop);
+
+    let mut heat = table_with("");
+    heat["air_temperature"] = value(22.0);
+    heat["air_coefficient"] = value(10.0);
+    heat["contact_conductance"] = value(500.0);
+    doc["heat"] = Item::Table(heat);
+
+    let mut collision = table_with(
+        "Organ collision detected every 10 ms: the touched body steps every millisecond.",
+    );
+    collision["interval"] = value(0.01);
+    doc["collision"] = Item::Table(collision);
+
+    let mut body_tables = ArrayOfTables::new();
     for b in bodies {
-        let tissue = b.tissue;
-        let mesh = relative(&std::path::absolute(&b.mesh_path)?, scene_dir);
-        let (edge, node_mass) = mesh_scales(&b.mesh, tissue.density);
-        let k = sig3(tissue.msd_stiffness(edge));
-        let gamma = sig3(tissue.msd_damping(node_mass));
-        let (lo, hi) = bounds(&b.mesh.nodes);
-        writeln!(
-            w,
-            "\n# {}: {} nodes, {} tetrahedra; in the scene [{}, {}, {}] .. [{}, {}, {}] m.",
-            b.name,
-            b.mesh.nodes.len(),
-            b.mesh.tets.len(),
-            num(lo[0]),
-            num(lo[1]),
-            num(lo[2]),
-            num(hi[0]),
-            num(hi[1]),
-            num(hi[2])
-        )?;
-        writeln!(
-            w,
-            "[[body]]\nname = \"{}\"\nmesh = \"{}\"\nimportance = \"{}\"\nscale = {}\ntranslate = {}\ncolor = [{:?}, {:?}, {:?}]",
-            b.name,
-            mesh.display(),
-            match tissue.importance {
-                Importance::Important => "important",
-                Importance::Normal => "normal",
-            },
-            num(opts.units.metres()),
-            arr(b.translate),
-            tissue.color[0],
-            tissue.color[1],
-            tissue.color[2]
-        )?;
-        writeln!(
-            w,
-            "\n# Fixed: {}. It stands for the retroperitoneum and ligaments\n\
-             # that hold an abdominal organ from behind, as the shipped organs' posterior patches do;\n\
-             # the front, where the tool comes from, stays free.\n\
-             # Check what it picks: lopd mesh info MESH --select '<the table below, inline>'\n\
-             # (in the mesh file's coordinates: apply scale and translate first).\n\
-             # As an inline table: {}",
-            b.fix_note,
-            selector_toml(&b.fix)
-        )?;
-        writeln!(w, "[[body.fix]]")?;
-        write_fix(w, &b.fix)?;
-        let h = &tissue.heat;
-        writeln!(
-            w,
-            "\n[body.heat]\nconductivity = {:?}\nspecific_heat = {:?}\ndensity = {:?}\ninitial = {:?}\ncoagulation = {:?}\nburn_stiffening = {:?}",
-            h.conductivity, h.specific_heat, h.density, h.initial, h.coagulation, h.burn_stiffening
-        )?;
-        writeln!(
-            w,
-            "\n[body.fem]\nyoung = {:?}\npoisson = {:?}\ndensity = {:?}\ndamping = {:?}\ndt = {:?}",
-            tissue.young, tissue.poisson, tissue.density, tissue.fem_damping, tissue.dt
-        )?;
-        writeln!(
-            w,
-            "\n# k = {} x E x mean edge {:.1} mm; gamma = alpha x mean node mass {:.2} g.\n\
-             [body.msd]\nstiffness = {:?}\ndensity = {:?}\ndamping = {:?}\ndt = {:?}\nintegrator = \"implicit-euler\"",
-            lop_config::MSD_CALIBRATION,
-            edge * 1e3,
-            node_mass * 1e3,
-            k,
-            tissue.density,
-            gamma,
-            tissue.dt
-        )?;
-        writeln!(
-            w,
-            "\n[body.gc]\ncage = \"fitted\"\ndynamics = \"projected\"\ndt = {:?}",
-            tissue.gc_dt
-        )?;
+        body_tables.push(body_table(opts, b, scene_dir)?);
     }
-    Ok(t)
+    doc["body"] = Item::ArrayOfTables(body_tables);
+    Ok(doc.to_string())
 }
 
-/// A selector's keys as `[[body.fix]]` table lines.
-fn write_fix(w: &mut String, f: &FixSelector) -> std::fmt::Result {
-    match f {
-        FixSelector::Box { min, max } => {
-            writeln!(
-                w,
-                "kind = \"box\"\nmin = {}\nmax = {}",
-                arr(*min),
-                arr(*max)
-            )
-        }
-        FixSelector::Sphere { center, radius } => writeln!(
-            w,
-            "kind = \"sphere\"\ncenter = {}\nradius = {}",
-            arr(*center),
-            num(*radius)
-        ),
-        FixSelector::Slab {
-            point,
-            normal,
-            thickness,
-        } => {
-            writeln!(
-                w,
-                "kind = \"slab\"\npoint = {}\nnormal = {}",
-                arr(*point),
-                arr(*normal)
-            )?;
-            if let Some(t) = thickness {
-                writeln!(w, "thickness = {}", num(*t))?;
-            }
-            Ok(())
-        }
-        FixSelector::Facing {
-            direction,
-            angle_deg,
-            within,
-        } => {
-            writeln!(
-                w,
-                "kind = \"facing\"\ndirection = {}\nangle_deg = {:?}",
-                arr(*direction),
-                angle_deg
-            )?;
-            if let Some(within) = within {
-                writeln!(w, "within = {}", selector_toml(within))?;
-            }
-            Ok(())
-        }
-    }
+/// One `[[body]]` table of the generated scene, with its fixed-node selector and parameter
+/// tables.
+fn body_table(opts: &SceneNewOptions, b: &Body, scene_dir: &Path) -> Result<Table> {
+    let tissue = b.tissue;
+    let mesh = relative(&std::path::absolute(&b.mesh_path)?, scene_dir);
+    let (edge, node_mass) = mesh_scales(&b.mesh, tissue.density);
+    let (lo, hi) = bounds(&b.mesh.nodes);
+    let mut t = table_with(&format!(
+        "{}: {} nodes, {} tetrahedra; in the scene {} .. {} m.",
+        b.name,
+        b.mesh.nodes.len(),
+        b.mesh.tets.len(),
+        arr(lo),
+        arr(hi)
+    ));
+    t["name"] = value(b.name.as_str());
+    t["mesh"] = value(mesh.display().to_string());
+    t["importance"] = value(match tissue.importance {
+        Importance::Important => "important",
+        Importance::Normal => "normal",
+    });
+    t["scale"] = value(um(opts.units.metres()));
+    t["translate"] = value(floats(b.translate.map(um)));
+    // Through the shortest decimal of each f32, so the file reads `0.55`, not `0.550000011…`.
+    t["color"] = value(Value::Array(
+        tissue
+            .color
+            .iter()
+            .map(|c| format!("{c:?}").parse::<f64>().unwrap_or(f64::from(*c)))
+            .collect(),
+    ));
+
+    let mut fix = toml_edit::ser::to_document(&b.fix)
+        .context("writing the fixed-node selector")?
+        .as_table()
+        .clone();
+    fix.decor_mut().set_prefix(format!(
+        "\n{}",
+        comment(&format!(
+            "Fixed: {}. It stands for the retroperitoneum and ligaments\n\
+             that hold an abdominal organ from behind, as the shipped organs' posterior patches do;\n\
+             the front, where the tool comes from, stays free.\n\
+             Check what it picks: lopd mesh info MESH --select '<the table below, inline>'\n\
+             (in the mesh file's coordinates: apply scale and translate first).\n\
+             As an inline table: {}",
+            b.fix_note,
+            selector_toml(&b.fix)
+        ))
+    ));
+    fix.set_implicit(false);
+    let mut fixes = ArrayOfTables::new();
+    fixes.push(fix);
+    t["fix"] = Item::ArrayOfTables(fixes);
+
+    let h = &tissue.heat;
+    let mut heat = table_with("");
+    heat["conductivity"] = value(h.conductivity);
+    heat["specific_heat"] = value(h.specific_heat);
+    heat["density"] = value(h.density);
+    heat["initial"] = value(h.initial);
+    heat["coagulation"] = value(h.coagulation);
+    heat["burn_stiffening"] = value(h.burn_stiffening);
+    t["heat"] = Item::Table(heat);
+
+    let mut fem = table_with("");
+    fem["young"] = value(tissue.young);
+    fem["poisson"] = value(tissue.poisson);
+    fem["density"] = value(tissue.density);
+    fem["damping"] = value(tissue.fem_damping);
+    fem["dt"] = value(tissue.dt);
+    t["fem"] = Item::Table(fem);
+
+    let mut msd = table_with(&format!(
+        "k = {} x E x mean edge {:.1} mm; gamma = alpha x mean node mass {:.2} g.",
+        lop_config::MSD_CALIBRATION,
+        edge * 1e3,
+        node_mass * 1e3
+    ));
+    msd["stiffness"] = value(sig3(tissue.msd_stiffness(edge)));
+    msd["density"] = value(tissue.density);
+    msd["damping"] = value(sig3(tissue.msd_damping(node_mass)));
+    msd["dt"] = value(tissue.dt);
+    msd["integrator"] = value("implicit-euler");
+    t["msd"] = Item::Table(msd);
+
+    let mut gc = table_with("");
+    gc["cage"] = value("fitted");
+    gc["dynamics"] = value("projected");
+    gc["dt"] = value(tissue.gc_dt);
+    t["gc"] = Item::Table(gc);
+    Ok(t)
 }
 
 /// The mock poke script: rest in front of the target, approach to contact, press
 /// [`POKE_DEPTH`] further along the inward normal, hold 1 s, withdraw; loops (as `abdomen-poke`).
+/// Written by `toml_edit`, the waypoints' labels as comments.
 fn script_text(scene: &str, body: &str, offset: [f64; 3], scale: f64, poke: &Poke) -> String {
-    let mut t = String::new();
-    let _ = writeln!(
-        t,
-        "# Poke for scene {scene:?}, generated by `lopd scene new`: approach the front of {body:?},\n\
-         # press the tip {} mm past first contact along the inward surface normal, hold 1 s,\n\
-         # withdraw, loop. Device mm = (scene m - offset) / (0.001 x scale), offset {}, scale {}.\n\
-         # Target: scene {} m, outward normal {}; the tip (radius {} mm) touches at contact.\n\
-         name = \"{scene}: poke\"\n\
-         description = \"Press {} mm into the front of {body}, hold 1 s, withdraw.\"\n\
-         end = \"loop\"\ninterpolation = \"smooth\"",
+    let mut doc = DocumentMut::new();
+    let head = comment(&format!(
+        "Poke for scene {scene:?}, generated by `lopd scene new`: approach the front of {body:?},\n\
+         press the tip {} mm past first contact along the inward surface normal, hold 1 s,\n\
+         withdraw, loop. Device mm = (scene m - offset) / (0.001 x scale), offset {}, scale {}.\n\
+         Target: scene {} m, outward normal {}; the tip (radius {} mm) touches at contact.",
         POKE_DEPTH * 1e3,
         arr(offset),
         scale,
         arr(poke.target),
         arr(poke.normal.map(|x| (x * 1e3).round() / 1e3)),
         TOOL_RADIUS * 1e3,
-        POKE_DEPTH * 1e3,
-    );
+    ));
+    doc["name"] = value(format!("{scene}: poke"));
+    if let Some(mut key) = doc.as_table_mut().key_mut("name") {
+        key.leaf_decor_mut().set_prefix(head);
+    }
+    doc["description"] = value(format!(
+        "Press {} mm into the front of {body}, hold 1 s, withdraw.",
+        POKE_DEPTH * 1e3
+    ));
+    doc["end"] = value("loop");
+    doc["interpolation"] = value("smooth");
+    let mut waypoints = ArrayOfTables::new();
     for (time, label, p) in [
         (0.0, "rest", poke.rest),
         (0.5, "rest", poke.rest),
@@ -698,13 +728,16 @@ fn script_text(scene: &str, body: &str, offset: [f64; 3], scale: f64, poke: &Pok
         (3.6, "contact", poke.contact),
         (4.4, "rest", poke.rest),
     ] {
-        let _ = writeln!(
-            t,
-            "\n[[waypoint]]\n# {label}\nt = {time:?}\nposition = [{:?}, {:?}, {:?}]\nbuttons = []",
-            p[0] + 0.0,
-            p[1] + 0.0,
-            p[2] + 0.0
-        );
+        let mut w = Table::new();
+        w.decor_mut().set_prefix("\n");
+        w["t"] = value(time);
+        w["position"] = value(floats(p.map(|x| x + 0.0)));
+        w["buttons"] = value(Value::Array(toml_edit::Array::new()));
+        if let Some(mut key) = w.key_mut("t") {
+            key.leaf_decor_mut().set_prefix(format!("# {label}\n"));
+        }
+        waypoints.push(w);
     }
-    t
+    doc["waypoint"] = Item::ArrayOfTables(waypoints);
+    doc.to_string()
 }

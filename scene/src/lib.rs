@@ -11,16 +11,16 @@
 //! steps, and the closed loop with the simulated hand ([`closed_loop`]).
 
 use anyhow::{Context, Result};
-use lop_config::{BodySpec, MassSpec, ModelPin, Scene, ToolSpec};
+use lop_config::{BodySpec, Scene, ToolSpec};
 use lop_sim::contact::{ForceLaw, ToolSphere};
-use lop_sim::fem::{Fem, FemMode, FemParameters, RefactorPolicy};
+use lop_sim::fem::{Fem, RefactorPolicy};
 use lop_sim::lop::{
-    CageDynamics, CageModel, CageShape, GcParameters, LopPolicy, PrecisionController, StartLevel,
+    CageDynamics, CageModel, CageShape, GcParameters, LopPolicy, PrecisionController,
 };
 pub use lop_sim::mesh::smallest_extent;
 use lop_sim::mesh::TetMesh;
-use lop_sim::model::Model;
-use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
+use lop_sim::model::{Model, ModelPin};
+use lop_sim::msd::MassSpring;
 use lop_sim::world::World;
 
 pub mod closed_loop;
@@ -29,7 +29,7 @@ mod place;
 mod rounds;
 pub mod session;
 pub use haptic::pipeline_settings;
-pub use place::{node_selector, place_bodies, place_body};
+pub use place::{place_bodies, place_body};
 pub use rounds::{Rounds, TickTool, MAX_CATCH_UP};
 pub use session::{OfflineSession, ToolSource};
 
@@ -143,8 +143,8 @@ impl ToolLaws {
             f64::INFINITY
         };
         let clamp_k = |k: f64| match scene.tool.force_law {
-            lop_config::ForceLaw::Linear => k.min(k_max),
-            lop_config::ForceLaw::Quadratic => k,
+            ForceLaw::Linear => k.min(k_max),
+            ForceLaw::Quadratic => k,
         };
         let law = |k: f64| ToolSphere {
             stiffness: clamp_k(k),
@@ -174,21 +174,7 @@ pub fn tool_sphere(tool: &ToolSpec, center: [f64; 3]) -> ToolSphere {
         center,
         radius: tool.radius,
         stiffness: tool.stiffness,
-        law: match tool.force_law {
-            lop_config::ForceLaw::Linear => ForceLaw::Linear,
-            lop_config::ForceLaw::Quadratic => ForceLaw::Quadratic,
-        },
-    }
-}
-
-/// The simulation's integrator for a scene's.
-pub fn integrator(i: lop_config::Integrator) -> Integrator {
-    match i {
-        lop_config::Integrator::ExplicitEuler => Integrator::ExplicitEuler,
-        lop_config::Integrator::SymplecticEuler => Integrator::SymplecticEuler,
-        lop_config::Integrator::Verlet => Integrator::Verlet,
-        lop_config::Integrator::Rk4 => Integrator::Rk4,
-        lop_config::Integrator::ImplicitEuler => Integrator::ImplicitEuler,
+        law: tool.force_law,
     }
 }
 
@@ -200,18 +186,7 @@ pub fn precise_model(scene: &Scene, spec: &BodySpec, mesh: &TetMesh) -> Result<M
         ModelPin::Auto | ModelPin::Gc => spec.importance == lop_config::Importance::Important,
         ModelPin::Msd => false,
     };
-    if let (true, Some(fem)) = (wants_fem, &spec.fem) {
-        let params = FemParameters {
-            young: fem.young,
-            poisson: fem.poisson,
-            density: fem.density,
-            damping: fem.damping,
-            dt: fem.dt,
-            mode: match fem.mode {
-                lop_config::FemMode::Linear => FemMode::Linear,
-                lop_config::FemMode::Corotational => FemMode::Corotational,
-            },
-        };
+    if let (true, Some(params)) = (wants_fem, spec.fem) {
         let mut fem = Fem::new(mesh, params)
             .with_context(|| format!("{}: body {:?}: FEM", scene.path.display(), spec.name))?;
         if haptic_rate(scene, fem.dt()) {
@@ -219,23 +194,13 @@ pub fn precise_model(scene: &Scene, spec: &BodySpec, mesh: &TetMesh) -> Result<M
         }
         return Ok(Model::Fem(fem));
     }
-    let msd = spec.msd.as_ref().with_context(|| {
+    let params = spec.msd.with_context(|| {
         format!(
             "{}: body {:?} has no [body.msd] parameters; it needs them to run mass-spring",
             scene.path.display(),
             spec.name
         )
     })?;
-    let params = MsdParameters {
-        stiffness: msd.stiffness,
-        mass: match msd.mass {
-            MassSpec::Density(d) => NodeMass::Density(d),
-            MassSpec::NodeMass(m) => NodeMass::PerNode(m),
-        },
-        damping: msd.damping,
-        dt: msd.dt,
-        integrator: integrator(msd.integrator),
-    };
     Ok(Model::MassSpring(MassSpring::new(mesh, params)))
 }
 
@@ -286,10 +251,7 @@ pub fn lop_policy(scene: &Scene) -> LopPolicy {
         rest_speed: scene.lop.rest_speed,
         hold: scene.lop.hold,
         blend: scene.lop.blend,
-        start: match scene.lop.start {
-            lop_config::StartLevel::Gc => StartLevel::Gc,
-            lop_config::StartLevel::Precise => StartLevel::Precise,
-        },
+        start: scene.lop.start,
     }
 }
 

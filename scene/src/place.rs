@@ -3,40 +3,8 @@
 //! each `[[body.fix]]` selector picks in scene coordinates).
 
 use anyhow::{bail, Context, Result};
-use lop_config::{selector_toml, FixSelector, Scene};
-use lop_sim::mesh::{bounds, read_mesh, NodeSelector, TetMesh};
-
-/// The simulation's selector for a scene's.
-pub fn node_selector(s: &FixSelector) -> NodeSelector {
-    match s {
-        FixSelector::Box { min, max } => NodeSelector::Box {
-            min: *min,
-            max: *max,
-        },
-        FixSelector::Sphere { center, radius } => NodeSelector::Sphere {
-            center: *center,
-            radius: *radius,
-        },
-        FixSelector::Slab {
-            point,
-            normal,
-            thickness,
-        } => NodeSelector::Slab {
-            point: *point,
-            normal: *normal,
-            thickness: *thickness,
-        },
-        FixSelector::Facing {
-            direction,
-            angle_deg,
-            within,
-        } => NodeSelector::Facing {
-            direction: *direction,
-            angle_deg: *angle_deg,
-            within: within.as_deref().map(|w| Box::new(node_selector(w))),
-        },
-    }
-}
+use lop_config::{selector_toml, Scene};
+use lop_sim::mesh::{bounds, read_mesh, TetMesh};
 
 /// Body `index` of `scene`: its mesh read, placed in the scene and with every fixed node
 /// (sorted, unique).
@@ -63,7 +31,7 @@ pub fn place_body(scene: &Scene, index: usize) -> Result<TetMesh> {
         mesh.fixed.push(f);
     }
     for (j, f) in spec.fix.iter().enumerate() {
-        let picked = node_selector(f).select(&mesh.nodes, &mesh.surface);
+        let picked = f.select(&mesh.nodes, &mesh.surface);
         if picked.is_empty() {
             let (lo, hi) = bounds(&mesh.nodes);
             bail!(

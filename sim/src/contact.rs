@@ -285,12 +285,16 @@ mod tests {
     }
 }
 
-/// How penetration depth becomes force (thesis §5.2.2).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// How penetration depth becomes force (thesis §5.2.2); a scene's `[tool] force_law`
+/// (`"quadratic"`, `"linear"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "kebab-case"))]
 pub enum ForceLaw {
     /// `F = k d² N` (thesis eq. 5.2); `k` in N/m².
     Quadratic,
-    /// `F = k d N`, a linear spring; `k` in N/m.
+    /// `F = k d N`, a linear spring; `k` in N/m. The default.
+    #[default]
     Linear,
 }
 

@@ -25,7 +25,7 @@ use crate::msd::MassSpring;
 use crate::vec3::{add, scale, sub};
 
 /// Which model a body runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ModelKind {
     /// Mass-spring-damper.
     MassSpring,
@@ -33,6 +33,36 @@ pub enum ModelKind {
     Fem,
     /// Green-coordinates cage.
     Gc,
+}
+
+/// Which model a body is held to, or [`ModelPin::Auto`] to let the levels-of-precision
+/// controller choose; a scene's `[[body]] model` (`"auto"`, `"gc"`, `"msd"`, `"fem"`) and the
+/// control service's pin. A pin names a [`ModelKind`] ([`ModelPin::kind`]) or none.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "kebab-case"))]
+pub enum ModelPin {
+    /// The LoP controller decides: GC at rest, FEM or MSD (by importance) when touched.
+    #[default]
+    Auto,
+    /// Always Green coordinates.
+    Gc,
+    /// Always mass-spring-damper.
+    Msd,
+    /// Always FEM.
+    Fem,
+}
+
+impl ModelPin {
+    /// The model the pin holds the body to; `None` for [`ModelPin::Auto`].
+    pub fn kind(self) -> Option<ModelKind> {
+        match self {
+            ModelPin::Auto => None,
+            ModelPin::Gc => Some(ModelKind::Gc),
+            ModelPin::Msd => Some(ModelKind::MassSpring),
+            ModelPin::Fem => Some(ModelKind::Fem),
+        }
+    }
 }
 
 /// A body's deformation model.

@@ -61,6 +61,9 @@ use crate::interaction::{ContactReport, PatchResponse};
 use crate::vec3::v;
 use glam::DVec3;
 
+/// The patch's complementarity solver, one of the crate's solvers (`solve/lcp.rs`).
+pub use crate::solve::lcp::Lcp;
+
 /// Most contact points of one patch. A 3 mm tool pressed 0.3 mm into tissue meshed at 0.2 mm
 /// covers about 80 surface nodes; the rest is the ring in reach around it. Points beyond it
 /// are left out (the farthest, as the gathering walks outwards).
@@ -148,7 +151,7 @@ impl PatchSolve {
     /// Scratch for a model of `n` unknowns.
     pub(crate) fn new(n: usize) -> PatchSolve {
         PatchSolve {
-            lcp: Lcp::new(),
+            lcp: Lcp::with_capacity(MAX_PATCH),
             cols: Vec::new(),
             correction: vec![0.0; n],
             col: vec![0.0; n],
@@ -443,10 +446,10 @@ pub fn gather(
 
 /// The report of a solved patch: the resultant on the tissue, the tool spring's length, the
 /// proxy it balances at, and how the resultant answers a move of the device
-/// ([`Lcp::response`]).
+/// ([`response`]).
 pub(crate) fn report(patch: &ToolPatch<'_>, lcp: &mut Lcp) -> ContactReport {
     let f = v(patch.resultant(lcp.lambda()));
-    let stiffness = lcp.response(patch);
+    let stiffness = response(lcp, patch);
     ContactReport {
         force_on_tissue: f.to_array(),
         depth: f.length() / patch.stiffness,
@@ -506,230 +509,35 @@ fn bary_point_of(p: &PatchPoint, x: &[[f64; 3]]) -> DVec3 {
     })
 }
 
-/// A solver for the patch's linear complementarity problem `w = q + A λ ≥ 0`, `λ ≥ 0`,
-/// `wᵀλ = 0` with `A` symmetric positive definite, in buffers sized once for [`MAX_PATCH`].
-#[derive(Debug, Clone)]
-pub struct Lcp {
-    /// `A`, column-major `m × m`; filled by the caller through [`Lcp::matrix`].
-    a: Vec<f64>,
-    q: Vec<f64>,
-    lambda: Vec<f64>,
-    active: Vec<bool>,
-    idx: Vec<usize>,
-    sub: Vec<f64>,
-    rhs: Vec<f64>,
-    m: usize,
-}
-
-impl Default for Lcp {
-    fn default() -> Lcp {
-        Lcp::new()
+/// After a successful [`Lcp::solve`] of `patch`'s problem: how the resultant on the tissue
+/// `R = N λ` answers a move `δ` of the device while the same points touch,
+/// `∂R/∂c = N_S A_SS⁻¹ N_Sᵀ` (the gaps `q_j` fall by `n_j · δ`, so `λ_S` grows by
+/// `A_SS⁻¹ N_Sᵀ δ`), with the factor of `A_SS` the last pivot left. Zero without a touching
+/// point; `None` if it is not finite. Three substitutions with the factor.
+pub fn response(lcp: &mut Lcp, patch: &ToolPatch<'_>) -> Option<[[f64; 3]; 3]> {
+    let mut k = [[0.0; 3]; 3];
+    if lcp.lambda().iter().all(|&l| l == 0.0) {
+        return Some(k);
     }
-}
-
-impl Lcp {
-    /// Buffers for up to [`MAX_PATCH`] points.
-    pub fn new() -> Lcp {
-        Lcp {
-            a: Vec::with_capacity(MAX_PATCH * MAX_PATCH),
-            q: Vec::with_capacity(MAX_PATCH),
-            lambda: Vec::with_capacity(MAX_PATCH),
-            active: Vec::with_capacity(MAX_PATCH),
-            idx: Vec::with_capacity(MAX_PATCH),
-            sub: Vec::with_capacity(MAX_PATCH * MAX_PATCH),
-            rhs: Vec::with_capacity(MAX_PATCH),
-            m: 0,
-        }
-    }
-
-    /// Starts a problem of size `m` (at most [`MAX_PATCH`]): `A` and `q` zeroed, to be filled
-    /// through [`Lcp::matrix`] and [`Lcp::q`].
-    pub fn reset(&mut self, m: usize) {
-        let m = m.min(MAX_PATCH);
-        self.m = m;
-        self.a.clear();
-        self.a.resize(m * m, 0.0);
-        self.q.clear();
-        self.q.resize(m, 0.0);
-        self.lambda.clear();
-        self.lambda.resize(m, 0.0);
-    }
-
-    /// `A`, column-major.
-    pub fn matrix(&mut self) -> &mut [f64] {
-        &mut self.a
-    }
-
-    /// `q`.
-    pub fn q(&mut self) -> &mut [f64] {
-        &mut self.q
-    }
-
-    /// The last solution `λ`.
-    pub fn lambda(&self) -> &[f64] {
-        &self.lambda
-    }
-
-    /// Solves the problem; false (and `λ = 0`) if `A` or `q` is not finite, `A` is not
-    /// positive definite, or pivoting did not finish.
-    pub fn solve(&mut self) -> bool {
-        let m = self.m;
-        if !self.a.iter().chain(&self.q).all(|x| x.is_finite()) {
-            self.lambda.iter_mut().for_each(|l| *l = 0.0);
-            return false;
-        }
-        // A tiny ridge keeps coincident points (two faces' shared edge) solvable.
-        let diag_max = (0..m).map(|j| self.a[j * m + j]).fold(0.0, f64::max);
-        for j in 0..m {
-            self.a[j * m + j] += 1e-12 * diag_max;
-        }
-        let q_scale = self.q.iter().fold(0.0f64, |s, x| s.max(x.abs()));
-        let w_tol = 1e-10 * q_scale;
-        self.active.clear();
-        self.active.extend(self.q.iter().map(|&qj| qj < 0.0));
-        if !self.active.iter().any(|&a| a) {
-            self.lambda.iter_mut().for_each(|l| *l = 0.0);
-            return true;
-        }
-        // Block pivoting (every violated index flips) for a few rounds, then one index at a
-        // time, the least first (Murty): finite for a positive definite A.
-        let max_iter = 20 + 10 * m;
-        for iter in 0..max_iter {
-            if !self.solve_active() {
-                self.lambda.iter_mut().for_each(|l| *l = 0.0);
-                return false;
-            }
-            let l_scale = self.lambda.iter().fold(0.0f64, |s, x| s.max(x.abs()));
-            let l_tol = 1e-12 * l_scale;
-            let mut flipped = false;
-            for j in 0..m {
-                let violated = if self.active[j] {
-                    self.lambda[j] < -l_tol
-                } else {
-                    let w = self.q[j]
-                        + (0..m)
-                            .filter(|&k| self.active[k])
-                            .map(|k| self.a[k * m + j] * self.lambda[k])
-                            .sum::<f64>();
-                    w < -w_tol
-                };
-                if violated {
-                    self.active[j] = !self.active[j];
-                    flipped = true;
-                    if iter >= 5 {
-                        break;
-                    }
-                }
-            }
-            if !flipped {
-                self.lambda.iter_mut().for_each(|l| *l = l.max(0.0));
-                return true;
-            }
-        }
-        self.lambda.iter_mut().for_each(|l| *l = 0.0);
-        false
-    }
-
-    /// After a successful [`solve`](Self::solve) of `patch`'s problem: how the resultant on
-    /// the tissue `R = N λ` answers a move `δ` of the device while the same points touch,
-    /// `∂R/∂c = N_S A_SS⁻¹ N_Sᵀ` (the gaps `q_j` fall by `n_j · δ`, so `λ_S` grows by
-    /// `A_SS⁻¹ N_Sᵀ δ`), with the factor of `A_SS` the last pivot left. Zero without a
-    /// touching point; `None` if it is not finite. Three substitutions with the factor.
-    pub fn response(&mut self, patch: &ToolPatch<'_>) -> Option<[[f64; 3]; 3]> {
-        let mut k = [[0.0; 3]; 3];
-        let s = self.idx.len();
-        let solved = s > 0
-            && self.sub.len() == s * s
-            && self
-                .idx
-                .iter()
-                .all(|&j| j < patch.points.len() && self.active[j]);
-        if !solved || self.lambda.iter().all(|&l| l == 0.0) {
+    let in_range = |j: usize| j < patch.points.len();
+    for axis in 0..3 {
+        let Some((idx, x)) = lcp.solve_on_active_set(in_range, |j| patch.points[j].normal[axis])
+        else {
             return Some(k);
-        }
-        for axis in 0..3 {
-            self.rhs.clear();
-            self.rhs
-                .extend(self.idx.iter().map(|&j| patch.points[j].normal[axis]));
-            crate::solve::dense::spd_solve_factored(&self.sub, s, &mut self.rhs);
-            for (&j, &x) in self.idx.iter().zip(&self.rhs) {
-                let n = patch.points[j].normal;
-                for (row, &nr) in k.iter_mut().zip(&n) {
-                    row[axis] += nr * x;
-                }
+        };
+        for (&j, &x) in idx.iter().zip(x) {
+            let n = patch.points[j].normal;
+            for (row, &nr) in k.iter_mut().zip(&n) {
+                row[axis] += nr * x;
             }
         }
-        k.iter().flatten().all(|x| x.is_finite()).then_some(k)
     }
-
-    /// `λ_S = −A_SS⁻¹ q_S` on the active set `S`, zero elsewhere.
-    fn solve_active(&mut self) -> bool {
-        let m = self.m;
-        self.idx.clear();
-        self.idx.extend((0..m).filter(|&j| self.active[j]));
-        let s = self.idx.len();
-        self.lambda.iter_mut().for_each(|l| *l = 0.0);
-        if s == 0 {
-            return true;
-        }
-        self.sub.clear();
-        for &c in &self.idx {
-            for &r in &self.idx {
-                self.sub.push(self.a[c * m + r]);
-            }
-        }
-        self.rhs.clear();
-        self.rhs.extend(self.idx.iter().map(|&j| -self.q[j]));
-        if !crate::solve::dense::spd_solve_in_place(&mut self.sub, s, &mut self.rhs) {
-            return false;
-        }
-        for (k, &j) in self.idx.iter().enumerate() {
-            self.lambda[j] = self.rhs[k];
-        }
-        self.lambda.iter().all(|l| l.is_finite())
-    }
+    k.iter().flatten().all(|x| x.is_finite()).then_some(k)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// On small random positive definite problems the solution meets every condition that
-    /// defines it (feasible, non-negative, complementary), which makes it the unique one.
-    #[test]
-    fn lcp_solutions_meet_the_complementarity_conditions() {
-        let mut seed = 7u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        };
-        let mut lcp = Lcp::new();
-        for m in 1..=6 {
-            for _ in 0..30 {
-                let b: Vec<f64> = (0..m * m).map(|_| rnd()).collect();
-                let mut a = vec![0.0; m * m];
-                for i in 0..m {
-                    for j in 0..m {
-                        a[j * m + i] = (0..m).map(|k| b[i * m + k] * b[j * m + k]).sum::<f64>()
-                            + if i == j { 0.1 } else { 0.0 };
-                    }
-                }
-                let q: Vec<f64> = (0..m).map(|_| rnd()).collect();
-                lcp.reset(m);
-                lcp.matrix().copy_from_slice(&a);
-                lcp.q().copy_from_slice(&q);
-                assert!(lcp.solve());
-                let l = lcp.lambda().to_vec();
-                for j in 0..m {
-                    let w = q[j] + (0..m).map(|k| a[k * m + j] * l[k]).sum::<f64>();
-                    assert!(l[j] >= 0.0 && w >= -1e-9, "m {m}: λ {l:?}, w_{j} {w}");
-                    assert!((l[j] * w).abs() < 1e-9, "complementarity");
-                }
-            }
-        }
-    }
 
     /// With a diagonal `K⁻¹`, the three ways of filling `A` agree: solving the points' spread
     /// columns, the lumped form, and dense columns built by the caller.
@@ -847,9 +655,9 @@ mod tests {
                 }
                 patch.add_tool_compliance(lcp.matrix());
                 assert!(lcp.solve());
-                (v(patch.resultant(lcp.lambda())), lcp.response(&patch))
+                (v(patch.resultant(lcp.lambda())), response(lcp, &patch))
             };
-            let mut lcp = Lcp::new();
+            let mut lcp = Lcp::with_capacity(MAX_PATCH);
             let (r0, k) = solve(&mut lcp, DVec3::ZERO);
             let k = k.expect("finite");
             assert!(r0.length() > 0.0);
@@ -878,15 +686,5 @@ mod tests {
                 assert!((-1e-9..=k_tool * (1.0 + 1e-9)).contains(&along), "{along}");
             }
         }
-    }
-
-    #[test]
-    fn lcp_refuses_non_finite_input() {
-        let mut lcp = Lcp::new();
-        lcp.reset(2);
-        lcp.matrix().copy_from_slice(&[1.0, 0.0, 0.0, f64::NAN]);
-        lcp.q().copy_from_slice(&[-1.0, -1.0]);
-        assert!(!lcp.solve());
-        assert_eq!(lcp.lambda(), &[0.0, 0.0]);
     }
 }

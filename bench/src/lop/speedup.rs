@@ -16,8 +16,9 @@ use super::{
     dist3, gc_variant, median, placed_bodies, quantile_sorted, shape_key, shape_label,
     shipped_scene, DynKind, Target, SHAPES,
 };
-use crate::models::{table, us, Align};
+use crate::models::us;
 use crate::pipeline;
+use crate::table::{table, Align};
 
 /// Total amplitude of the sinusoidal load, N, …
 const LOAD_AMPLITUDE: f64 = 0.001;

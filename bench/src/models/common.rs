@@ -5,11 +5,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{anyhow, bail, Result};
-use lop_config::{FemParams, MassSpec, MsdParams};
 use lop_sim::fem::{Fem, FemMode, FemParameters};
 use lop_sim::mesh::TetMesh;
 use lop_sim::model::{ContactReport, Model, ToolContact};
-use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass, SubstepPolicy};
+use lop_sim::msd::{Integrator, MassSpring, MsdParameters, SubstepPolicy};
 use serde::Serialize;
 
 use crate::pipeline;
@@ -79,41 +78,6 @@ pub fn integrator_label(i: Integrator) -> &'static str {
         Integrator::Verlet => "Verlet",
         Integrator::Rk4 => "RK4",
         Integrator::ImplicitEuler => "implicit Euler",
-    }
-}
-
-/// Scene `[body.msd]` → model parameters.
-pub fn msd_params(p: &MsdParams) -> MsdParameters {
-    MsdParameters {
-        stiffness: p.stiffness,
-        mass: match p.mass {
-            MassSpec::Density(d) => NodeMass::Density(d),
-            MassSpec::NodeMass(m) => NodeMass::PerNode(m),
-        },
-        damping: p.damping,
-        dt: p.dt,
-        integrator: match p.integrator {
-            lop_config::Integrator::ExplicitEuler => Integrator::ExplicitEuler,
-            lop_config::Integrator::SymplecticEuler => Integrator::SymplecticEuler,
-            lop_config::Integrator::Verlet => Integrator::Verlet,
-            lop_config::Integrator::Rk4 => Integrator::Rk4,
-            lop_config::Integrator::ImplicitEuler => Integrator::ImplicitEuler,
-        },
-    }
-}
-
-/// Scene `[body.fem]` → model parameters.
-pub fn fem_params(p: &FemParams) -> FemParameters {
-    FemParameters {
-        young: p.young,
-        poisson: p.poisson,
-        density: p.density,
-        damping: p.damping,
-        dt: p.dt,
-        mode: match p.mode {
-            lop_config::FemMode::Linear => FemMode::Linear,
-            lop_config::FemMode::Corotational => FemMode::Corotational,
-        },
     }
 }
 
@@ -197,23 +161,9 @@ pub struct Timing {
     pub factorizations: Option<u64>,
 }
 
-/// Median, p99 (nearest rank), mean and max of `ns`, in µs.
+/// Median, p99 (nearest rank, `crate::stats`), mean and max of `ns`, in µs.
 pub fn summarize(ns: &mut [u64]) -> (f64, f64, f64, f64) {
-    if ns.is_empty() {
-        return (0.0, 0.0, 0.0, 0.0);
-    }
-    ns.sort_unstable();
-    let rank = |q: f64| {
-        let k = (q * ns.len() as f64).ceil() as usize;
-        ns[k.clamp(1, ns.len()) - 1] as f64 / 1000.0
-    };
-    let mean = ns.iter().map(|&v| v as f64).sum::<f64>() / ns.len() as f64 / 1000.0;
-    (
-        rank(0.5),
-        rank(0.99),
-        mean,
-        ns[ns.len() - 1] as f64 / 1000.0,
-    )
+    crate::stats::summarize_ns(ns)
 }
 
 /// Steps `model` per `budget`, timing each `step` call; returns the timing and the last
@@ -277,55 +227,9 @@ pub(super) fn time_model(
 }
 
 // ---------------------------------------------------------------------------------------------
-// Tables.
+// Tables (printed by `crate::table`).
 
-/// Column alignment.
-#[derive(Clone, Copy)]
-pub enum Align {
-    Left,
-    Right,
-}
-
-/// An aligned text table: a header line, then one line per row, columns two spaces apart.
-pub fn table(headers: &[(&str, Align)], rows: &[Vec<String>]) -> String {
-    let mut w: Vec<usize> = headers.iter().map(|h| h.0.chars().count()).collect();
-    for r in rows {
-        for (k, c) in r.iter().enumerate() {
-            if k < w.len() {
-                w[k] = w[k].max(c.chars().count());
-            }
-        }
-    }
-    let line = |cells: Vec<&str>| {
-        let mut s = String::new();
-        for (k, c) in cells.iter().enumerate() {
-            let pad = w[k].saturating_sub(c.chars().count());
-            if k > 0 {
-                s.push_str("  ");
-            }
-            match headers[k].1 {
-                Align::Left => {
-                    s.push_str(c);
-                    if k + 1 < cells.len() {
-                        s.push_str(&" ".repeat(pad));
-                    }
-                }
-                Align::Right => {
-                    s.push_str(&" ".repeat(pad));
-                    s.push_str(c);
-                }
-            }
-        }
-        let mut s = s.trim_end().to_string();
-        s.push('\n');
-        s
-    };
-    let mut out = line(headers.iter().map(|h| h.0).collect());
-    for r in rows {
-        out += &line(r.iter().map(|c| c.as_str()).collect());
-    }
-    out
-}
+pub use crate::table::{table, Align};
 
 /// A time in µs with 3 significant digits or so.
 pub fn us(v: f64) -> String {
@@ -344,27 +248,5 @@ pub(super) fn dt_text(dt: f64) -> String {
         format!("{dt:.4}")
     } else {
         format!("{dt:.2e}")
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn percentiles_by_nearest_rank() {
-        let mut ns: Vec<u64> = (1..=100).map(|v| v * 1000).collect();
-        let (med, p99, mean, max) = summarize(&mut ns);
-        assert_eq!((med, p99, max), (50.0, 99.0, 100.0));
-        assert!((mean - 50.5).abs() < 1e-12);
-    }
-
-    #[test]
-    fn table_aligns_columns() {
-        let t = table(
-            &[("a", Align::Left), ("bb", Align::Right)],
-            &[vec!["xyz".into(), "1".into()]],
-        );
-        assert_eq!(t, "a    bb\nxyz   1\n");
     }
 }

@@ -11,7 +11,7 @@ use lop_sim::model::Model;
 use lop_sim::msd::{Integrator, MsdParameters, NodeMass};
 use serde::Serialize;
 
-use super::common::{build, fem_params, table, time_model, Align, Bench, Budget, Timing};
+use super::common::{build, table, time_model, Align, Bench, Budget, Timing};
 use super::orderings;
 use super::step_times::{scene_body, shipped_mesh, MESH_CASES};
 
@@ -112,9 +112,9 @@ pub(super) fn ordering_rows(quick: bool, targets: &[usize]) -> Result<Vec<orderi
     for case in &MESH_CASES {
         let (_, body) = scene_body(case.scene, case.mesh)?;
         let mesh = shipped_mesh(case.mesh, Some(&body))?;
-        let fem = fem_params(body.fem.as_ref().with_context(|| {
+        let fem = body.fem.with_context(|| {
             format!("scene {}: body {} has no [body.fem]", case.scene, body.name)
-        })?);
+        })?;
         eprintln!("models: orderings / {}", case.mesh);
         rows.push(orderings::compare(case.mesh, &mesh, fem, quick)?);
     }

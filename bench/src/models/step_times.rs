@@ -12,8 +12,7 @@ use lop_sim::model::ToolContact;
 use serde::Serialize;
 
 use super::common::{
-    build, dt_text, fem_params, msd_params, table, time_model, us, workspace_root, Align, Bench,
-    Budget, Timing,
+    build, dt_text, table, time_model, us, workspace_root, Align, Bench, Budget, Timing,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -196,12 +195,12 @@ pub(super) fn step_times(quick: bool) -> Result<(Vec<MeshRow>, Vec<StepRow>)> {
     for case in &MESH_CASES {
         let (scene, body) = scene_body(case.scene, case.mesh)?;
         let mesh = shipped_mesh(case.mesh, Some(&body))?;
-        let msd = msd_params(body.msd.as_ref().with_context(|| {
+        let msd = body.msd.with_context(|| {
             format!("scene {}: body {} has no [body.msd]", case.scene, body.name)
-        })?);
-        let fem = fem_params(body.fem.as_ref().with_context(|| {
+        })?;
+        let fem = body.fem.with_context(|| {
             format!("scene {}: body {} has no [body.fem]", case.scene, body.name)
-        })?);
+        })?;
         let pressed = if case.press {
             Some(press(&mesh, &scene.tool)?)
         } else {

@@ -21,6 +21,7 @@ use lop_ipc::control::*;
 use lop_ipc::services;
 use serde::Serialize;
 
+use super::report::{check, Check, Evidence};
 use super::schedule::{CtlEvent, Rng};
 use crate::pipeline::ChildGuard;
 
@@ -418,4 +419,34 @@ pub fn ctl_bursts(
         }
     }
     rep
+}
+
+// ---------------------------------------------------------------------------------------------
+// The checks on this evidence.
+
+/// No bad control request accepted, no good one refused as bad, `lopd ctl` exit codes right.
+pub(super) fn check_requests(e: &Evidence<'_>) -> Check {
+    let h = e.hammer;
+    check(
+        "control: no bad request accepted, no good one refused as bad",
+        h.bad_accepted == 0
+            && h.good_refused == 0
+            && e.ctl.wrong == 0
+            && h.answered > 0
+            && h.violations.is_empty(),
+        format!(
+            "{} requests ({:.0}/s), {} answered, {} unanswered (deformation process stopped or \
+             restarting), {} bad ones sent, {} accepted, {} good ones refused as bad; lopd ctl: \
+             {} runs, {} with a wrong exit code",
+            h.sent,
+            h.sent as f64 / e.settings.seconds,
+            h.answered,
+            h.unanswered,
+            h.bad_sent,
+            h.bad_accepted,
+            h.good_refused,
+            e.ctl.runs,
+            e.ctl.wrong
+        ),
+    )
 }

@@ -22,11 +22,18 @@
 //! bench miss tool states; missed ones are counted (coverage), a check never spans a gap, and
 //! an episode that a gap cuts is not judged on its length. A sequence that goes back means the
 //! haptic process restarted; the audit then starts a new segment.
+//!
+//! The checks on this evidence (the end of the file): forces finite and within the clamp, zero
+//! written last, every episode ramped, every planned broken sample caught, and enough of the
+//! stream seen.
 
 use lop_client::{ToolState, TOOL_FLAG_DEVICE_ERROR, TOOL_FLAG_RAMPING, TOOL_FLAG_STALE_FRAME};
 use serde::Serialize;
 
-use super::schedule::SampleEvent;
+use lop_drivers::mock::SampleFault;
+
+use super::report::{check, Check, Evidence};
+use super::schedule::{SampleEvent, Schedule};
 
 /// Relative slack on the clamp and on the per-tick ramp step: rounding only.
 const REL_TOL: f64 = 1e-9;
@@ -409,6 +416,184 @@ impl ForceLog {
         }
         Ok(log)
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The checks on this evidence.
+
+/// The run is judged only if the bench saw at least this share of the tool states.
+const MIN_COVERAGE: f64 = 0.5;
+
+/// The tool stream's part of the report: what the audit saw.
+#[derive(Debug, Clone, Serialize)]
+pub struct ToolStreamReport {
+    pub received: u64,
+    pub missed: u64,
+    pub coverage: f64,
+    pub segments: u64,
+    pub max_force_n: f64,
+    pub loaded_ticks: u64,
+    pub stale_ticks: u64,
+    pub device_error_ticks: u64,
+    pub unexpected_device_errors: u64,
+    pub episodes: u64,
+    pub episodes_loaded: u64,
+    pub episodes_stale: u64,
+    pub episodes_device: u64,
+    pub episodes_gapped: u64,
+    pub longest_episode_ticks: u64,
+    pub planned_samples: usize,
+    pub planned_samples_seen: usize,
+    pub planned_samples_flagged: usize,
+    pub violations: ViolationCounts,
+    pub first_violations: Vec<String>,
+}
+
+impl ToolStreamReport {
+    /// The audit's figures, against the plan's broken samples.
+    pub fn new(a: &ForceAudit, plan: &Schedule) -> ToolStreamReport {
+        let (seen, flagged) = a.planned_samples();
+        let coverage = a.received as f64 / (a.received + a.missed).max(1) as f64;
+        ToolStreamReport {
+            received: a.received,
+            missed: a.missed,
+            coverage,
+            segments: a.segments,
+            max_force_n: a.max_force,
+            loaded_ticks: a.loaded_ticks,
+            stale_ticks: a.stale_ticks,
+            device_error_ticks: a.device_error_ticks,
+            unexpected_device_errors: a.unexpected_device_errors,
+            episodes: a.episodes.len() as u64,
+            episodes_loaded: a.episodes.iter().filter(|e| e.loaded()).count() as u64,
+            episodes_stale: a.episodes.iter().filter(|e| e.stale).count() as u64,
+            episodes_device: a.episodes.iter().filter(|e| e.device).count() as u64,
+            episodes_gapped: a.episodes.iter().filter(|e| e.gapped).count() as u64,
+            longest_episode_ticks: a.episodes.iter().map(|e| e.ticks).max().unwrap_or(0),
+            planned_samples: plan.samples.len(),
+            planned_samples_seen: seen,
+            planned_samples_flagged: flagged,
+            violations: a.counts.clone(),
+            first_violations: a.violations.clone(),
+        }
+    }
+}
+
+/// Safety invariant 1 on both records: every published force and every force the device
+/// received finite and within the clamp.
+pub(super) fn within_clamp(e: &Evidence<'_>) -> Check {
+    let (a, settings) = (e.audit, e.settings);
+    let (log_ok, log_detail) = match e.force_log {
+        Ok(l) => (
+            l.non_finite == 0 && l.over_clamp == 0 && l.rows > 0,
+            format!(
+                "force log {} rows (the device's last {:.0} s), {} with a force, max {:.3} N, {} \
+                 non-finite, {} over",
+                l.rows,
+                l.rows as f64 / settings.rate_hz,
+                l.loaded_rows,
+                l.max_force,
+                l.non_finite,
+                l.over_clamp
+            ),
+        ),
+        Err(e) => (false, format!("force log unreadable: {e}")),
+    };
+    check(
+        "every force finite and within the clamp",
+        a.counts.non_finite == 0 && a.counts.over_clamp == 0 && log_ok,
+        format!(
+            "{} tool states ({} with a force on the hand), max |F| {:.3} N, clamp {:.2} N, {} \
+             non-finite, {} over; {log_detail}",
+            a.received,
+            a.loaded_ticks,
+            a.max_force,
+            settings.clamp_n,
+            a.counts.non_finite,
+            a.counts.over_clamp
+        ),
+    )
+}
+
+/// Safety invariant 3: the device's last force is zero.
+pub(super) fn zero_at_stop(e: &Evidence<'_>) -> Check {
+    let last = e.force_log.as_ref().ok().and_then(|l| l.last);
+    check(
+        "zero force written when the haptic process stopped",
+        last == Some([0.0; 3]),
+        format!(
+            "last force in the device's record: {last:?}; haptic exits: 1 (at the end){}",
+            match e.supervisor.haptic_restarts {
+                Some(n) if n > 0 => format!(" + {n} restarts (earlier force logs overwritten)"),
+                _ => String::new(),
+            }
+        ),
+    )
+}
+
+/// Safety invariant 2: every episode ramps (see the module docs).
+pub(super) fn ramped(e: &Evidence<'_>) -> Check {
+    let (a, settings, t) = (e.audit, e.settings, e.tool);
+    check(
+        "force ramped down on every stale frame and broken sample (not cut, not held, zero in time)",
+        a.counts.ramp() == 0 && t.episodes > 0,
+        format!(
+            "{} episodes ({} with a force on the hand), {} stale-frame, {} broken-sample, longest \
+             {} ticks; violations: {} not flagged ramping, {} cut, {} held, {} late (ramp {} \
+             ticks: at most {:.3} N a tick, zero from its {}th tick)",
+            t.episodes,
+            t.episodes_loaded,
+            t.episodes_stale,
+            t.episodes_device,
+            t.longest_episode_ticks,
+            a.counts.not_ramping,
+            a.counts.cut,
+            a.counts.held,
+            a.counts.late,
+            settings.ramp_ticks,
+            settings.clamp_n / settings.ramp_ticks as f64,
+            settings.ramp_ticks
+        ),
+    )
+}
+
+/// Every planned broken sample flagged on its ticks, and no device error elsewhere.
+pub(super) fn samples_caught(e: &Evidence<'_>) -> Check {
+    let (a, plan) = (e.audit, e.plan);
+    let (seen, flagged) = (e.tool.planned_samples_seen, e.tool.planned_samples_flagged);
+    let by_kind = |k: SampleFault| plan.samples.iter().filter(|s| s.fault == k).count();
+    check(
+        "every planned broken sample caught, and no other device error",
+        a.counts.sample_not_flagged == 0 && flagged == seen && a.unexpected_device_errors == 0,
+        format!(
+            "{} runs planned ({} NaN, {} out of the workspace), {seen} seen, {flagged} flagged on \
+             every tick; {} planned ticks not flagged; {} device-error ticks elsewhere",
+            plan.samples.len(),
+            by_kind(SampleFault::Nan),
+            by_kind(SampleFault::OutOfWorkspace),
+            a.counts.sample_not_flagged,
+            a.unexpected_device_errors
+        ),
+    )
+}
+
+/// The bench saw enough of the tool stream for the checks above to mean something.
+pub(super) fn stream_observed(e: &Evidence<'_>) -> Check {
+    let a = e.audit;
+    let coverage = e.tool.coverage;
+    check(
+        "the tool stream was observed",
+        coverage >= MIN_COVERAGE,
+        format!(
+            "{} of {} tool states received ({:.2} %), {} haptic ticks in all",
+            a.received,
+            a.received + a.missed,
+            100.0 * coverage,
+            e.supervisor
+                .haptic_ticks
+                .map_or("?".into(), |t| t.to_string())
+        ),
+    )
 }
 
 #[cfg(test)]

@@ -13,6 +13,7 @@ use iceoryx2::prelude::*;
 use serde::Serialize;
 
 use super::memory::cmdline;
+use super::report::{check, Check, Evidence};
 
 /// One node left behind.
 #[derive(Debug, Clone, Serialize)]
@@ -97,6 +98,32 @@ pub fn find(prefix: &str, pids: &BTreeSet<u32>, settle: Duration) -> Leftovers {
         }
         std::thread::sleep(Duration::from_millis(200));
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The checks on this evidence.
+
+/// Nothing of the run left after it.
+pub(super) fn check_clean(e: &Evidence<'_>) -> Check {
+    let leftovers = e.leftovers;
+    check(
+        "nothing left behind (processes, iceoryx2 services and nodes of the run)",
+        leftovers.clean(),
+        format!(
+            "{} processes, {} services, {} nodes left{}",
+            leftovers.processes.len(),
+            leftovers.services.len(),
+            leftovers.nodes.len(),
+            if leftovers.clean() {
+                String::new()
+            } else {
+                format!(
+                    ": {:?} {:?} {:?}",
+                    leftovers.processes, leftovers.services, leftovers.nodes
+                )
+            }
+        ),
+    )
 }
 
 #[cfg(test)]

@@ -43,6 +43,8 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
+use super::report::{check, Check, Evidence};
+
 /// Fixed allowance for RSS growth after warm-up, KiB.
 pub const RSS_ALLOWANCE_KIB: u64 = 4096;
 /// Allowance per minute observed after warm-up, KiB (see the module docs).
@@ -324,6 +326,68 @@ impl ProcessWatch {
         v.sort_by(|a, b| a.first_seen_s.total_cmp(&b.first_seen_s));
         v
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The checks on this evidence.
+
+/// A size in KiB as MiB, for the report.
+pub fn kib(k: u64) -> String {
+    format!("{:.1} MiB", k as f64 / 1024.0)
+}
+
+/// Every long-lived process's memory and threads flat after its warm-up (the bound and why:
+/// the module docs).
+pub(super) fn check_flat(e: &Evidence<'_>) -> Check {
+    let memory = e.memory;
+    let warmup = e.settings.warmup_s;
+    let judged: Vec<&Verdict> = memory.iter().filter(|m| m.rss_flat.is_some()).collect();
+    let grew: Vec<String> = judged
+        .iter()
+        .filter(|m| m.rss_flat == Some(false) || m.threads_flat == Some(false))
+        .map(|m| {
+            format!(
+                "{} {}: peak {} in the first half, {} in the second ({:+.1} MiB over {:.1} min, \
+                 allowed {}), threads {} then {}",
+                m.role,
+                m.pid,
+                kib(m.first_half_max_kib),
+                kib(m.second_half_max_kib),
+                m.growth_kib as f64 / 1024.0,
+                m.observed_min,
+                kib(m.allowance_kib),
+                m.threads_max.0,
+                m.threads_max.1
+            )
+        })
+        .collect();
+    let long_lived = ["run", "haptic", "view"]
+        .iter()
+        .all(|r| judged.iter().any(|m| m.role == *r));
+    check(
+        "memory and threads of every process flat after warm-up",
+        grew.is_empty() && long_lived,
+        format!(
+            "{} of {} process instances judged (warm-up {:.0} s, then at least {:.0} s \
+             watched): the RSS peak of the second half of the watched time over the first's \
+             at most {} + {} per minute of half (the others did not live that long){}",
+            judged.len(),
+            memory.len(),
+            warmup,
+            MIN_OBSERVED_S,
+            kib(RSS_ALLOWANCE_KIB),
+            kib(RSS_ALLOWANCE_KIB_PER_MIN),
+            if grew.is_empty() {
+                if long_lived {
+                    String::new()
+                } else {
+                    "; lopd run, haptic and view must each be judged: run longer".into()
+                }
+            } else {
+                format!("; grew: {}", grew.join("; "))
+            }
+        ),
+    )
 }
 
 #[cfg(test)]

@@ -21,6 +21,7 @@ use serde::Serialize;
 use tungstenite::client::IntoClientRequest;
 use tungstenite::{HandshakeError, Message, WebSocket};
 
+use super::report::{check, Check, Evidence};
 use super::schedule::{ViewerEvent, ViewerKind};
 
 /// How long a session waits for the topology (a viewer that connects while the deformation
@@ -335,4 +336,40 @@ pub fn churn(
         }
     }
     rep
+}
+
+// ---------------------------------------------------------------------------------------------
+// The checks on this evidence.
+
+/// Viewers served through every fault, control only with the printed token, other origins
+/// refused.
+pub(super) fn check_access(e: &Evidence<'_>) -> Check {
+    let v = e.viewers;
+    let tally = |k: ViewerKind| v.kinds.get(&k).cloned().unwrap_or_default();
+    let (tok, none, wrong, cross) = (
+        tally(ViewerKind::Token),
+        tally(ViewerKind::NoToken),
+        tally(ViewerKind::WrongToken),
+        tally(ViewerKind::CrossOrigin),
+    );
+    check(
+        "viewers: served through every fault; control only with the printed token; other origins refused",
+        v.wrong == 0 && tok.sessions + none.sessions + wrong.sessions + cross.sessions > 0,
+        format!(
+            "{} sessions with the token ({} controlled, {} daemon busy or down), {} without and \
+             {} with a wrong token ({} refused read-only), {} from another origin ({} refused \
+             with 403); {} got frames, {} dropped without a close; {} broke a rule",
+            tok.sessions,
+            tok.control_ok,
+            tok.control_error + tok.control_unanswered,
+            none.sessions,
+            wrong.sessions,
+            none.control_read_only + wrong.control_read_only,
+            cross.sessions,
+            cross.refused_403,
+            tok.framed + none.framed + wrong.framed,
+            tok.abrupt + none.abrupt + wrong.abrupt,
+            v.wrong
+        ),
+    )
 }

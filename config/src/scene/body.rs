@@ -1,8 +1,14 @@
-//! Body spec types of a validated scene: [`BodySpec`] and its model parameter tables
-//! (`[body.fem]`, `[body.msd]`, `[body.gc]`, `[body.heat]`) with their enums.
+//! Body spec types of a validated scene: [`BodySpec`] and the parameter tables that have no
+//! model type of their own in `lop-sim` (`[body.gc]`, `[body.heat]`). `[body.fem]` and
+//! `[body.msd]` validate into `lop-sim`'s [`FemParameters`] and [`MsdParameters`], and the
+//! model pin, FEM mode, integrator and fixed-node selectors are `lop-sim`'s types too.
 
 use std::path::PathBuf;
 
+use lop_sim::fem::FemParameters;
+use lop_sim::mesh::NodeSelector;
+use lop_sim::model::ModelPin;
+use lop_sim::msd::MsdParameters;
 use serde::Deserialize;
 
 use crate::{mat_vec, rotation_xyz_deg};
@@ -16,49 +22,6 @@ pub enum Importance {
     /// Switches to mass-spring when touched.
     #[default]
     Normal,
-}
-
-/// Pins a body to one model instead of letting the LoP controller choose.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum ModelPin {
-    /// The LoP controller decides: GC at rest, FEM or MSD (by importance) when touched.
-    #[default]
-    Auto,
-    /// Always Green coordinates.
-    Gc,
-    /// Always mass-spring-damper.
-    Msd,
-    /// Always FEM.
-    Fem,
-}
-
-/// Time integrator of the mass-spring model (thesis ch. 3).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Integrator {
-    /// Forward Euler: cheapest, least stable.
-    ExplicitEuler,
-    /// Semi-implicit (symplectic) Euler: velocity first, then position.
-    #[default]
-    SymplecticEuler,
-    /// Velocity Verlet (the same positions as Störmer–Verlet).
-    Verlet,
-    /// Classic fourth-order Runge-Kutta.
-    Rk4,
-    /// Backward Euler: unconditionally stable, numerically damped.
-    ImplicitEuler,
-}
-
-/// FEM formulation.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum FemMode {
-    /// Linear elasticity, as in the thesis; inflates under large rotations.
-    Linear,
-    /// Corotational (stiffness warping): rotation-invariant.
-    #[default]
-    Corotational,
 }
 
 /// One deformable body.
@@ -83,16 +46,16 @@ pub struct BodySpec {
     pub fixed_nodes: Vec<u32>,
     /// Fixed-node selectors, `[[body.fix]]`, in scene coordinates (m): every node any of them
     /// picks is fixed too. Each must pick at least one node (checked when the mesh is loaded).
-    pub fix: Vec<super::FixSelector>,
+    pub fix: Vec<NodeSelector>,
     /// sRGB colour in 0..=1 for viewers.
     pub color: [f32; 3],
     /// Tool stiffness against this body (units of `[tool] force_law`), or `None` for the
     /// tool's own `stiffness`.
     pub tool_stiffness: Option<f64>,
     /// FEM parameters (present if important or pinned to FEM).
-    pub fem: Option<FemParams>,
+    pub fem: Option<FemParameters>,
     /// Mass-spring parameters (present unless pinned to FEM).
-    pub msd: Option<MsdParams>,
+    pub msd: Option<MsdParameters>,
     /// Green-coordinates cage parameters (present if pinned to GC).
     pub gc: Option<GcParams>,
     /// Thermal parameters, `[body.heat]` (every body has them; defaults: liver-like tissue).
@@ -112,47 +75,6 @@ impl BodySpec {
             r[2] + self.translate[2],
         ]
     }
-}
-
-/// Linear-tetrahedron FEM parameters (thesis §4.2).
-#[derive(Debug, Clone, PartialEq)]
-pub struct FemParams {
-    /// Young's modulus, Pa (> 0).
-    pub young: f64,
-    /// Poisson's ratio, 0 <= ν < 0.5.
-    pub poisson: f64,
-    /// Density, kg/m³ (> 0).
-    pub density: f64,
-    /// Mass-proportional damping α, 1/s (>= 0): `D = α M`.
-    pub damping: f64,
-    /// Time step, s (0 < dt <= 1).
-    pub dt: f64,
-    /// Formulation.
-    pub mode: FemMode,
-}
-
-/// How node masses of a mass-spring body are given.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum MassSpec {
-    /// Density, kg/m³: node masses lumped from tetrahedron volumes.
-    Density(f64),
-    /// The same mass for every node, kg.
-    NodeMass(f64),
-}
-
-/// Mass-spring-damper parameters (thesis §4.1, eq. 4.2).
-#[derive(Debug, Clone, PartialEq)]
-pub struct MsdParams {
-    /// Spring stiffness, N/m (> 0).
-    pub stiffness: f64,
-    /// Node masses.
-    pub mass: MassSpec,
-    /// γ of eq. 4.2, N·s/m per node (>= 0).
-    pub damping: f64,
-    /// Time step, s (0 < dt <= 1).
-    pub dt: f64,
-    /// Time integrator.
-    pub integrator: Integrator,
 }
 
 /// Shape of a body's Green-coordinates cage.

@@ -1,19 +1,22 @@
 //! Fixed-node selectors, `[[body.fix]]`: regions whose nodes a body holds fixed, in the scene's
-//! coordinates (see the crate docs). Validated here; which nodes they pick is decided where the
-//! mesh is loaded (`lop-scene`), since this crate never reads meshes.
+//! coordinates (see the crate docs). A selector is `lop-sim`'s [`NodeSelector`]; it is validated
+//! here (every key named in its error) and evaluated where the mesh is loaded (`lop-scene`),
+//! since this crate never reads meshes.
 
 use std::path::Path;
 
-use serde::Deserialize;
+use lop_sim::mesh::{NodeSelector, FACING_ANGLE_DEFAULT_DEG};
+use serde::{Deserialize, Serialize};
 
 use crate::check::{fmt_f64, fmt_f64s, Check};
 use crate::error::ConfigError;
 use crate::source::{KeyPath, Source};
 
-/// The kinds of selector, `kind = "..."`.
+/// The kinds of selector, `kind = "..."`: the tag of [`NodeSelector`], read here so that a
+/// key of another kind is reported by name (see [`validate_fix`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
-pub enum FixKind {
+pub(crate) enum FixKind {
     /// Inside an axis-aligned box.
     Box,
     /// Inside a sphere.
@@ -23,49 +26,6 @@ pub enum FixKind {
     /// Surface nodes whose normal faces a direction.
     Facing,
 }
-
-/// A validated fixed-node selector. Coordinates are the scene's, in metres: the body's nodes
-/// after its `scale`, `rotate_deg` and `translate`.
-#[derive(Debug, Clone, PartialEq)]
-pub enum FixSelector {
-    /// Nodes inside `min ..= max`.
-    Box {
-        /// Lowest corner, m.
-        min: [f64; 3],
-        /// Highest corner, m (each component above `min`'s).
-        max: [f64; 3],
-    },
-    /// Nodes within `radius` of `center`.
-    Sphere {
-        /// Centre, m.
-        center: [f64; 3],
-        /// Radius, m (> 0).
-        radius: f64,
-    },
-    /// Nodes behind the plane through `point` with normal `normal` (`(p − point)·n̂ <= 0`),
-    /// and at most `thickness` behind it if given.
-    Slab {
-        /// A point of the plane, m.
-        point: [f64; 3],
-        /// The plane's normal (not zero): the slab lies on the side it points away from.
-        normal: [f64; 3],
-        /// Depth behind the plane, m (> 0); `None`: the whole half-space.
-        thickness: Option<f64>,
-    },
-    /// Surface nodes whose outward normal (area-weighted over their triangles) is within
-    /// `angle_deg` of `direction`, and inside `within` if given.
-    Facing {
-        /// Direction the patch faces (not zero).
-        direction: [f64; 3],
-        /// Largest angle from `direction`, degrees (0 < angle <= 180).
-        angle_deg: f64,
-        /// A further region the patch must lie in.
-        within: Option<Box<FixSelector>>,
-    },
-}
-
-/// Default of a facing selector's `angle_deg`.
-pub const FACING_ANGLE_DEFAULT_DEG: f64 = 45.0;
 
 /// Raw `[[body.fix]]` table: every key of every kind, checked against `kind` in validation.
 #[derive(Debug, Deserialize)]
@@ -130,7 +90,7 @@ pub(crate) fn validate_fix(
     c: &Check<'_, '_>,
     k: &KeyPath,
     raw: RawFix,
-) -> Result<FixSelector, ConfigError> {
+) -> Result<NodeSelector, ConfigError> {
     let name = kind_name(raw.kind);
     let allowed = keys_of(raw.kind);
     if let Some(extra) = raw.given().into_iter().find(|g| !allowed.contains(g)) {
@@ -178,7 +138,7 @@ pub(crate) fn validate_fix(
                     ),
                 ));
             }
-            FixSelector::Box { min, max }
+            NodeSelector::Box { min, max }
         }
         FixKind::Sphere => {
             let center = need3("center", raw.center, "centre, m")?;
@@ -189,7 +149,7 @@ pub(crate) fn validate_fix(
                     "a sphere selector needs `radius` (m)",
                 ));
             };
-            FixSelector::Sphere {
+            NodeSelector::Sphere {
                 center,
                 radius: c.positive(&k.key("radius"), radius, "sphere radius (m)")?,
             }
@@ -197,7 +157,7 @@ pub(crate) fn validate_fix(
         FixKind::Slab => {
             let point = need3("point", raw.point, "a point of the plane, m")?;
             let normal = need3("normal", raw.normal, "the plane's normal")?;
-            FixSelector::Slab {
+            NodeSelector::Slab {
                 point,
                 normal: nonzero("normal", normal, "the plane's normal")?,
                 thickness: raw
@@ -216,7 +176,7 @@ pub(crate) fn validate_fix(
                     "angle_deg must be above 0 and at most 180 (degrees)",
                 ));
             }
-            FixSelector::Facing {
+            NodeSelector::Facing {
                 direction: nonzero("direction", direction, "the facing direction")?,
                 angle_deg,
                 within: raw
@@ -232,7 +192,7 @@ pub(crate) fn validate_fix(
 /// a TOML inline table, with or without its braces, e.g.
 /// `kind = "sphere", center = [0, 0, 0], radius = 0.01`. Errors name the key as
 /// `select.radius` and the source as `--select`.
-pub fn parse_selector(text: &str) -> Result<FixSelector, ConfigError> {
+pub fn parse_selector(text: &str) -> Result<NodeSelector, ConfigError> {
     let t = text.trim();
     let doc = if t.starts_with('{') {
         format!("select = {t}\n")
@@ -255,46 +215,11 @@ pub fn parse_selector(text: &str) -> Result<FixSelector, ConfigError> {
 }
 
 /// The selector as it would be written in a scene file or on the command line (an inline
-/// table), e.g. for a generated scene's comments.
-pub fn selector_toml(s: &FixSelector) -> String {
-    let v = |a: &[f64; 3]| fmt_f64s(a);
-    match s {
-        FixSelector::Box { min, max } => {
-            format!("{{ kind = \"box\", min = {}, max = {} }}", v(min), v(max))
-        }
-        FixSelector::Sphere { center, radius } => format!(
-            "{{ kind = \"sphere\", center = {}, radius = {} }}",
-            v(center),
-            fmt_f64(*radius)
-        ),
-        FixSelector::Slab {
-            point,
-            normal,
-            thickness,
-        } => {
-            let t = thickness
-                .map(|t| format!(", thickness = {}", fmt_f64(t)))
-                .unwrap_or_default();
-            format!(
-                "{{ kind = \"slab\", point = {}, normal = {}{t} }}",
-                v(point),
-                v(normal)
-            )
-        }
-        FixSelector::Facing {
-            direction,
-            angle_deg,
-            within,
-        } => {
-            let w = within
-                .as_ref()
-                .map(|w| format!(", within = {}", selector_toml(w)))
-                .unwrap_or_default();
-            format!(
-                "{{ kind = \"facing\", direction = {}, angle_deg = {}{w} }}",
-                v(direction),
-                fmt_f64(*angle_deg)
-            )
-        }
-    }
+/// table, keys in [`NodeSelector`]'s order), e.g. for a generated scene's comments or an error
+/// message. Written by the `toml` crate from the selector's serde form.
+pub fn selector_toml(s: &NodeSelector) -> String {
+    let mut out = String::new();
+    s.serialize(toml::ser::ValueSerializer::new(&mut out))
+        .expect("a node selector is a TOML inline table");
+    out
 }

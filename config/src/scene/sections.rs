@@ -1,31 +1,11 @@
 //! Scene-level section types of a validated scene: `[tool]`, `[rates]`, `[device]`, `[lop]`,
-//! `[heat]` and `[collision]`, with their defaults.
+//! `[heat]` and `[collision]`, with their defaults. The force law and the start level are
+//! `lop-sim`'s ([`ForceLaw`], [`StartLevel`]).
 
 use std::path::PathBuf;
 
-use serde::Deserialize;
-
-/// Force law of the tool contact.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum ForceLaw {
-    /// Thesis eq. 5.2: `F = k d² N`; `stiffness` in N/m².
-    Quadratic,
-    /// A spring: `F = k d N`; `stiffness` in N/m.
-    #[default]
-    Linear,
-}
-
-/// Which level of precision bodies start at.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum StartLevel {
-    /// The cage (thesis §4.4).
-    #[default]
-    Gc,
-    /// The precise model, handing over to the cage once settled.
-    Precise,
-}
+use lop_sim::contact::ForceLaw;
+use lop_sim::lop::StartLevel;
 
 /// Organ-to-organ collision (thesis §6.3.4.1), `[collision]`: see `lop_sim::collide`.
 #[derive(Debug, Clone, PartialEq)]

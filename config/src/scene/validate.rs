@@ -9,7 +9,9 @@ use crate::raw::{RawCollision, RawDevice, RawHeat, RawLop, RawRates, RawTool, Ra
 use crate::source::KeyPath;
 use crate::WorkspaceMap;
 
-use super::{CollisionSpec, DeviceDefaults, ForceLaw, HeatSpec, LopSpec, Rates, ToolSpec};
+use lop_sim::contact::ForceLaw;
+
+use super::{CollisionSpec, DeviceDefaults, HeatSpec, LopSpec, Rates, ToolSpec};
 
 pub(super) fn validate_collision(
     c: &Check<'_, '_>,

@@ -10,10 +10,11 @@ use crate::source::{KeyPath, Source};
 
 use super::fix::validate_fix;
 use super::validate::check_name;
-use super::{
-    BodySpec, FemParams, GcDynamics, GcParams, HeatParams, Importance, MassSpec, ModelPin,
-    MsdParams,
-};
+use lop_sim::fem::FemParameters;
+use lop_sim::model::ModelPin;
+use lop_sim::msd::{MsdParameters, NodeMass};
+
+use super::{BodySpec, GcDynamics, GcParams, HeatParams, Importance};
 
 /// Default viewer colours, by body index (sRGB).
 const PALETTE: [[f32; 3]; 6] = [
@@ -197,7 +198,7 @@ pub(super) fn validate_body(
     })
 }
 
-fn validate_fem(c: &Check<'_, '_>, k: &KeyPath, raw: RawFem) -> Result<FemParams, ConfigError> {
+fn validate_fem(c: &Check<'_, '_>, k: &KeyPath, raw: RawFem) -> Result<FemParameters, ConfigError> {
     let poisson_key = k.key("poisson");
     let poisson = raw.poisson;
     if !(poisson.is_finite() && (0.0..0.5).contains(&poisson)) {
@@ -208,7 +209,7 @@ fn validate_fem(c: &Check<'_, '_>, k: &KeyPath, raw: RawFem) -> Result<FemParams
              Lamé λ = Eν/((1+ν)(1−2ν)) infinite)",
         ));
     }
-    Ok(FemParams {
+    Ok(FemParameters {
         young: c.positive(&k.key("young"), raw.young, "Young's modulus (Pa)")?,
         poisson,
         density: c.positive(&k.key("density"), raw.density, "density (kg/m³)")?,
@@ -222,14 +223,14 @@ fn validate_fem(c: &Check<'_, '_>, k: &KeyPath, raw: RawFem) -> Result<FemParams
     })
 }
 
-fn validate_msd(c: &Check<'_, '_>, k: &KeyPath, raw: RawMsd) -> Result<MsdParams, ConfigError> {
+fn validate_msd(c: &Check<'_, '_>, k: &KeyPath, raw: RawMsd) -> Result<MsdParameters, ConfigError> {
     let stiffness = c.positive(&k.key("stiffness"), raw.stiffness, "spring stiffness (N/m)")?;
     let mass = match (raw.density, raw.node_mass) {
         (Some(d), None) => {
-            MassSpec::Density(c.positive(&k.key("density"), d, "density (kg/m³)")?)
+            NodeMass::Density(c.positive(&k.key("density"), d, "density (kg/m³)")?)
         }
         (None, Some(m)) => {
-            MassSpec::NodeMass(c.positive(&k.key("node_mass"), m, "node_mass (kg)")?)
+            NodeMass::PerNode(c.positive(&k.key("node_mass"), m, "node_mass (kg)")?)
         }
         (Some(d), Some(m)) => {
             return Err(c.invalid(
@@ -246,7 +247,7 @@ fn validate_msd(c: &Check<'_, '_>, k: &KeyPath, raw: RawMsd) -> Result<MsdParams
             ));
         }
     };
-    Ok(MsdParams {
+    Ok(MsdParameters {
         stiffness,
         mass,
         damping: c.non_negative(

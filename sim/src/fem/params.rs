@@ -3,8 +3,11 @@
 
 use thiserror::Error;
 
-/// Which elasticity the elements use.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// Which elasticity the elements use; a scene's `[body.fem] mode` (`"linear"`,
+/// `"corotational"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "kebab-case"))]
 pub enum FemMode {
     /// Linear elasticity (thesis §4.2): one factorisation per scene; inflates under rotation.
     Linear,

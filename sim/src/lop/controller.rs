@@ -5,8 +5,10 @@ use crate::vec3::{norm, sub};
 
 use super::CageModel;
 
-/// Which level a body starts at.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// Which level a body starts at; a scene's `[lop] start` (`"gc"`, `"precise"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "kebab-case"))]
 pub enum StartLevel {
     /// The cage, as thesis §4.4 describes ("initially, all objects are simulated using the
     /// fastest method").

@@ -159,7 +159,7 @@ use std::path::{Path, PathBuf};
 pub use bnd::write_bnd;
 pub use error::MeshReadError;
 pub use gmsh::read_gmsh;
-pub use select::{vertex_normals, NodeSelector};
+pub use select::{vertex_normals, NodeSelector, FACING_ANGLE_DEFAULT_DEG};
 pub use surface_check::{
     check_surface, close_holes, DefectKind, HoleClosing, SurfaceDefect, SurfaceReport, TriangleRef,
     DEFECTS_LISTED,

@@ -2,11 +2,20 @@
 //! where an organ is attached. A scene names them in its own coordinates (`[[body.fix]]`), so a
 //! selector is evaluated on positions already placed in the scene; `lopd mesh info --select`
 //! evaluates one on a mesh file's own coordinates.
+//!
+//! With the `serde` feature a selector reads and writes as a scene's `[[body.fix]]` table:
+//! `kind = "box" | "sphere" | "slab" | "facing"` and the keys of its variant (`lop-config`
+//! validates what a user writes, and writes selectors back through this representation).
 
 use glam::DVec3;
 
 /// A region of space (or of the surface) whose nodes are selected.
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(
+    feature = "serde",
+    serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)
+)]
 pub enum NodeSelector {
     /// Nodes inside the axis-aligned box `min ..= max`.
     Box {
@@ -31,6 +40,10 @@ pub enum NodeSelector {
         /// The plane's normal (need not be unit; not zero): the slab lies against it.
         normal: [f64; 3],
         /// Depth of the slab behind the plane; `None`: the whole half-space.
+        #[cfg_attr(
+            feature = "serde",
+            serde(default, skip_serializing_if = "Option::is_none")
+        )]
         thickness: Option<f64>,
     },
     /// Surface nodes whose outward normal (the area-weighted mean of their triangles' normals)
@@ -38,11 +51,25 @@ pub enum NodeSelector {
     Facing {
         /// The direction the patch faces (need not be unit; not zero).
         direction: [f64; 3],
-        /// Largest angle between a node's normal and `direction`, degrees (0 < angle <= 180).
+        /// Largest angle between a node's normal and `direction`, degrees (0 < angle <= 180;
+        /// [`FACING_ANGLE_DEFAULT_DEG`] when a scene leaves it out).
+        #[cfg_attr(feature = "serde", serde(default = "facing_angle_default"))]
         angle_deg: f64,
         /// Further limits the patch to the nodes this selector picks.
+        #[cfg_attr(
+            feature = "serde",
+            serde(default, skip_serializing_if = "Option::is_none")
+        )]
         within: Option<Box<NodeSelector>>,
     },
+}
+
+/// A facing selector's `angle_deg` when a scene leaves it out, degrees.
+pub const FACING_ANGLE_DEFAULT_DEG: f64 = 45.0;
+
+#[cfg(feature = "serde")]
+fn facing_angle_default() -> f64 {
+    FACING_ANGLE_DEFAULT_DEG
 }
 
 impl NodeSelector {

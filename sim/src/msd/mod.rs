@@ -164,8 +164,11 @@ pub enum NodeMass {
 }
 
 /// Time integration scheme (see the [module docs](self) for each one's order, stability limit
-/// and cost).
+/// and cost); a scene's `[body.msd] integrator` (`"explicit-euler"`, `"symplectic-euler"`,
+/// `"verlet"`, `"rk4"`, `"implicit-euler"`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "kebab-case"))]
 pub enum Integrator {
     /// Forward Euler: position and velocity both advanced from the old state.
     ExplicitEuler,

@@ -7,6 +7,9 @@
 //!   (`msd/implicit.rs`), the heat bodies (`heat/system.rs`) and the GC compliance
 //!   (`lop/compliance.rs`) build on it.
 //! - [`dense`]: small dense SPD solves through nalgebra's Cholesky decomposition.
+//! - [`lcp`]: a linear complementarity problem with an SPD matrix, by principal pivoting (the
+//!   tool's contact patch, `patch.rs`).
 
 pub(crate) mod dense;
+pub(crate) mod lcp;
 pub(crate) mod sparse;

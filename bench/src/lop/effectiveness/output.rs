@@ -13,8 +13,8 @@ use super::{
     variant_names, CaseReport, Reference, Runner, VariantRow, CALIBRATION_DIRECTION,
     CALIBRATION_FORCE_FACTOR, TARGET_BOX_MS_FEM, TARGET_BOX_MS_MSD, TARGET_PROJECTED_FEM,
 };
-use crate::models::{table, Align};
 use crate::plot::{Panel, Series};
+use crate::table::{table, Align};
 
 pub(super) fn write_csv(path: &Path, dt: f64, disp: &[f64], runners: &[Runner]) -> Result<()> {
     let mut s = String::from("iteration,time_s,reference_displacement_max_pct");
