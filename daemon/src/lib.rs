@@ -13,6 +13,7 @@ pub mod deform;
 pub mod doctor;
 pub mod haptic;
 pub mod haptic_process;
+pub mod mesher;
 pub mod record;
 pub mod rounds;
 pub mod rt;
