@@ -4,8 +4,7 @@ STL in millimetres:
   liver.stl           a 20 cm two-lobed liver-like surface, 2,562 vertices, 5,120 triangles
   ellipsoid.stl       12 x 8 x 6 cm, 1,280 triangles
   kidney.stl          an 11 cm bean with a hilum, 1,280 triangles
-  liver_crossing.stl  the liver with the fan around its top vertex pushed through the bottom
-                      (crossing triangles, as a fold in a segmentation)
+  liver_crossing.stl  the liver and a lobe overlapping it, in one file: crossing triangles
   liver_holes.stl     the liver with the triangles around 3 vertices removed (3 holes)
 
 usage: python3 scripts/mesh_surfaces.py OUT_DIR   (needs numpy)
@@ -70,18 +69,11 @@ write_stl('liver.stl', liver(v4), f4)
 write_stl('ellipsoid.stl', v3 * np.array([60.0, 40.0, 30.0]), f3)
 write_stl('kidney.stl', kidney(v3), f3)
 
-# Crossing triangles: a lobe dented so far that its surface passes through the other side:
-# push 5 vertices near the top through the bottom.
-pl = liver(v4)
-top = np.argsort(-pl[:, 2])[:1]
-i = top[0]
-nb = set()
-for t in f4:
-    if i in t: nb.update(t.tolist())
-cross = pl.copy()
-for k in nb:
-    cross[k, 2] -= 2.2 * 57  # past the bottom (the liver is ~ 57 mm half thick there)
-write_stl('liver_crossing.stl', cross, f4)
+# Crossing triangles: a caudate-like lobe segmented apart, overlapping the liver, saved in the
+# same file (two closed sheets crossing along a loop).
+lobe = v3 * np.array([35.0, 30.0, 28.0]) + np.array([60.0, 30.0, 20.0])
+write_stl('liver_crossing.stl', np.concatenate([liver(v4), lobe]),
+          np.concatenate([f4, f3 + len(v4)]))
 # Holes: remove triangles around 3 vertices.
 rng = np.random.default_rng(7)
 hv = rng.choice(len(v4), 3, replace=False)

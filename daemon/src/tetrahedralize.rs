@@ -575,36 +575,22 @@ fn repair_surface(
     // Fine enough to keep the shape (fTetWild's own default is diagonal / 20): the sizing
     // mesher then sets the size.
     let started = Instant::now();
-    let mesh = match mesher::ftetwild::mesh(input, diagonal / 40.0, mesher::ftetwild::EPSILON) {
-        Ok(m) => m,
-        Err(MesherError::BadResult { reason, .. }) => return Err(unrepairable(reason)),
-        Err(MesherError::Failed { tail, .. }) => {
-            return Err(unrepairable(format!("fTetWild failed: {tail}")))
-        }
-        Err(e) => return Err(e.into()),
-    };
+    let repaired =
+        match mesher::ftetwild::boundary(input, diagonal / 40.0, mesher::ftetwild::EPSILON) {
+            Ok(s) => s,
+            Err(MesherError::BadResult { reason, .. }) => return Err(unrepairable(reason)),
+            Err(MesherError::Failed { tail, .. }) => {
+                return Err(unrepairable(format!("fTetWild failed: {tail}")))
+            }
+            Err(e) => return Err(e.into()),
+        };
     let seconds = started.elapsed().as_secs_f64();
-    // The boundary, its vertices renumbered.
-    let mut index = vec![u32::MAX; mesh.nodes.len()];
-    let mut vertices = Vec::new();
-    let triangles: Vec<[u32; 3]> = mesh
-        .surface
-        .iter()
-        .map(|t| {
-            t.map(|n| {
-                let k = &mut index[n as usize];
-                if *k == u32::MAX {
-                    *k = vertices.len() as u32;
-                    vertices.push(mesh.nodes[n as usize]);
-                }
-                *k
-            })
-        })
-        .collect();
-    let repaired = SurfaceMesh {
-        vertices,
-        triangles,
-    };
+    if repaired.triangles.is_empty() {
+        return Err(unrepairable(
+            "fTetWild found no inside: the surface does not enclose a volume (an open sheet?)"
+                .to_owned(),
+        ));
+    }
     // The volume before: the input with every hole fanned shut, for the measure only.
     let mut closed = input.clone();
     close_holes(&mut closed, usize::MAX);

@@ -57,14 +57,17 @@ fn write_obj(path: &Path, v: &[[f64; 3]], f: &[[u32; 3]]) {
     std::fs::write(path, obj).unwrap();
 }
 
-/// The ellipsoid with its top vertex pushed down through the bottom: the triangles around it
-/// cross the bottom's (a fold, as segmentations leave them).
+/// The ellipsoid and a smaller lobe overlapping it, in one file: two closed sheets whose
+/// triangles cross along a loop (lobes segmented apart and saved together).
 fn crossing() -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
-    let (mut v, f) = ellipsoid();
-    let top = (0..v.len())
-        .max_by(|&a, &b| v[a][2].total_cmp(&v[b][2]))
-        .unwrap();
-    v[top][2] = -6.0;
+    let (mut v, mut f) = ellipsoid();
+    let (lobe, lf) = lop_test_support::fixtures::icosphere(2);
+    let base = v.len() as u32;
+    v.extend(
+        lobe.iter()
+            .map(|p| [6.5 + p[0] * 3.5, 1.0 + p[1] * 3.0, 1.5 + p[2] * 3.0]),
+    );
+    f.extend(lf.iter().map(|t| t.map(|i| i + base)));
     (v, f)
 }
 

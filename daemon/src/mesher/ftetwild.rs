@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use lop_sim::mesh::{read_tetgen, SurfaceMesh, TetMesh};
+use lop_sim::mesh::{read_surface, read_tetgen, SurfaceMesh, TetMesh};
 
 use super::{run_in, scratch_dir, MesherError};
 
@@ -56,18 +56,50 @@ pub fn find_python() -> Result<PathBuf, MesherError> {
 pub fn mesh(surface: &SurfaceMesh, edge: f64, epsilon: f64) -> Result<TetMesh, MesherError> {
     let python = find_python()?;
     let work = scratch_dir("ftetwild")?;
-    let result = mesh_in(&python, surface, edge, epsilon, &work);
+    let result = run_script(&python, surface, edge, epsilon, &work, "volume").and_then(|()| {
+        read_tetgen(&work.join("volume")).map_err(|e| MesherError::BadResult {
+            mesher: "fTetWild",
+            reason: e.to_string(),
+        })
+    });
     let _ = std::fs::remove_dir_all(&work);
-    result
+    let mut mesh = result?;
+    for p in &mut mesh.nodes {
+        *p = p.map(|c| c / MM);
+    }
+    Ok(mesh)
 }
 
-fn mesh_in(
+/// The boundary of fTetWild's (unoptimised) mesh of `surface` (metres): closed and
+/// outward-wound by construction, within `epsilon` × the diagonal of the input where the
+/// input has a surface. The repair.
+pub fn boundary(
+    surface: &SurfaceMesh,
+    edge: f64,
+    epsilon: f64,
+) -> Result<SurfaceMesh, MesherError> {
+    let python = find_python()?;
+    let work = scratch_dir("ftetwild")?;
+    let result = run_script(&python, surface, edge, epsilon, &work, "surface").and_then(|()| {
+        read_surface(&work.join("volume.obj")).map_err(|e| MesherError::BadResult {
+            mesher: "fTetWild",
+            reason: e.to_string(),
+        })
+    });
+    let _ = std::fs::remove_dir_all(&work);
+    let mut s = result?;
+    s.scale(1.0 / MM);
+    Ok(s)
+}
+
+fn run_script(
     python: &Path,
     surface: &SurfaceMesh,
     edge: f64,
     epsilon: f64,
     work: &Path,
-) -> Result<TetMesh, MesherError> {
+    mode: &str,
+) -> Result<(), MesherError> {
     let write = |name: &str, text: &str| {
         let p = work.join(name);
         std::fs::write(&p, text).map_err(|e| MesherError::Io(format!("{}: {e}", p.display())))
@@ -82,22 +114,21 @@ fn mesh_in(
         writeln!(t, "{a} {b} {c}").ok();
     }
     write("surface.txt", &t)?;
+    let expect = if mode == "volume" {
+        "volume.ele"
+    } else {
+        "volume.obj"
+    };
     run_in(
         Command::new(python)
             .arg("ftetwild.py")
             .arg("surface.txt")
             .arg(format!("{:?}", edge * MM))
             .arg(format!("{epsilon:?}"))
-            .arg("volume"),
+            .arg("volume")
+            .arg(mode),
         work,
-        &work.join("volume.ele"),
+        &work.join(expect),
     )?;
-    let mut mesh = read_tetgen(&work.join("volume")).map_err(|e| MesherError::BadResult {
-        mesher: "fTetWild",
-        reason: e.to_string(),
-    })?;
-    for p in &mut mesh.nodes {
-        *p = p.map(|c| c / MM);
-    }
-    Ok(mesh)
+    Ok(())
 }

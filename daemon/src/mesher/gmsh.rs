@@ -57,15 +57,16 @@ fn mesh_in(
     Ok(mesh)
 }
 
-/// The gmsh script: classify the merged STL into patches at 40° creases (none on a smooth
-/// organ) and re-parametrise them, one volume inside, sizes between `edge / 2` and `edge`
+/// The gmsh script: split the merged STL into patches that can be parametrised, at no crease
+/// (an organ has none; and on fTetWild's repaired surfaces a 40° crease angle cut patches
+/// gmsh then could not mesh), re-parametrise them, one volume inside, sizes between `edge / 2` and `edge`
 /// (millimetres), Delaunay (`Algorithm3D = 1`) and gmsh's own optimiser for every tetrahedron
 /// of quality below 0.3.
 fn geo_text(edge: f64) -> String {
     let mut g = String::new();
     writeln!(g, "// lopd mesh tetrahedralize: surface in mm").ok();
     writeln!(g, "Merge \"surface.stl\";").ok();
-    writeln!(g, "ClassifySurfaces{{40 * Pi / 180, 1, 1, Pi}};").ok();
+    writeln!(g, "ClassifySurfaces{{Pi, 1, 1, Pi}};").ok();
     writeln!(g, "CreateGeometry;").ok();
     writeln!(g, "Surface Loop(1) = Surface{{:}};").ok();
     writeln!(g, "Volume(1) = {{1}};").ok();
