@@ -100,12 +100,21 @@ pub struct SurfaceDistance {
     pub max: f64,
     /// Mean over the boundary vertices.
     pub mean: f64,
+    /// Boundary vertices nearest to a patch over a hole (not counted in `max` and `mean`),
+    /// and the largest distance among them.
+    pub over_holes: (usize, f64),
 }
 
 /// The distance of every boundary vertex of `mesh` to the nearest triangle of `input` (both
-/// in the same units): the one-sided Hausdorff distance at the vertices. Exhaustive over the
-/// triangles with a bounding-box cut-off: a few million point-triangle tests for an organ.
-pub fn surface_distance(mesh: &TetMesh, input: &SurfaceMesh) -> SurfaceDistance {
+/// in the same units): the one-sided Hausdorff distance at the vertices. Triangles from
+/// `patches_from` on are patches closing holes: a vertex nearest to one is counted apart,
+/// since a hole's patch is a guess. Exhaustive over the triangles with a bounding-box
+/// cut-off: a few million point-triangle tests for an organ.
+pub fn surface_distance(
+    mesh: &TetMesh,
+    input: &SurfaceMesh,
+    patches_from: usize,
+) -> SurfaceDistance {
     let tris: Vec<[DVec3; 3]> = input
         .triangles
         .iter()
@@ -118,23 +127,36 @@ pub fn surface_distance(mesh: &TetMesh, input: &SurfaceMesh) -> SurfaceDistance 
     let nodes = mesh.surface_nodes();
     let mut max = 0.0f64;
     let mut sum = 0.0;
+    let mut counted = 0usize;
+    let mut over_holes = (0usize, 0.0f64);
     for &n in &nodes {
         let p = DVec3::from(mesh.nodes[n as usize]);
         let mut best = f64::INFINITY;
-        for (t, (lo, hi)) in tris.iter().zip(&boxes) {
+        let mut nearest = 0;
+        for (i, (t, (lo, hi))) in tris.iter().zip(&boxes).enumerate() {
             let outside = (*lo - p).max(p - *hi).max(DVec3::ZERO);
             if outside.length_squared() >= best {
                 continue;
             }
-            best = best.min(point_triangle2(p, *t));
+            let d = point_triangle2(p, *t);
+            if d < best {
+                best = d;
+                nearest = i;
+            }
         }
         let d = best.sqrt();
-        max = max.max(d);
-        sum += d;
+        if nearest >= patches_from {
+            over_holes = (over_holes.0 + 1, over_holes.1.max(d));
+        } else {
+            max = max.max(d);
+            sum += d;
+            counted += 1;
+        }
     }
     SurfaceDistance {
         max,
-        mean: sum / nodes.len().max(1) as f64,
+        mean: sum / counted.max(1) as f64,
+        over_holes,
     }
 }
 
