@@ -3,7 +3,8 @@
 # (scripts/mesh_surfaces.py) meshed by each mesher to each size; one line per run with the
 # tetrahedra asked and made, the smallest dihedral angle, its 5th percentile over the
 # tetrahedra, the meshings it took and the seconds (repair included).
-#   usage: scripts/mesh_figures.sh [LOPD] [SIZES...]   (LOPD default target/release/lopd)
+#   usage: [MESHERS="gmsh ftetwild tetgen"] scripts/mesh_figures.sh [LOPD] [SIZES...]
+#   (LOPD default target/release/lopd; SIZES default 2000 5000 10000 20000)
 set -euo pipefail
 lopd=${1:-target/release/lopd}
 shift || true
@@ -15,7 +16,7 @@ printf '%-16s %-9s %6s %6s %7s %6s %5s %8s\n' surface mesher asked made min_deg 
 for s in liver ellipsoid kidney liver_crossing liver_holes; do
   extra=()
   case $s in *_*) extra=(--repair) ;; esac
-  for m in gmsh ftetwild tetgen; do
+  for m in ${MESHERS:-gmsh ftetwild tetgen}; do
     for n in $sizes; do
       if ! out=$("$lopd" mesh tetrahedralize "$dir/$s.stl" --units mm --mesher "$m" --tets "$n" \
         "${extra[@]}" --out "$dir/mesh" 2>&1); then
