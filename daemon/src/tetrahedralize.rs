@@ -7,7 +7,8 @@
 //!    a hole, a non-manifold edge or vertex, an inconsistent winding, a degenerate triangle or
 //!    a self-intersection is refused with the triangles at fault — unless `--repair` is given:
 //!    then fTetWild meshes it inside an envelope of 1e-3 of its bounding box diagonal and the
-//!    boundary of that mesh, closed and manifold by construction, becomes the surface. One
+//!    boundary of that mesh becomes the surface (checked like the input: closed and manifold
+//!    nearly always; otherwise fTetWild runs once more at another size, then it is refused). One
 //!    wound inward throughout is flipped, with a note. Then it is scaled to metres (`--units`).
 //! 3. Fill it with the mesher ([`crate::mesher`]): `--tets N` starts from the edge of a
 //!    regular tetrahedron that tiles the volume N times, `L = (6√2·V/N)^(1/3)`, and rescales L
