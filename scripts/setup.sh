@@ -7,6 +7,10 @@
 #   python3-meshio  writes the VTK, STL, OBJ and PLY files that the mesh readers are tested on
 #             (sim/tests/mesh_meshio.rs); an independent writer, with numpy
 #   chromium  headless browser for the web viewer's screenshot test (view/tests/browser.rs)
+#   vtk       PyPI package: VTK's own writers make the legacy and XML surfaces that the
+#             surface readers are tested on (sim/tests/mesh_vtk_writers.rs)
+#   pytetwild PyPI package (fTetWild), with pyvista which it imports: the robust mesher of
+#             `lopd mesh tetrahedralize` for surfaces with defects (daemon/src/tetrahedralize)
 #   iceoryx2  the Python binding, at exactly the daemon's iceoryx2 version, for the renderer
 #             contract's Python consumer example (examples/python/consumer.py)
 set -euo pipefail
@@ -37,8 +41,8 @@ if [ ${#need[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${need[@]}" >/dev/null
 fi
 
-have=$(python3 -c 'import importlib.metadata as m; print(m.version("iceoryx2"))' 2>/dev/null || true)
-if [ "$have" != "$ICEORYX2_VERSION" ]; then
+# pip install --user of the given requirements, installing pip first when it is missing.
+pip_user() {
   if ! python3 -m pip --version >/dev/null 2>&1; then
     echo "setup: installing python3-pip" >&2
     sudo=""
@@ -46,9 +50,17 @@ if [ "$have" != "$ICEORYX2_VERSION" ]; then
     $sudo apt-get update -qq
     DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq python3-pip >/dev/null
   fi
-  echo "setup: installing Python iceoryx2==$ICEORYX2_VERSION" >&2
+  echo "setup: installing Python $*" >&2
   # --user keeps the system interpreter untouched; Debian's externally-managed marker needs
   # --break-system-packages for a user install too.
-  python3 -m pip install -q --user "iceoryx2==$ICEORYX2_VERSION" 2>/dev/null \
-    || python3 -m pip install -q --user --break-system-packages "iceoryx2==$ICEORYX2_VERSION"
+  python3 -m pip install -q --user "$@" 2>/dev/null \
+    || python3 -m pip install -q --user --break-system-packages "$@"
+}
+
+have=$(python3 -c 'import importlib.metadata as m; print(m.version("iceoryx2"))' 2>/dev/null || true)
+if [ "$have" != "$ICEORYX2_VERSION" ]; then
+  pip_user "iceoryx2==$ICEORYX2_VERSION"
 fi
+python3 -c 'import vtk' >/dev/null 2>&1 || pip_user vtk
+# pytetwild 0.4 imports pyvista without declaring it.
+python3 -c 'import pytetwild' >/dev/null 2>&1 || pip_user pytetwild pyvista

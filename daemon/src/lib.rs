@@ -12,6 +12,7 @@ pub mod deform;
 pub mod doctor;
 pub mod haptic;
 pub mod haptic_process;
+pub mod mesher;
 pub mod record;
 pub mod rt;
 pub mod scene_new;

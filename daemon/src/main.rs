@@ -120,15 +120,16 @@ enum MeshCommand {
         #[arg(long, value_name = "SELECTOR")]
         select: Option<String>,
     },
-    /// Fill a closed triangle surface (STL, OBJ, PLY) with tetrahedra using TetGen, after
-    /// checking it (closed, manifold, consistently wound, no degenerate triangles, no
-    /// self-intersections), and write PREFIX.node/.ele/.face/.bnd in metres.
+    /// Fill a triangle surface (STL, OBJ, PLY, VTK) with about N tetrahedra (--tets) of good
+    /// shape, after checking it (closed, manifold, consistently wound, no degenerate
+    /// triangles, no self-intersections; --repair meshes a defective one anyway), and write
+    /// PREFIX.node/.ele/.face/.bnd in metres.
     Tetrahedralize(TetrahedralizeArgs),
 }
 
 #[derive(Args, Clone)]
 struct TetrahedralizeArgs {
-    /// The surface: STL (ASCII or binary), OBJ or PLY.
+    /// The surface: STL (ASCII or binary), OBJ, PLY, VTK legacy POLYDATA or .vtp.
     surface: PathBuf,
     /// Output base path: writes PREFIX.node, PREFIX.ele, PREFIX.face, PREFIX.bnd.
     #[arg(long, value_name = "PREFIX")]
@@ -136,16 +137,23 @@ struct TetrahedralizeArgs {
     /// The surface's length unit; the output is always in metres.
     #[arg(long, value_enum, default_value = "m")]
     units: lop_daemon::tetrahedralize::Units,
+    /// The mesher: gmsh (default), ftetwild (PyPI pytetwild) or tetgen (the default when a
+    /// TetGen switch, --quality, --max-volume or --keep-surface, is given).
+    #[arg(long, value_enum)]
+    mesher: Option<lop_daemon::mesher::Mesher>,
+    /// About this many tetrahedra (±20 %; the default for gmsh and ftetwild is 2000).
+    #[arg(long, value_name = "N", conflicts_with_all = ["edge", "max_volume"])]
+    tets: Option<usize>,
+    /// Target edge length instead, in m or with a unit: 0.008, 8mm, 0.8cm (TetGen: -a of a
+    /// regular tetrahedron, L³/(6√2)).
+    #[arg(long, value_name = "L", value_parser = lop_daemon::tetrahedralize::parse_length)]
+    edge: Option<f64>,
     /// Largest tetrahedron volume (TetGen -a), in m³ or with a unit: 5e-7, 0.5cm3, 500mm3.
     #[arg(long, value_name = "VOLUME", value_parser = lop_daemon::tetrahedralize::parse_volume, conflicts_with = "edge")]
     max_volume: Option<f64>,
-    /// Target edge length instead (-a of a regular tetrahedron, L³/(6√2)), in m or with a
-    /// unit: 0.008, 8mm, 0.8cm.
-    #[arg(long, value_name = "L", value_parser = lop_daemon::tetrahedralize::parse_length)]
-    edge: Option<f64>,
-    /// Radius-edge ratio bound (TetGen -q), > 1: lower is better-shaped and finer.
-    #[arg(long, default_value_t = 1.4)]
-    quality: f64,
+    /// Radius-edge ratio bound (TetGen -q, default 1.4), > 1: lower is better-shaped and finer.
+    #[arg(long)]
+    quality: Option<f64>,
     /// Close holes bounded by at most this many edges before the check (a triangle or a fan
     /// from the hole's centroid).
     #[arg(long, value_name = "MAX_EDGES")]
@@ -153,6 +161,10 @@ struct TetrahedralizeArgs {
     /// Keep the surface triangles exactly as given (TetGen -Y: no points added on it).
     #[arg(long)]
     keep_surface: bool,
+    /// Mesh a surface that fails the checks (crossing triangles, holes, gaps) with fTetWild
+    /// inside an envelope of 1e-3 of its size, and report what was repaired.
+    #[arg(long)]
+    repair: bool,
 }
 
 #[derive(Subcommand)]
@@ -593,15 +605,23 @@ fn selection_summary(mesh: &lop_sim::mesh::TetMesh, s: &lop_sim::mesh::NodeSelec
 }
 
 fn cmd_tetrahedralize(a: TetrahedralizeArgs) -> Result<i32> {
-    use lop_daemon::tetrahedralize::{run, volume_for_edge, TetrahedralizeOptions};
+    use lop_daemon::tetrahedralize::{run, Size, TetrahedralizeOptions};
+    let size = match (a.tets, a.edge, a.max_volume) {
+        (Some(n), _, _) => Size::Tets(n),
+        (_, Some(l), _) => Size::Edge(l),
+        (_, _, Some(v)) => Size::MaxVolume(v),
+        _ => Size::Auto,
+    };
     let opts = TetrahedralizeOptions {
         surface: a.surface,
         out: a.out,
         units: a.units,
-        max_volume: a.max_volume.or(a.edge.map(volume_for_edge)),
+        mesher: a.mesher,
+        size,
         quality: a.quality,
         close_holes: a.close_holes,
         keep_surface: a.keep_surface,
+        repair: a.repair,
     };
     match run(&opts) {
         Ok(done) => {

@@ -1,28 +1,65 @@
-//! `lopd mesh tetrahedralize`: a closed triangle surface (a segmented organ as STL, OBJ or PLY)
-//! filled with tetrahedra by TetGen, checked on the way in and on the way out.
+//! `lopd mesh tetrahedralize`: a triangle surface (a segmented organ as STL, OBJ, PLY or VTK)
+//! filled with tetrahedra of the size asked for, checked on the way in and on the way out.
 //!
 //! 1. Read the surface ([`lop_sim::mesh::read_surface`]).
 //! 2. Optionally close small holes ([`close_holes`]), then check it ([`check_surface`]) in the
-//!    file's own units, so a defect's coordinates can be looked up in the file: a surface with
-//!    a hole, a non-manifold edge or vertex, an inconsistent winding, a degenerate triangle or a
-//!    self-intersection is refused with the triangles at fault; one wound inward throughout is
-//!    flipped, with a note. Then it is scaled to metres (`--units`).
-//! 3. Write it as a TetGen `.smesh` in a temporary directory and run the `tetgen` program there
-//!    (a separate program, never linked: TetGen is AGPL; Debian package `tetgen`, installed by
-//!    `scripts/setup.sh`) with `-p` (fill the surface), `-q` (radius-edge bound) and `-a`
-//!    (largest volume) when a size is given.
+//!    file's own units, so a defect's coordinates can be looked up in the file. A surface with
+//!    a hole, a non-manifold edge or vertex, an inconsistent winding, a degenerate triangle or
+//!    a self-intersection is refused with the triangles at fault — unless `--repair` is given:
+//!    then fTetWild meshes it inside an envelope of 1e-3 of its bounding box diagonal and the
+//!    boundary of that mesh becomes the surface (checked like the input: closed and manifold
+//!    nearly always; otherwise fTetWild runs once more at another size, then it is refused). One
+//!    wound inward throughout is flipped, with a note. Then it is scaled to metres (`--units`).
+//! 3. Fill it with the mesher ([`crate::mesher`]): `--tets N` starts from the edge of a
+//!    regular tetrahedron that tiles the volume N times, `L = (6√2·V/N)^(1/3)`, and rescales L
+//!    by `(made/N)^(1/3)` until the count is within ±20 % and the smallest dihedral angle is at
+//!    least 10° ([`TRIES`] meshings at most; the best one is kept and a miss is said).
 //! 4. Read the result back with lop's own reader, which refuses inverted, degenerate or
-//!    duplicate tetrahedra and extracts the boundary; check the tetrahedra fill exactly the
-//!    surface's volume; report quality; write `PREFIX.node/.ele/.face/.bnd`.
+//!    duplicate tetrahedra and extracts the boundary; check its volume against the surface's
+//!    (TetGen: exactly; the others re-mesh the surface and may differ by the chords) and how
+//!    far its boundary vertices are from the input surface; report the shape of the
+//!    tetrahedra (dihedral angles); write `PREFIX.node/.ele/.face/.bnd`.
+//!
+//! # Which mesher, and why
+//!
+//! Measured on three built surfaces (a 20 cm two-lobed liver of 5,120 triangles, an ellipsoid
+//! and a kidney-like bean of 1,280) and on defective copies of the liver (crossing triangles,
+//! holes); figures in `docs/benchmarks.md`, "Meshing":
+//!
+//! - **gmsh** is the default for a surface that passes the checks: it re-meshes the surface at
+//!   the target size, so the count follows the size (19 of 20 runs from 2k to 20k within
+//!   ±20 %, in 1–4 meshings of about a second each) and its optimiser leaves the smallest
+//!   dihedral at 10–13°. Not always: the kidney at 5,000 kept a 3.1° sliver through 4
+//!   meshings, which the command then warns about.
+//! - **fTetWild** gives the best shapes (smallest dihedral 13–19° on the ellipsoid) and does
+//!   not mind defects, but it keeps the input's detail within its envelope, so the 5,120-
+//!   triangle liver gives 6–7k tetrahedra whatever the size asked, and one meshing takes
+//!   10–30 s. So it repairs (`--repair`: its boundary, loosely optimised, becomes the
+//!   surface), and gmsh then sizes the repaired surface (2k–20k within ±20 % and ≥ 11° on the
+//!   liver with crossing triangles and with holes); `--mesher ftetwild` uses it alone.
+//! - **TetGen** keeps the input's triangles (split, never moved) and fills exactly their
+//!   volume, but cannot make a small mesh of a fine surface: asked for 2,000 it makes 12.5k
+//!   (ellipsoid) to 55k (liver with a lobe) tetrahedra whatever the `-a`, with slivers of
+//!   3–4.6°. It stays for `--mesher tetgen` and is chosen when a TetGen-only switch is given
+//!   (`--quality`, `--max-volume`, `--keep-surface`).
+//!
+//! gmsh alone cannot mesh a defective surface ("No elements in volume 1" on the liver with a
+//! lobe). A defective surface is refused unless `--repair` is given, rather than repaired by
+//! default: the repaired mesh is not the segmentation (a hole is patched, crossing sheets are
+//! merged), and the user should see that said and accept it.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::PathBuf;
+use std::time::Instant;
 
 use lop_sim::mesh::{
-    check_surface, close_holes, read_surface, read_tetgen, write_tetgen, HoleClosing,
-    MeshReadError, SurfaceMesh, SurfaceReport, TetMesh,
+    check_surface, close_holes, read_surface, write_tetgen, DefectKind, HoleClosing, MeshReadError,
+    SurfaceMesh, SurfaceReport, TetMesh,
 };
+
+use crate::mesher::shape::{surface_distance, Dihedrals, SurfaceDistance};
+use crate::mesher::tetgen::TetgenSwitches;
+use crate::mesher::{self, Mesher, MesherError};
 
 /// Length units of a surface file.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -40,6 +77,19 @@ pub enum Units {
 /// `abdomen` liver steps in 0.6–0.8 ms in contact; generated ellipsoids of 2,785 and 8,155
 /// tetrahedra with slivers down to 1.7–2.7° in about 2.2 and 10 ms).
 const REAL_TIME_TETS: usize = 2500;
+
+/// The size asked for when none is (`--tets`, `--edge`, `--max-volume`) and the mesher is
+/// gmsh or fTetWild: under [`REAL_TIME_TETS`] with room for the ±20 % of `--tets`.
+pub const DEFAULT_TETS: usize = 2000;
+
+/// `--tets N` is met when the mesh has N ± this fraction tetrahedra (issue 28's target).
+pub const TETS_TOLERANCE: f64 = 0.2;
+
+/// The smallest dihedral angle asked of a mesh, degrees (issue 28's target: no slivers).
+pub const MIN_DIHEDRAL: f64 = 10.0;
+
+/// At most this many meshings to hit `--tets N`.
+const TRIES: usize = 4;
 
 impl Units {
     /// As written on the command line.
@@ -61,6 +111,19 @@ impl Units {
     }
 }
 
+/// How big a mesh to make.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Size {
+    /// About this many tetrahedra (±20 %).
+    Tets(usize),
+    /// Tetrahedra of about this edge length, metres (TetGen: `-a` of a regular tetrahedron).
+    Edge(f64),
+    /// TetGen `-a`: largest tetrahedron volume, m³.
+    MaxVolume(f64),
+    /// Nothing asked: [`DEFAULT_TETS`] for gmsh and fTetWild, TetGen's own sizing.
+    Auto,
+}
+
 /// What to build.
 #[derive(Debug, Clone)]
 pub struct TetrahedralizeOptions {
@@ -70,14 +133,60 @@ pub struct TetrahedralizeOptions {
     pub out: PathBuf,
     /// The surface's units; the output is in metres.
     pub units: Units,
-    /// Largest tetrahedron volume, m³ (TetGen `-a`); `None`: sized by the surface's triangles.
-    pub max_volume: Option<f64>,
-    /// Radius-edge ratio bound (TetGen `-q`), > 1 (TetGen's own default is 2).
-    pub quality: f64,
+    /// The mesher; `None`: TetGen if a TetGen-only switch is given, else gmsh.
+    pub mesher: Option<Mesher>,
+    /// How big.
+    pub size: Size,
+    /// Radius-edge ratio bound (TetGen `-q`), > 1; TetGen only (1.4 when not given).
+    pub quality: Option<f64>,
     /// Close holes of at most this many edges before the check.
     pub close_holes: Option<usize>,
-    /// Keep the surface exactly as given (TetGen `-Y`: no points added on it).
+    /// Keep the surface exactly as given (TetGen `-Y`); TetGen only.
     pub keep_surface: bool,
+    /// Repair a surface that fails the checks with fTetWild instead of refusing it.
+    pub repair: bool,
+}
+
+impl TetrahedralizeOptions {
+    /// The mesher that fills the surface.
+    pub fn mesher(&self) -> Mesher {
+        self.mesher.unwrap_or(
+            if self.quality.is_some()
+                || self.keep_surface
+                || matches!(self.size, Size::MaxVolume(_))
+            {
+                Mesher::Tetgen
+            } else {
+                Mesher::Gmsh
+            },
+        )
+    }
+}
+
+/// What a repair did.
+#[derive(Debug, Clone)]
+pub struct Repair {
+    /// The repaired surface (the boundary of fTetWild's mesh): vertices, triangles.
+    pub vertices: usize,
+    /// Triangles of the repaired surface.
+    pub triangles: usize,
+    /// Enclosed volume before (holes closed by a fan for the measure only) and after, m³.
+    pub volume: (f64, f64),
+    /// Seconds fTetWild took.
+    pub seconds: f64,
+}
+
+/// One meshing of the search for `--tets N`.
+#[derive(Debug, Clone, Copy)]
+pub struct Attempt {
+    /// Target edge length, metres (`None`: TetGen's own sizing or `-a`).
+    pub edge: Option<f64>,
+    /// Tetrahedra made.
+    pub tets: usize,
+    /// Smallest dihedral angle, degrees.
+    pub min_dihedral: f64,
+    /// Seconds the mesher took.
+    pub seconds: f64,
 }
 
 /// What was built.
@@ -85,16 +194,32 @@ pub struct TetrahedralizeOptions {
 pub struct Tetrahedralized {
     /// The volume mesh, in metres, as written.
     pub mesh: TetMesh,
+    /// The mesher.
+    pub mesher: Mesher,
     /// The surface check (after closing holes, before flipping; in the file's units).
     pub report: SurfaceReport,
     /// Holes closed or left open, if asked to close them.
     pub holes: Option<HoleClosing>,
+    /// The surface failed the checks and was repaired.
+    pub repair: Option<Repair>,
     /// The surface was wound inward and was flipped.
     pub flipped: bool,
-    /// The TetGen command's switches.
-    pub switches: String,
-    /// Smallest and largest dihedral angle of the tetrahedra, degrees.
-    pub dihedral: (f64, f64),
+    /// TetGen's switches, when TetGen meshed.
+    pub switches: Option<String>,
+    /// The tetrahedra asked for (`--tets`, or the default).
+    pub asked: Option<usize>,
+    /// Every meshing, the kept one marked by [`Tetrahedralized::kept`].
+    pub attempts: Vec<Attempt>,
+    /// Index of the kept attempt.
+    pub kept: usize,
+    /// The shape of the tetrahedra.
+    pub dihedrals: Dihedrals,
+    /// Boundary vertices' distance from the input surface, metres.
+    pub distance: SurfaceDistance,
+    /// The largest distance allowed, metres.
+    pub tolerance: f64,
+    /// Volume of the tetrahedra and enclosed by the (possibly repaired) surface, m³.
+    pub volume: (f64, f64),
 }
 
 /// Why it failed.
@@ -113,32 +238,31 @@ pub enum TetrahedralizeError {
         /// What to try.
         hint: String,
     },
+    /// `--repair` could not make a closed surface of it.
+    #[error("{path}: the surface cannot be repaired: {reason}\nits defects: {report}")]
+    Unrepairable {
+        /// The surface file.
+        path: PathBuf,
+        /// What went wrong.
+        reason: String,
+        /// The check's findings.
+        report: Box<SurfaceReport>,
+    },
     /// An option is out of range.
     #[error("{0}")]
     BadOption(String),
-    /// No `tetgen` program.
-    #[error(
-        "tetgen not found ({tried}): install it with `bash scripts/setup.sh` (Debian package \
-         tetgen), or point LOP_TETGEN at the program"
-    )]
-    TetgenMissing {
-        /// Where it was looked for.
-        tried: String,
+    /// A mesher is missing or failed.
+    #[error("{0}")]
+    Mesher(#[from] MesherError),
+    /// The result does not fill the surface.
+    #[error("the {mesher} mesh does not fit the surface: {reason}")]
+    BadResult {
+        /// The mesher.
+        mesher: &'static str,
+        /// What is wrong.
+        reason: String,
     },
-    /// TetGen ran and failed.
-    #[error("`{command}` failed ({status}); its last output:\n{tail}")]
-    TetgenFailed {
-        /// The command line.
-        command: String,
-        /// Exit status.
-        status: String,
-        /// The last lines of its output.
-        tail: String,
-    },
-    /// TetGen's result does not read or does not fill the surface.
-    #[error("TetGen's result is not a valid mesh: {0}")]
-    BadResult(String),
-    /// Reading or writing files.
+    /// Writing the result.
     #[error("{0}")]
     Io(String),
 }
@@ -150,11 +274,526 @@ impl TetrahedralizeError {
             self,
             TetrahedralizeError::Surface(_)
                 | TetrahedralizeError::Defects { .. }
+                | TetrahedralizeError::Unrepairable { .. }
                 | TetrahedralizeError::BadOption(_)
         )
     }
 }
 
+/// TetGen `-a` for a target edge length `l`: the volume of a regular tetrahedron of edge `l`,
+/// `l³ / (6√2)`.
+pub fn volume_for_edge(l: f64) -> f64 {
+    l * l * l / (6.0 * std::f64::consts::SQRT_2)
+}
+
+/// The edge of the regular tetrahedron that tiles `volume` `n` times.
+pub fn edge_for_tets(volume: f64, n: usize) -> f64 {
+    (6.0 * std::f64::consts::SQRT_2 * volume / n.max(1) as f64).cbrt()
+}
+
+fn check_options(opts: &TetrahedralizeOptions) -> Result<Mesher, TetrahedralizeError> {
+    let mesher = opts.mesher();
+    let bad = |m: String| Err(TetrahedralizeError::BadOption(m));
+    if let Some(q) = opts.quality {
+        if !(q > 1.0 && q.is_finite()) {
+            return bad(format!(
+                "--quality {q}: the radius-edge ratio bound must be a number > 1 (TetGen cannot \
+                 reach 1 or less; 1.2-2 is usual)"
+            ));
+        }
+    }
+    if mesher != Mesher::Tetgen {
+        let tetgen_only = [
+            (opts.quality.is_some(), "--quality"),
+            (opts.keep_surface, "--keep-surface"),
+            (matches!(opts.size, Size::MaxVolume(_)), "--max-volume"),
+        ];
+        if let Some((_, flag)) = tetgen_only.iter().find(|(given, _)| *given) {
+            return bad(format!(
+                "{flag} is a TetGen switch, but --mesher is {}: use --tets or --edge, or \
+                 --mesher tetgen",
+                mesher.name()
+            ));
+        }
+    }
+    if opts.size == Size::Tets(0) {
+        return bad("--tets 0: ask for at least one tetrahedron".to_owned());
+    }
+    if opts.repair && opts.keep_surface {
+        return bad(
+            "--repair replaces the surface by a repaired one; it cannot be kept as given \
+             (--keep-surface)"
+                .to_owned(),
+        );
+    }
+    // The programs before the work, so a missing one is said at once.
+    match mesher {
+        Mesher::Gmsh => drop(mesher::find_program(
+            "gmsh",
+            "LOP_GMSH",
+            "Debian package gmsh",
+        )?),
+        Mesher::Tetgen => drop(mesher::find_program(
+            "tetgen",
+            "LOP_TETGEN",
+            "Debian package tetgen",
+        )?),
+        Mesher::Ftetwild => drop(mesher::ftetwild::find_python()?),
+    }
+    Ok(mesher)
+}
+
+/// Runs the whole job (see the [module docs](self)).
+pub fn run(opts: &TetrahedralizeOptions) -> Result<Tetrahedralized, TetrahedralizeError> {
+    let mesher = check_options(opts)?;
+
+    // 1-2. The surface, checked in its own units (so that the coordinates a defect names are
+    // the file's), then scaled to metres.
+    let mut surface = read_surface(&opts.surface)?;
+    let holes = opts.close_holes.map(|n| close_holes(&mut surface, n));
+    let report = check_surface(&surface);
+    let mut input = surface.clone();
+    input.scale(opts.units.metres());
+    let mut flipped = false;
+    let mut repair = None;
+    if !report.is_ok() {
+        if !opts.repair {
+            return Err(defects(opts, report, holes.as_ref()));
+        }
+        if mesher != Mesher::Ftetwild {
+            let (repaired, done) = repair_surface(opts, &input, &report)?;
+            surface = repaired;
+            repair = Some(done);
+        } else {
+            surface = input.clone();
+        }
+    } else {
+        flipped = report.inverted;
+        if flipped {
+            surface.flip();
+        }
+        surface.scale(opts.units.metres());
+    }
+    let enclosed = surface.signed_volume().abs();
+
+    // 3. Mesh, searching the size for --tets.
+    let asked = match opts.size {
+        Size::Tets(n) => Some(n),
+        Size::Auto if mesher != Mesher::Tetgen => Some(DEFAULT_TETS),
+        _ => None,
+    };
+    let switches = (mesher == Mesher::Tetgen).then(|| TetgenSwitches {
+        quality: opts.quality.unwrap_or(1.4),
+        max_volume: None,
+        keep_surface: opts.keep_surface,
+    });
+    let mut attempts: Vec<Attempt> = Vec::new();
+    let mut best: Option<(TetMesh, Dihedrals, usize)> = None;
+    let mut edge = match (opts.size, asked) {
+        (Size::Edge(l), _) => Some(l),
+        (_, Some(n)) => Some(edge_for_tets(enclosed, n)),
+        _ => None,
+    };
+    let tries = if asked.is_some() { TRIES } else { 1 };
+    for _ in 0..tries {
+        let started = Instant::now();
+        let mesh = match mesher {
+            Mesher::Gmsh => mesher::gmsh::mesh(&surface, edge.unwrap_or(f64::NAN))?,
+            Mesher::Ftetwild => mesher::ftetwild::mesh(
+                &surface,
+                edge.unwrap_or(f64::NAN),
+                mesher::ftetwild::EPSILON,
+            )?,
+            Mesher::Tetgen => {
+                let mut s = switches.expect("TetGen's switches");
+                s.max_volume = match opts.size {
+                    Size::MaxVolume(v) => Some(v),
+                    _ => edge.map(volume_for_edge),
+                };
+                mesher::tetgen::mesh(&surface, &s)?
+            }
+        };
+        let seconds = started.elapsed().as_secs_f64();
+        let dihedrals = Dihedrals::of(&mesh);
+        attempts.push(Attempt {
+            edge,
+            tets: mesh.tets.len(),
+            min_dihedral: dihedrals.min,
+            seconds,
+        });
+        let i = attempts.len() - 1;
+        let met = |a: &Attempt| {
+            let count = asked.is_none_or(|n| within(a.tets, n));
+            (count, a.min_dihedral >= MIN_DIHEDRAL)
+        };
+        let better = best.as_ref().is_none_or(|(_, _, k)| {
+            let (a, b) = (&attempts[i], &attempts[*k]);
+            let key = |x: &Attempt| {
+                let (c, d) = met(x);
+                let miss = asked.map_or(0.0, |n| (x.tets as f64 / n as f64).ln().abs());
+                (c && d, c, -miss, x.min_dihedral)
+            };
+            key(a).partial_cmp(&key(b)) == Some(std::cmp::Ordering::Greater)
+        });
+        let (count_ok, shape_ok) = met(&attempts[i]);
+        if better {
+            best = Some((mesh, dihedrals, i));
+        }
+        if count_ok && shape_ok {
+            break;
+        }
+        let (Some(n), Some(l)) = (asked, edge) else {
+            break;
+        };
+        // Rescale by the count; a mesh of the right count with a sliver is meshed again at a
+        // nudged size (the optimiser's result depends on where the points fall).
+        let ratio = attempts[i].tets as f64 / n as f64;
+        edge = Some(if count_ok { l * 0.97 } else { l * ratio.cbrt() });
+    }
+    let (mut mesh, dihedrals, kept) = best.expect("at least one meshing");
+
+    // 4. Fits the surface; write.
+    let volume: f64 = (0..mesh.tets.len()).map(|i| mesh.tet_volume(i)).sum();
+    let name = mesher_name(mesher);
+    if mesher == Mesher::Tetgen && (volume - enclosed).abs() > 1e-6 * enclosed {
+        return Err(TetrahedralizeError::BadResult {
+            mesher: name,
+            reason: format!(
+                "the tetrahedra fill {volume:e} m^3 but the surface encloses {enclosed:e} m^3"
+            ),
+        });
+    }
+    // Against the input with its holes fanned shut; the vertices nearest to a fan are counted
+    // apart: across a hole fTetWild's patch is its own guess, as far from the fan as the hole
+    // is curved.
+    let mut reference = input.clone();
+    let patches_from = reference.triangles.len();
+    if report.count(DefectKind::OpenEdge) > 0 {
+        close_holes(&mut reference, usize::MAX);
+    }
+    let distance = surface_distance(&mesh, &reference, patches_from);
+    let tolerance = tolerance(&input, mesher, repair.is_some() || !report.is_ok());
+    if distance.max > tolerance {
+        return Err(TetrahedralizeError::BadResult {
+            mesher: name,
+            reason: format!(
+                "a boundary vertex is {:.3} mm from the input surface, more than the {:.3} mm \
+                 allowed",
+                distance.max * 1e3,
+                tolerance * 1e3
+            ),
+        });
+    }
+    mesh.source = opts.surface.clone();
+    if let Some(dir) = opts.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| TetrahedralizeError::Io(format!("{}: {e}", dir.display())))?;
+    }
+    write_tetgen(&mesh, &opts.out)
+        .map_err(|e| TetrahedralizeError::Io(format!("writing {}: {e}", opts.out.display())))?;
+    Ok(Tetrahedralized {
+        mesh,
+        mesher,
+        report,
+        holes,
+        repair,
+        flipped,
+        switches: switches.map(|mut s| {
+            s.max_volume = match opts.size {
+                Size::MaxVolume(v) => Some(v),
+                _ => attempts[kept].edge.map(volume_for_edge),
+            };
+            s.text()
+        }),
+        asked,
+        attempts,
+        kept,
+        dihedrals,
+        distance,
+        tolerance,
+        volume: (volume, enclosed),
+    })
+}
+
+fn mesher_name(m: Mesher) -> &'static str {
+    match m {
+        Mesher::Gmsh => "gmsh",
+        Mesher::Ftetwild => "fTetWild",
+        Mesher::Tetgen => "TetGen",
+    }
+}
+
+/// `made` is within ±[`TETS_TOLERANCE`] of `asked`.
+pub fn within(made: usize, asked: usize) -> bool {
+    (made as f64 - asked as f64).abs() <= TETS_TOLERANCE * asked as f64
+}
+
+/// The largest distance of a boundary vertex from the input surface: TetGen and gmsh put
+/// their boundary vertices on the input triangles (1e-4 of the bounding box diagonal: TetGen
+/// treats nearly coplanar neighbours as one facet and puts points on it 7e-6 of the diagonal
+/// off the 5,120-triangle liver's triangles); fTetWild within its envelope, [`mesher::ftetwild::EPSILON`] of the diagonal
+/// (twice that, as gmsh then re-meshes the repaired surface, whose vertices are within it).
+fn tolerance(input: &SurfaceMesh, mesher: Mesher, repaired: bool) -> f64 {
+    let [x, y, z] = lop_sim::mesh::extents(&input.vertices);
+    let diagonal = (x * x + y * y + z * z).sqrt();
+    if repaired || mesher == Mesher::Ftetwild {
+        2.0 * mesher::ftetwild::EPSILON * diagonal
+    } else {
+        1e-4 * diagonal
+    }
+}
+
+fn defects(
+    opts: &TetrahedralizeOptions,
+    report: SurfaceReport,
+    holes: Option<&HoleClosing>,
+) -> TetrahedralizeError {
+    let open = report.count(DefectKind::OpenEdge) > 0;
+    let mut hint = match (open, opts.close_holes) {
+        (true, None) => "\n(small holes can be closed with --close-holes MAX_EDGES)".to_owned(),
+        (true, Some(n)) => format!(
+            "\n(--close-holes {n} closed {} hole(s); holes of {:?} edges are left)",
+            holes.map_or(0, |h| h.closed.len()),
+            holes.map(|h| h.left_open.clone()).unwrap_or_default()
+        ),
+        _ => String::new(),
+    };
+    hint.push_str(
+        "\n(--repair meshes it anyway with fTetWild, inside an envelope of 1e-3 of its size: \
+         crossing triangles are merged, holes patched, and what was done is reported)",
+    );
+    TetrahedralizeError::Defects {
+        path: opts.surface.clone(),
+        report: Box::new(report),
+        hint,
+    }
+}
+
+/// fTetWild's mesh of a defective surface (metres), and its boundary as the new surface.
+fn repair_surface(
+    opts: &TetrahedralizeOptions,
+    input: &SurfaceMesh,
+    report: &SurfaceReport,
+) -> Result<(SurfaceMesh, Repair), TetrahedralizeError> {
+    let unrepairable = |reason: String| TetrahedralizeError::Unrepairable {
+        path: opts.surface.clone(),
+        reason,
+        report: Box::new(report.clone()),
+    };
+    let [x, y, z] = lop_sim::mesh::extents(&input.vertices);
+    let diagonal = (x * x + y * y + z * z).sqrt();
+    if !(diagonal > 0.0) {
+        return Err(unrepairable("it has no extent".to_owned()));
+    }
+    // Fine enough to keep the shape (fTetWild's own default is diagonal / 20): the sizing
+    // mesher then sets the size. fTetWild's boundary is closed and manifold nearly always;
+    // when not (two tetrahedra meeting at an edge only), once more at another size.
+    let started = Instant::now();
+    let mut repaired = SurfaceMesh::default();
+    let mut check = None;
+    for divisions in [40.0, 30.0] {
+        repaired = match mesher::ftetwild::boundary(
+            input,
+            diagonal / divisions,
+            mesher::ftetwild::EPSILON,
+        ) {
+            Ok(s) => s,
+            Err(MesherError::BadResult { reason, .. }) => return Err(unrepairable(reason)),
+            Err(MesherError::Failed { tail, .. }) => {
+                return Err(unrepairable(format!("fTetWild failed: {tail}")))
+            }
+            Err(e) => return Err(e.into()),
+        };
+        if repaired.triangles.is_empty() {
+            return Err(unrepairable(
+                "fTetWild found no inside: the surface does not enclose a volume (an open \
+                 sheet?)"
+                    .to_owned(),
+            ));
+        }
+        let c = check_surface(&repaired);
+        let ok = c.is_ok();
+        check = Some(c);
+        if ok {
+            break;
+        }
+    }
+    let seconds = started.elapsed().as_secs_f64();
+    if let Some(check) = check.filter(|c| !c.is_ok()) {
+        return Err(unrepairable(format!(
+            "fTetWild's mesh has a boundary that fails the checks too: {check}"
+        )));
+    }
+    // The volume before: the input with every hole fanned shut, for the measure only.
+    let mut closed = input.clone();
+    close_holes(&mut closed, usize::MAX);
+    let before = closed.signed_volume().abs();
+    let after = repaired.signed_volume().abs();
+    if after < 1e-3 * before {
+        return Err(unrepairable(format!(
+            "fTetWild found almost no inside ({after:e} m^3 of {before:e} m^3): the surface \
+             does not enclose a volume (an open sheet?)"
+        )));
+    }
+    Ok((
+        repaired.clone(),
+        Repair {
+            vertices: repaired.vertices.len(),
+            triangles: repaired.triangles.len(),
+            volume: (before, after),
+            seconds,
+        },
+    ))
+}
+
+impl Tetrahedralized {
+    /// A human summary: the surface, what was done to it, the meshings, the mesh.
+    pub fn summary(&self, opts: &TetrahedralizeOptions) -> String {
+        let mut s = String::new();
+        writeln!(s, "surface {}: {}", opts.surface.display(), self.report).ok();
+        if let Some(h) = &self.holes {
+            writeln!(
+                s,
+                "holes closed: {} (edges {:?}); left open: {:?}",
+                h.closed.len(),
+                h.closed,
+                h.left_open
+            )
+            .ok();
+        }
+        if let Some(r) = &self.repair {
+            let (before, after) = r.volume;
+            writeln!(
+                s,
+                "repaired by fTetWild in {:.1} s: {} crossing triangle pairs, {} open edges, {} \
+                 other defects -> a closed surface of {} vertices, {} triangles; enclosed \
+                 volume {:.4e} -> {:.4e} m^3 ({:+.2} %)",
+                r.seconds,
+                self.report.count(DefectKind::SelfIntersection),
+                self.report.count(DefectKind::OpenEdge),
+                self.report.counts.iter().sum::<usize>()
+                    - self.report.count(DefectKind::SelfIntersection)
+                    - self.report.count(DefectKind::OpenEdge),
+                r.vertices,
+                r.triangles,
+                before,
+                after,
+                100.0 * (after - before) / before
+            )
+            .ok();
+        } else if !self.report.is_ok() {
+            writeln!(s, "repaired by fTetWild while meshing (--mesher ftetwild)").ok();
+        }
+        if self.flipped {
+            writeln!(
+                s,
+                "note: the surface was wound inward throughout (negative volume); every \
+                 triangle was flipped"
+            )
+            .ok();
+        }
+        write!(
+            s,
+            "mesher: {} (the surface scaled from {} to m by {})",
+            mesher_name(self.mesher),
+            opts.units.name(),
+            opts.units.metres()
+        )
+        .ok();
+        if let Some(sw) = &self.switches {
+            write!(s, "; tetgen {sw} surface.smesh").ok();
+        }
+        s.push('\n');
+        if let Some(n) = self.asked {
+            writeln!(
+                s,
+                "asked: {n} tetrahedra (±{:.0} %)",
+                100.0 * TETS_TOLERANCE
+            )
+            .ok();
+        }
+        for (i, a) in self.attempts.iter().enumerate() {
+            let edge = a
+                .edge
+                .map_or("-".to_owned(), |l| format!("{:.2} mm", l * 1e3));
+            writeln!(
+                s,
+                "  meshing {}: edge {edge}, {} tetrahedra, smallest dihedral {:.1}°, {:.2} s{}",
+                i + 1,
+                a.tets,
+                a.min_dihedral,
+                a.seconds,
+                if i == self.kept { "  <- kept" } else { "" }
+            )
+            .ok();
+        }
+        writeln!(s, "{}", self.mesh.info()).ok();
+        writeln!(s, "{}", self.dihedrals).ok();
+        let (volume, enclosed) = self.volume;
+        writeln!(
+            s,
+            "fit:               volume {:+.2} % of the surface's; boundary vertices {:.4} mm \
+             from the input surface at most ({:.4} mm mean; allowed {:.4} mm)",
+            100.0 * (volume - enclosed) / enclosed,
+            self.distance.max * 1e3,
+            self.distance.mean * 1e3,
+            self.tolerance * 1e3
+        )
+        .ok();
+        let (n, d) = self.distance.over_holes;
+        if n > 0 {
+            writeln!(
+                s,
+                "                   {n} boundary vertices over patched holes, {:.4} mm from the \
+                 holes' fans at most (not held to the allowance)",
+                d * 1e3
+            )
+            .ok();
+        }
+        if let Some(n) = self.asked {
+            let made = self.mesh.tets.len();
+            if !within(made, n) {
+                writeln!(
+                    s,
+                    "warning: asked for {n} tetrahedra, made {made} ({:+.0} %) after {} \
+                     meshings: the surface's detail sets the count (try another --mesher)",
+                    100.0 * (made as f64 / n as f64 - 1.0),
+                    self.attempts.len()
+                )
+                .ok();
+            }
+        }
+        if self.dihedrals.min < MIN_DIHEDRAL {
+            writeln!(
+                s,
+                "warning: the smallest dihedral angle is {:.1}°, under {MIN_DIHEDRAL}°: slivers \
+                 slow the step in contact (try --mesher gmsh or ftetwild)",
+                self.dihedrals.min
+            )
+            .ok();
+        }
+        if self.mesh.tets.len() > REAL_TIME_TETS {
+            writeln!(
+                s,
+                "warning: {} tetrahedra. A touched body steps its FEM every millisecond; on a \
+                 2-core machine the shipped liver (1,706 tetrahedra) takes about 0.7 ms in \
+                 contact, a generated mesh of 2,800 about 2 ms and one of 8,000 about 10 ms, so \
+                 the tissue would lag the hand. Keep a body under about {REAL_TIME_TETS} \
+                 tetrahedra (--tets) unless the machine is faster",
+                self.mesh.tets.len()
+            )
+            .ok();
+        }
+        write!(
+            s,
+            "wrote {}.node, .ele, .face, .bnd (no fixed nodes: fix them in the scene, e.g. with \
+             [[body.fix]])",
+            opts.out.display()
+        )
+        .ok();
+        s
+    }
+}
 /// A length with an optional unit: `8mm`, `0.8cm`, `0.008m` or `0.008` (metres).
 pub fn parse_length(text: &str) -> Result<f64, String> {
     parse_with_units(text, &[("mm", 1e-3), ("cm", 1e-2), ("m", 1.0)], "length")
@@ -179,270 +818,5 @@ fn parse_with_units(text: &str, units: &[(&str, f64)], what: &str) -> Result<f64
             units.iter().map(|u| u.0).collect::<Vec<_>>().join(", "),
             units.last().map(|u| u.0).unwrap_or_default()
         )),
-    }
-}
-
-/// TetGen `-a` for a target edge length `l`: the volume of a regular tetrahedron of edge `l`,
-/// `l³ / (6√2)`.
-pub fn volume_for_edge(l: f64) -> f64 {
-    l * l * l / (6.0 * std::f64::consts::SQRT_2)
-}
-
-/// The `tetgen` program: `$LOP_TETGEN`, else `tetgen` on `PATH`, else `/usr/bin/tetgen`.
-fn find_tetgen() -> Result<PathBuf, TetrahedralizeError> {
-    let mut tried = Vec::new();
-    if let Some(p) = std::env::var_os("LOP_TETGEN").filter(|p| !p.is_empty()) {
-        let p = PathBuf::from(p);
-        if p.is_file() {
-            return Ok(p);
-        }
-        return Err(TetrahedralizeError::TetgenMissing {
-            tried: format!("LOP_TETGEN={}", p.display()),
-        });
-    }
-    if let Some(path) = std::env::var_os("PATH") {
-        for dir in std::env::split_paths(&path) {
-            let p = dir.join("tetgen");
-            if p.is_file() {
-                return Ok(p);
-            }
-        }
-        tried.push("tetgen on PATH".to_owned());
-    }
-    let usr = PathBuf::from("/usr/bin/tetgen");
-    if usr.is_file() {
-        return Ok(usr);
-    }
-    tried.push(usr.display().to_string());
-    Err(TetrahedralizeError::TetgenMissing {
-        tried: tried.join(", "),
-    })
-}
-
-/// Runs the whole job (see the [module docs](self)).
-pub fn run(opts: &TetrahedralizeOptions) -> Result<Tetrahedralized, TetrahedralizeError> {
-    if !(opts.quality > 1.0 && opts.quality.is_finite()) {
-        return Err(TetrahedralizeError::BadOption(format!(
-            "--quality {}: the radius-edge ratio bound must be a number > 1 (TetGen cannot \
-             reach 1 or less; 1.2-2 is usual)",
-            opts.quality
-        )));
-    }
-    let tetgen = find_tetgen()?;
-
-    // 1-2. The surface, checked in its own units (so that the coordinates a defect names are
-    // the file's), then scaled to metres.
-    let mut surface = read_surface(&opts.surface)?;
-    let holes = opts.close_holes.map(|n| close_holes(&mut surface, n));
-    let report = check_surface(&surface);
-    if !report.is_ok() {
-        let open = report.count(lop_sim::mesh::DefectKind::OpenEdge) > 0;
-        let hint = match (open, opts.close_holes) {
-            (true, None) => "\n(small holes can be closed with --close-holes MAX_EDGES)".to_owned(),
-            (true, Some(n)) => format!(
-                "\n(--close-holes {n} closed {} hole(s); holes of {:?} edges are left)",
-                holes.as_ref().map_or(0, |h| h.closed.len()),
-                holes
-                    .as_ref()
-                    .map(|h| h.left_open.clone())
-                    .unwrap_or_default()
-            ),
-            _ => String::new(),
-        };
-        return Err(TetrahedralizeError::Defects {
-            path: opts.surface.clone(),
-            report: Box::new(report),
-            hint,
-        });
-    }
-    let flipped = report.inverted;
-    if flipped {
-        surface.flip();
-    }
-    surface.scale(opts.units.metres());
-
-    // 3. TetGen in a scratch directory.
-    let work =
-        scratch_dir().map_err(|e| TetrahedralizeError::Io(format!("temporary directory: {e}")))?;
-    let result = run_tetgen(&tetgen, &surface, opts, &work);
-    let _ = std::fs::remove_dir_all(&work);
-    let (mut mesh, switches) = result?;
-
-    // 4. Fills the surface exactly; quality; write.
-    let tets: f64 = (0..mesh.tets.len()).map(|i| mesh.tet_volume(i)).sum();
-    let enclosed = surface.signed_volume();
-    if (tets - enclosed).abs() > 1e-6 * enclosed.abs() {
-        return Err(TetrahedralizeError::BadResult(format!(
-            "the tetrahedra fill {tets:e} m^3 but the surface encloses {enclosed:e} m^3"
-        )));
-    }
-    mesh.source = opts.surface.clone();
-    let dihedral = dihedral_range(&mesh);
-    if let Some(dir) = opts.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| TetrahedralizeError::Io(format!("{}: {e}", dir.display())))?;
-    }
-    write_tetgen(&mesh, &opts.out)
-        .map_err(|e| TetrahedralizeError::Io(format!("writing {}: {e}", opts.out.display())))?;
-    Ok(Tetrahedralized {
-        mesh,
-        report,
-        holes,
-        flipped,
-        switches,
-        dihedral,
-    })
-}
-
-fn scratch_dir() -> std::io::Result<PathBuf> {
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.subsec_nanos())
-        .unwrap_or_default();
-    let dir = std::env::temp_dir().join(format!("lopd-tetgen-{}-{nanos}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
-    Ok(dir)
-}
-
-/// Writes `work/surface.smesh`, runs TetGen on it, reads `work/surface.1.*` back.
-fn run_tetgen(
-    tetgen: &Path,
-    surface: &SurfaceMesh,
-    opts: &TetrahedralizeOptions,
-    work: &Path,
-) -> Result<(TetMesh, String), TetrahedralizeError> {
-    let smesh = work.join("surface.smesh");
-    std::fs::write(&smesh, smesh_text(surface))
-        .map_err(|e| TetrahedralizeError::Io(format!("{}: {e}", smesh.display())))?;
-    let mut switches = format!("-pq{}", opts.quality);
-    if let Some(v) = opts.max_volume {
-        write!(switches, "a{v:e}").ok();
-    }
-    if opts.keep_surface {
-        switches.push('Y');
-    }
-    let out = Command::new(tetgen)
-        .arg(&switches)
-        .arg("surface.smesh")
-        .current_dir(work)
-        .output()
-        .map_err(|e| TetrahedralizeError::Io(format!("running {}: {e}", tetgen.display())))?;
-    let command = format!("{} {switches} surface.smesh", tetgen.display());
-    let output = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let base = work.join("surface.1");
-    if !out.status.success() || !work.join("surface.1.ele").is_file() {
-        let lines: Vec<&str> = output.lines().filter(|l| !l.trim().is_empty()).collect();
-        let tail = lines[lines.len().saturating_sub(12)..].join("\n");
-        return Err(TetrahedralizeError::TetgenFailed {
-            command,
-            status: out.status.to_string(),
-            tail,
-        });
-    }
-    let mesh = read_tetgen(&base).map_err(|e| TetrahedralizeError::BadResult(e.to_string()))?;
-    Ok((mesh, switches))
-}
-
-/// A TetGen `.smesh`: the surface's vertices (numbered from 1) and triangles, no holes, no
-/// regions. Coordinates as Rust prints them, which read back bit for bit.
-fn smesh_text(s: &SurfaceMesh) -> String {
-    let mut t = String::new();
-    writeln!(t, "# lopd mesh tetrahedralize: surface in metres").ok();
-    writeln!(t, "{} 3 0 0", s.vertices.len()).ok();
-    for (i, [x, y, z]) in s.vertices.iter().enumerate() {
-        writeln!(t, "{} {x:?} {y:?} {z:?}", i + 1).ok();
-    }
-    writeln!(t, "{} 0", s.triangles.len()).ok();
-    for [a, b, c] in &s.triangles {
-        writeln!(t, "3 {} {} {}", a + 1, b + 1, c + 1).ok();
-    }
-    t.push_str("0\n0\n");
-    t
-}
-
-/// Smallest and largest dihedral angle over all tetrahedra, degrees.
-fn dihedral_range(mesh: &TetMesh) -> (f64, f64) {
-    use glam::DVec3;
-    let mut lo = f64::INFINITY;
-    let mut hi = 0.0f64;
-    for t in &mesh.tets {
-        let p = t.map(|i| DVec3::from_array(mesh.nodes[i as usize]));
-        for (i, j) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
-            let others: Vec<usize> = (0..4).filter(|&k| k != i && k != j).collect();
-            let e = (p[j] - p[i]).normalize_or_zero();
-            let u = p[others[0]] - p[i];
-            let v = p[others[1]] - p[i];
-            let (u, v) = (u - e * u.dot(e), v - e * v.dot(e));
-            let c = (u.dot(v) / (u.length() * v.length())).clamp(-1.0, 1.0);
-            let a = c.acos().to_degrees();
-            lo = lo.min(a);
-            hi = hi.max(a);
-        }
-    }
-    (lo, hi)
-}
-
-impl Tetrahedralized {
-    /// A human summary: the surface, what was done to it, TetGen's switches, the mesh.
-    pub fn summary(&self, opts: &TetrahedralizeOptions) -> String {
-        let mut s = String::new();
-        writeln!(s, "surface {}: {}", opts.surface.display(), self.report).ok();
-        if let Some(h) = &self.holes {
-            writeln!(
-                s,
-                "holes closed: {} (edges {:?}); left open: {:?}",
-                h.closed.len(),
-                h.closed,
-                h.left_open
-            )
-            .ok();
-        }
-        if self.flipped {
-            writeln!(
-                s,
-                "note: the surface was wound inward throughout (negative volume); every \
-                 triangle was flipped"
-            )
-            .ok();
-        }
-        writeln!(
-            s,
-            "tetgen {} surface.smesh  (the surface scaled from {} to m by {})",
-            self.switches,
-            opts.units.name(),
-            opts.units.metres()
-        )
-        .ok();
-        writeln!(s, "{}", self.mesh.info()).ok();
-        writeln!(
-            s,
-            "dihedral angles:   {:.1} .. {:.1} degrees",
-            self.dihedral.0, self.dihedral.1
-        )
-        .ok();
-        if self.mesh.tets.len() > REAL_TIME_TETS {
-            writeln!(
-                s,
-                "warning: {} tetrahedra. A touched body steps its FEM every millisecond; on a \
-                 2-core machine the shipped liver (1,706 tetrahedra) takes about 0.7 ms in \
-                 contact, a generated mesh of 2,800 about 2 ms and one of 8,000 about 10 ms, so \
-                 the tissue would lag the hand. Keep a body under about {REAL_TIME_TETS} \
-                 tetrahedra (a larger --edge) unless the machine is faster",
-                self.mesh.tets.len()
-            )
-            .ok();
-        }
-        write!(
-            s,
-            "wrote {}.node, .ele, .face, .bnd (no fixed nodes: fix them in the scene, e.g. with \
-             [[body.fix]])",
-            opts.out.display()
-        )
-        .ok();
-        s
     }
 }

@@ -212,7 +212,7 @@ fn defective_surfaces_are_refused_naming_the_triangles() {
         .env("LOP_TETGEN", dir.join("no-tetgen"))
         .args(["mesh", "tetrahedralize"])
         .arg(&path)
-        .args(["--out", "x"]));
+        .args(["--mesher", "tetgen", "--out", "x"]));
     assert_eq!(code, 1, "{err}");
     assert!(
         err.contains("tetgen not found") && err.contains("scripts/setup.sh"),

@@ -140,8 +140,11 @@
 mod bnd;
 mod error;
 mod gmsh;
+mod obj;
+mod ply;
 mod quality;
 mod select;
+mod stl;
 mod surface;
 mod surface_check;
 mod surface_io;

@@ -282,17 +282,34 @@ impl<'a> Cursor<'a> {
 
     /// A cell list with `n` cells and `size` numbers (classic) or `n` offsets and `size`
     /// connectivity entries (VTK 5.1, recognised by the `OFFSETS` line that follows).
+    ///
+    /// The classic list starts with binary data right after the section line, so the peek
+    /// compares bytes and never reads them as a text line (which refuses binary bytes: issue
+    /// 28). Binary data that spells `OFFSETS ` would be a first cell of 1,330,005,587 points
+    /// (`0x4F464653`), which no file holds.
     fn cell_list(&mut self, n: usize, size: usize) -> Result<Cells, MeshReadError> {
-        let before = self.pos;
-        match self.line()? {
-            Some((at, words)) if words[0].eq_ignore_ascii_case("OFFSETS") => {
-                self.cells_v51(at, &words, n, size)
-            }
-            _ => {
-                self.pos = before;
-                self.cells_classic(n, size)
-            }
+        if self.at_keyword(b"OFFSETS") {
+            let Some((at, words)) = self.line()? else {
+                return Err(self.error(self.pos, "`OFFSETS <type>`", "end of file"));
+            };
+            self.cells_v51(at, &words, n, size)
+        } else {
+            self.cells_classic(n, size)
         }
+    }
+
+    /// Whether the next line is `keyword` followed by a space or tab, after blank lines and
+    /// indentation; the cursor does not move.
+    fn at_keyword(&self, keyword: &[u8]) -> bool {
+        let rest = self.bytes.get(self.pos..).unwrap_or(&[]);
+        let start = rest
+            .iter()
+            .position(|b| !b.is_ascii_whitespace())
+            .unwrap_or(rest.len());
+        let rest = &rest[start..];
+        rest.len() > keyword.len()
+            && rest[..keyword.len()].eq_ignore_ascii_case(keyword)
+            && matches!(rest[keyword.len()], b' ' | b'\t')
     }
 
     /// `size` `int`s: for each of the `n` cells its point count, then its point ids.
