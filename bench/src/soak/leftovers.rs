@@ -153,8 +153,10 @@ mod tests {
             .args(["-c", "sleep 30", "--prefix", &prefix])
             .spawn()
             .unwrap();
+        // Until exactly the shell is seen: for a moment after it forks `sleep`, the child still
+        // carries the shell's arguments (a loaded machine can catch it there).
         let start = Instant::now();
-        while processes_of(&prefix).is_empty() && start.elapsed() < Duration::from_secs(5) {
+        while processes_of(&prefix).len() != 1 && start.elapsed() < Duration::from_secs(5) {
             std::thread::sleep(Duration::from_millis(10));
         }
         assert_eq!(processes_of(&prefix).len(), 1);
