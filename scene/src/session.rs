@@ -72,6 +72,13 @@ impl OfflineSession {
         }
     }
 
+    /// The same session taking every step due in each round ([`Rounds::catching_up`]): for a
+    /// caller that advances by fixed ticks, as the benchmarks' presses do.
+    pub fn catching_up(mut self) -> OfflineSession {
+        self.rounds = Rounds::catching_up(self.rounds.laws().clone());
+        self
+    }
+
     /// The world.
     pub fn world(&self) -> &World {
         &self.world

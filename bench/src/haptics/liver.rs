@@ -246,7 +246,7 @@ fn press_in_steps(
 ) -> Result<(Vec<Tick>, Vec<Held>)> {
     let (c, n) = (v(contact), v(normal));
     let r = law.radius;
-    let mut session = OfflineSession::new(world, ToolLaws::uniform(law, 1));
+    let mut session = OfflineSession::new(world, ToolLaws::uniform(law, 1)).catching_up();
     let start = c + n * (r + START_GAP);
     let mut travel = 0.0;
     let mut ticks = Vec::new();

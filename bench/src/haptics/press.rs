@@ -158,7 +158,7 @@ pub fn press(block: &Block, setup: &Setup, plan: &PressPlan) -> Result<Press> {
         stiffness: setup.tool_stiffness,
         law: ForceLaw::Linear,
     };
-    let mut session = OfflineSession::new(world, ToolLaws::uniform(law, 1));
+    let mut session = OfflineSession::new(world, ToolLaws::uniform(law, 1)).catching_up();
     let tilt = plan.tilt_deg.to_radians();
     let dir = [tilt.sin(), 0.0, -tilt.cos()];
     // The path passes through the point a radius above the contact, starting start_gap higher.
