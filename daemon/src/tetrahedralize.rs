@@ -582,7 +582,7 @@ fn repair_surface(
     };
     let [x, y, z] = lop_sim::mesh::extents(&input.vertices);
     let diagonal = (x * x + y * y + z * z).sqrt();
-    if !(diagonal > 0.0) {
+    if diagonal.is_nan() || diagonal <= 0.0 {
         return Err(unrepairable("it has no extent".to_owned()));
     }
     // Fine enough to keep the shape (fTetWild's own default is diagonal / 20): the sizing
