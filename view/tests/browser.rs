@@ -164,9 +164,10 @@ fn browser_shows_the_organs_drawn_and_moving() {
     );
 
     // Later screenshots: the organs' region changes (the poke dents the liver, the tool moves).
-    // The mock poke loops every few seconds; up to six more shots, each compared with every
-    // earlier one, so that two of them are at different phases even when a loaded machine
-    // makes the screenshots slow and their spacing close to the poke's period.
+    // The mock poke loops every few seconds; up to eleven more shots (more than a poke's loop
+    // of 700 ms steps), each compared with every earlier one, so that two of them are at
+    // different phases even when a loaded machine makes the screenshots slow and their spacing
+    // close to the poke's period (six were once not enough: 171 pixels in a full-suite run).
     let changed = |a: &[[u8; 3]], b: &[[u8; 3]]| {
         a.iter()
             .zip(b)
@@ -181,7 +182,7 @@ fn browser_shows_the_organs_drawn_and_moving() {
     };
     let mut shots = vec![first];
     let mut best_changed = 0;
-    for i in 1..7 {
+    for i in 1..12 {
         std::thread::sleep(Duration::from_millis(700));
         let (_, _, later) = shot(i);
         for earlier in &shots {
