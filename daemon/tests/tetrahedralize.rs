@@ -196,13 +196,15 @@ fn an_open_sheet_cannot_be_repaired_and_missing_meshers_are_named() {
         .arg(&obj)
         .args(["--units", "cm", "--repair", "--out"])
         .arg(dir.join("bowl")));
-    assert_eq!(code, 2, "{err}");
-    assert!(
-        err.contains("bowl.obj")
-            && err.contains("cannot be repaired")
-            && err.contains("open edges"),
-        "{err}"
-    );
+    // Refused either way, and saying why: as a sheet that cannot be closed (exit 2, the usual
+    // outcome), or — fTetWild now and then wraps a thin closed shell around the sheet — as a
+    // mesh whose boundary strays from the input beyond the allowance (exit 1). Never meshed.
+    let unrepairable = code == 2
+        && err.contains("bowl.obj")
+        && err.contains("cannot be repaired")
+        && err.contains("open edges");
+    let strays = code == 1 && err.contains("does not fit the surface");
+    assert!(unrepairable || strays, "exit {code}: {err}");
 
     let (v, f) = ellipsoid();
     let good = dir.join("good.obj");
