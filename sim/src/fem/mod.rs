@@ -165,6 +165,7 @@ mod cg;
 mod contact;
 pub(crate) mod element;
 mod forces;
+mod lanes;
 mod ordering;
 mod packed;
 mod params;
