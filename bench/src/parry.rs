@@ -26,8 +26,6 @@
 //! counted by a counting global allocator (this module installs it; it exists only with the
 //! feature), and whether the answers agree with ours.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use anyhow::Result;
@@ -35,42 +33,16 @@ use clap::Args;
 use lop_sim::collide::{CollisionBody, Collisions};
 use lop_sim::contact::closest_on_surface;
 use lop_sim::haptic::SurfaceSet;
+use lop_test_support::alloc::{allocations, Counting};
+use lop_test_support::rng::Rng;
 use parry3d_f64::math::Vector;
 use parry3d_f64::query::{PointQuery, PointQueryWithLocation};
 use parry3d_f64::shape::{TriMesh, TriMeshFlags};
 
 use crate::lop::shipped_scene;
 
-/// Counts every allocation (and reallocation) of the process.
-struct Counting;
-
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: forwards to the system allocator unchanged; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations() -> u64 {
-    ALLOCATIONS.load(Ordering::Relaxed)
-}
+static GLOBAL: Counting = Counting::every_thread();
 
 /// Options of `lop-bench collide`.
 #[derive(Args, Debug)]
@@ -268,19 +240,6 @@ fn compare(ours: &[Hit], theirs: &[Hit]) -> String {
             a.len(),
             b.len()
         )
-    }
-}
-
-/// A deterministic generator in [0, 1).
-struct Lcg(u64);
-
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
     }
 }
 
@@ -498,11 +457,11 @@ pub fn run(a: CollideArgs) -> Result<()> {
     // Tool queries around the liver (body 0).
     let liver = &rest[0];
     let tris = surfaces[0];
-    let mut rng = Lcg(0x5eed);
+    let mut rng = Rng::new(0x5eed);
     let queries: Vec<[f64; 3]> = (0..2000)
         .map(|_| {
-            let t = tris[(rng.next() * tris.len() as f64) as usize];
-            let (u, v) = (rng.next(), rng.next());
+            let t = tris[(rng.unit() * tris.len() as f64) as usize];
+            let (u, v) = (rng.unit(), rng.unit());
             let (u, v) = if u + v > 1.0 {
                 (1.0 - u, 1.0 - v)
             } else {
@@ -511,9 +470,9 @@ pub fn run(a: CollideArgs) -> Result<()> {
             let [a, b, c] = t.map(|i| liver[i as usize]);
             let p = [0, 1, 2].map(|k| a[k] + u * (b[k] - a[k]) + v * (c[k] - a[k]));
             // Within ±6 mm of the surface, in a random direction.
-            let d = [rng.next() - 0.5, rng.next() - 0.5, rng.next() - 0.5];
+            let d = [rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5];
             let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-9);
-            let r = 0.006 * rng.next();
+            let r = 0.006 * rng.unit();
             [0, 1, 2].map(|k| p[k] + r * d[k] / l)
         })
         .collect();

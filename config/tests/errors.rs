@@ -4,6 +4,7 @@ mod common;
 
 use common::{good_with, line_of, scene_path, GOOD};
 use lop_config::{parse_scene, ConfigError, Integrator, NodeMass};
+use lop_test_support::rng::Rng;
 
 /// Parses `text` expecting an error; asserts the message names the scene file and contains
 /// every string of `needles`. Returns the error for further checks.
@@ -393,20 +394,14 @@ fn never_panics_on_mangled_input() {
     for end in (0..=GOOD.len()).filter(|i| GOOD.is_char_boundary(*i)) {
         let _ = parse_scene(&GOOD[..end], &path);
     }
-    // Deterministic xorshift: replace single bytes with TOML-significant characters.
+    // Replace single bytes with TOML-significant characters, at seeded places.
     let specials = b"[]{}=\"'.,#\n -0123456789eEnaif";
-    let mut state: u64 = 0x2545_f491_4f6c_dd1d;
-    let mut next = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        state
-    };
+    let mut rng = Rng::new(0x2545_f491_4f6c_dd1d);
     for _ in 0..3000 {
         let mut bytes = GOOD.as_bytes().to_vec();
         for _ in 0..3 {
-            let i = (next() % bytes.len() as u64) as usize;
-            bytes[i] = specials[(next() % specials.len() as u64) as usize];
+            let i = rng.below(bytes.len());
+            bytes[i] = rng.pick(specials);
         }
         if let Ok(text) = String::from_utf8(bytes) {
             if let Err(e) = parse_scene(&text, &path) {

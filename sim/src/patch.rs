@@ -538,6 +538,7 @@ pub fn response(lcp: &mut Lcp, patch: &ToolPatch<'_>) -> Option<[[f64; 3]; 3]> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lop_test_support::rng::Rng;
 
     /// With a diagonal `K⁻¹`, the three ways of filling `A` agree: solving the points' spread
     /// columns, the lumped form, and dense columns built by the caller.
@@ -611,13 +612,8 @@ mod tests {
     /// spring (the tissue in series with it).
     #[test]
     fn the_response_is_the_derivative_of_the_resultant() {
-        let mut seed = 11u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        };
+        let mut rng = Rng::new(11);
+        let mut rnd = || rng.signed();
         let k_tool = 500.0;
         for m in [1usize, 2, 5, 12] {
             let points: Vec<PatchPoint> = (0..m)

@@ -7,6 +7,7 @@ use lop_sim::haptic::{hand_force, sweep_sphere_triangle, GodObject, SurfaceSet};
 use lop_sim::mesh::read_mesh;
 use lop_test_support::alloc::{self, Counting};
 use lop_test_support::fixtures::mesh_path;
+use lop_test_support::rng::Rng;
 use lop_test_support::vec3::norm;
 
 #[global_allocator]
@@ -78,13 +79,8 @@ fn closest_point_matches_brute_force_on_the_liver() {
     let (lo, hi) = lop_sim::mesh::bounds(&mesh.nodes);
     // A deterministic cloud around and inside the liver, visited in a wandering order so the
     // walk starts far from the answer as often as near it.
-    let mut seed = 12345u64;
-    let mut rnd = || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (seed >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = Rng::new(12345);
+    let mut rnd = || rng.unit();
     let mut worst: f64 = 0.0;
     for _ in 0..3000 {
         let p = [0, 1, 2].map(|k| lo[k] - 0.01 + (hi[k] - lo[k] + 0.02) * rnd());

@@ -14,6 +14,7 @@ use lop_sim::fem::box_mesh;
 use lop_sim::heat::{HeatBody, HeatError, HeatParameters, HeatWorld, Link};
 use lop_sim::mesh::TetMesh;
 use lop_test_support::alloc::{self, Counting};
+use lop_test_support::rng::Rng;
 
 #[global_allocator]
 static A: Counting = Counting::armed_threads();
@@ -30,14 +31,6 @@ fn insulated(dt: f64) -> HeatParameters {
 fn mean_temperature(b: &HeatBody) -> f64 {
     let c: f64 = b.capacities().iter().sum();
     b.heat_content() / c
-}
-
-/// A deterministic pseudo-random number in [0, 1).
-fn rng(state: &mut u64) -> f64 {
-    *state ^= *state << 13;
-    *state ^= *state >> 7;
-    *state ^= *state << 17;
-    (*state >> 11) as f64 / (1u64 << 53) as f64
 }
 
 /// A surface triangle of `mesh` whose nodes all satisfy `pred`.
@@ -445,7 +438,7 @@ fn step_is_allocation_free() {
 /// are allowed and measured.
 #[test]
 fn huge_time_steps_stay_bounded() {
-    let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+    let mut rng = Rng::new(0x9e37_79b9_7f4a_7c15);
     let mesh = box_mesh([0.02, 0.01, 0.015], [5, 3, 4], |_| false);
     for dt in [1e-3, 1.0, 1e3, 1e6] {
         let mut body = HeatBody::new(
@@ -457,7 +450,7 @@ fn huge_time_steps_stay_bounded() {
         )
         .unwrap();
         let field: Vec<f64> = (0..mesh.nodes.len())
-            .map(|_| 25.0 + 30.0 * rng(&mut state))
+            .map(|_| 25.0 + 30.0 * rng.unit())
             .collect();
         body.set_temperatures(&field).unwrap();
         for _ in 0..5 {
@@ -481,7 +474,7 @@ fn huge_time_steps_stay_bounded() {
     let liver = shipped("liver");
     let mut body = HeatBody::new(&liver, insulated(1.0)).unwrap();
     let field: Vec<f64> = (0..liver.nodes.len())
-        .map(|_| 25.0 + 30.0 * rng(&mut state))
+        .map(|_| 25.0 + 30.0 * rng.unit())
         .collect();
     let variance = |b: &HeatBody| {
         let m = mean_temperature(b);

@@ -7,26 +7,11 @@ mod vtk_build;
 use std::fs;
 
 use lop_sim::mesh::{read_mesh, read_surface, MeshReadError, SurfaceMesh, TetMesh};
+use lop_test_support::rng::Rng;
 use mesh_text::*;
 
 // ---------------------------------------------------------------------------------------------
 // fuzz-ish: mutated inputs never panic
-
-/// xorshift64*: deterministic, dependency-free.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-}
 
 const TOKENS: [&str; 16] = [
     "",
@@ -98,7 +83,7 @@ fn mutate(rng: &mut Rng, text: &[u8]) -> Vec<u8> {
             }
             4 => {
                 let k = rng.below(out.len() + 1);
-                out.insert(k, (rng.next() & 0xff) as u8);
+                out.insert(k, (rng.next_u64() & 0xff) as u8);
             }
             _ => {
                 // Swap two digits somewhere: changes indices and counts plausibly.

@@ -6,36 +6,13 @@
 mod mesh_text;
 mod vtk_build;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use lop_sim::mesh::{read_mesh, read_surface};
+use lop_test_support::alloc::{largest_on_this_thread, Counting};
 use mesh_text::*;
 use vtk_build::*;
 
-/// Records the largest allocation since the last [`reset`].
-struct Largest;
-
-static LARGEST: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Largest {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        LARGEST.fetch_max(layout.size(), Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        LARGEST.fetch_max(new_size, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static A: Largest = Largest;
+static A: Counting = Counting::armed_threads();
 
 const TRILLION: &str = "1000000000000";
 
@@ -44,14 +21,14 @@ const TRILLION: &str = "1000000000000";
 /// reserves no more records than the file could hold; the claims here need terabytes).
 fn refused_small(dir: &std::path::Path, name: &str, bytes: &[u8], surface: bool, needles: &[&str]) {
     let path = write(dir, name, bytes);
-    LARGEST.store(0, Ordering::Relaxed);
-    let err = if surface {
-        read_surface(&path).map(|_| ())
-    } else {
-        read_mesh(&path).map(|_| ())
-    }
-    .expect_err(name);
-    let largest = LARGEST.load(Ordering::Relaxed);
+    let (read, largest) = largest_on_this_thread(|| {
+        if surface {
+            read_surface(&path).map(|_| ())
+        } else {
+            read_mesh(&path).map(|_| ())
+        }
+    });
+    let err = read.expect_err(name);
     let msg = err.to_string();
     println!("{msg} (largest allocation {largest} bytes)");
     assert!(msg.contains(name), "{msg}");

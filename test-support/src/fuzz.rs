@@ -1,5 +1,5 @@
 //! Deterministic, dependency-free fuzzing for the "parsers survive anything" tests: a committed
-//! corpus of seed inputs, and mutations of each seed drawn from a seeded xorshift generator.
+//! corpus of seed inputs, and mutations of each seed drawn from the seeded [`Rng`](crate::rng::Rng).
 //!
 //! A parser's test reads its corpus with [`corpus`] (every file of a `tests/corpus/<parser>/`
 //! folder, in name order), feeds each seed as it is, then [`rounds`] mutations of it made by
@@ -17,38 +17,7 @@
 
 use std::path::{Path, PathBuf};
 
-/// xorshift64*: deterministic, dependency-free, good enough to pick mutations.
-#[derive(Clone, Debug)]
-pub struct Rng(pub u64);
-
-impl Rng {
-    /// A generator for one seed: mixes `name` into `state` so each seed's mutations differ.
-    pub fn for_seed(state: u64, name: &str) -> Rng {
-        let mut s = state | 1;
-        for b in name.bytes() {
-            s = (s ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
-        }
-        Rng(s | 1)
-    }
-
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-
-    /// A number in `0..n` (0 if `n` is 0).
-    pub fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n.max(1) as u64) as usize
-    }
-
-    /// A copy of one element of `items` (which must not be empty).
-    pub fn pick<T: Copy>(&mut self, items: &[T]) -> T {
-        items[self.below(items.len())]
-    }
-}
+pub use crate::rng::Rng;
 
 /// One committed seed input.
 #[derive(Clone, Debug)]

@@ -1,9 +1,9 @@
-//! Helpers shared by the workspace's tests (a dev-dependency only; never part of a product
-//! binary):
+//! Helpers shared by the workspace's tests and the bench (never part of a product binary):
 //!
 //! - [`alloc`]: a counting global allocator for the "allocates nothing" tests;
 //! - [`fuzz`]: the committed-corpus fuzzing of the readers and decoders: seeds, a deterministic
-//!   mutator, a seeded xorshift;
+//!   mutator;
+//! - [`rng`]: the one seeded random generator;
 //! - [`fixtures`]: paths to the shipped assets and scenes, fresh temporary directories, the unit
 //!   cube's corners;
 //! - [`vec3`]: the small `[f64; 3]` arithmetic the tests check geometry with.
@@ -13,4 +13,5 @@
 pub mod alloc;
 pub mod fixtures;
 pub mod fuzz;
+pub mod rng;
 pub mod vec3;

@@ -121,7 +121,7 @@ fn next(rng: &mut Rng, bodies: &Bodies) -> Vec<Planned> {
         request,
         bad: false,
     };
-    let b = rng.below(bodies.names.len() as u64) as usize;
+    let b = rng.below(bodies.names.len());
     let name = bodies.names[b].as_str();
     let roll = rng.below(100);
     let factor = if rng.below(2) == 0 { 0.8 } else { 1.25 };
@@ -131,7 +131,7 @@ fn next(rng: &mut Rng, bodies: &Bodies) -> Vec<Planned> {
             .filter(|(k, _)| k.starts_with(prefix))
             .collect();
         (!keys.is_empty()).then(|| {
-            let (k, v) = keys[rng.below(keys.len() as u64) as usize];
+            let (k, v) = keys[rng.below(keys.len())];
             ControlRequest::set(name, k, v * factor)
         })
     };
@@ -154,7 +154,7 @@ fn next(rng: &mut Rng, bodies: &Bodies) -> Vec<Planned> {
             }
         }
         74..=75 => {
-            let model = [BodyModel::Gc, BodyModel::Msd, BodyModel::Fem][rng.below(3) as usize];
+            let model = [BodyModel::Gc, BodyModel::Msd, BodyModel::Fem][rng.below(3)];
             vec![
                 good("pin", ControlRequest::pin(name, model)),
                 good("release", ControlRequest::new(CONTROL_OP_RELEASE, name)),

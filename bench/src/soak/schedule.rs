@@ -13,42 +13,7 @@
 use lop_drivers::mock::SampleFault;
 use serde::Serialize;
 
-/// SplitMix64 (Steele, Lea, Flood 2014): tiny, fast, and good enough to draw a fault plan; a
-/// seed is spread over all 64 bits by the mixer, so seeds 1, 2, 3 give unrelated plans.
-#[derive(Debug, Clone)]
-pub struct Rng(u64);
-
-impl Rng {
-    /// A generator for `seed`.
-    pub fn new(seed: u64) -> Rng {
-        Rng(seed)
-    }
-
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`.
-    pub fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform in `[lo, hi)`.
-    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-
-    /// Uniform in `0..n` (`n > 0`).
-    pub fn below(&mut self, n: u64) -> u64 {
-        // The modulo bias is below 2^-40 for the small n used here.
-        self.next_u64() % n.max(1)
-    }
-}
+pub use lop_test_support::rng::Rng;
 
 /// What is done to the deformation process.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -258,7 +223,7 @@ impl Schedule {
             .chain(std::iter::repeat_n(SampleFault::OutOfWorkspace, out))
             .collect();
         for i in (1..faults.len()).rev() {
-            let j = rng.below(i as u64 + 1) as usize;
+            let j = rng.below(i + 1);
             faults.swap(i, j);
         }
         let first_s = 2.0;
@@ -268,7 +233,7 @@ impl Schedule {
             .zip(starts)
             .map(|(&fault, at_s)| SampleEvent {
                 first_tick: (at_s * rate_hz).round() as u64,
-                ticks: 1 + rng.below(rates::SAMPLE_TICKS_MAX),
+                ticks: 1 + rng.below(rates::SAMPLE_TICKS_MAX as usize) as u64,
                 fault,
             })
             .collect();
@@ -277,11 +242,11 @@ impl Schedule {
         let n = count(rates::VIEWERS, seconds, ViewerKind::ALL.len());
         let mut kinds: Vec<ViewerKind> = ViewerKind::ALL.to_vec();
         for i in (1..kinds.len()).rev() {
-            let j = rng.below(i as u64 + 1) as usize;
+            let j = rng.below(i + 1);
             kinds.swap(i, j);
         }
         while kinds.len() < n {
-            kinds.push(ViewerKind::ALL[rng.below(ViewerKind::ALL.len() as u64) as usize]);
+            kinds.push(ViewerKind::ALL[rng.below(ViewerKind::ALL.len())]);
         }
         let times = spread(&mut rng, n, LEAD_S, end - 2.0, 0.5);
         let viewers = kinds

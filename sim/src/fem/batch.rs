@@ -615,17 +615,13 @@ mod tests {
     use super::super::forces::element_forces;
     use super::super::FemMode;
     use super::*;
+    use lop_test_support::rng::Rng;
 
     /// A small irregular mesh: random points in a unit cube, tetrahedra from a lattice of
     /// jittered cubes (5 of each kind per cube; degenerate ones skipped).
     fn elements() -> (Vec<Element>, Vec<[f64; 3]>) {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut rnd = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = Rng::new(0x2545_f491_4f6c_dd1d);
+        let mut rnd = || rng.unit();
         let n = 4;
         let mut nodes = Vec::new();
         for i in 0..n {
@@ -694,13 +690,8 @@ mod tests {
         let mut portable = native.clone();
         let mut inverted = 0;
         let mut rot = vec![QUAT_IDENTITY; els.len()];
-        let mut seed = 7u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rng = Rng::new(7);
+        let mut rnd = || rng.unit() - 0.5;
         // Three steps of a rotating, stretching, partly inverting motion: warm starts, Newton,
         // and the SVD fallback (inverted elements) all run.
         for step in 0..3 {

@@ -502,6 +502,7 @@ pub(crate) fn f16_to_f32(h: u16) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lop_test_support::rng::Rng;
 
     #[test]
     fn conversions_round_trip_and_round_to_nearest_even() {
@@ -533,11 +534,9 @@ mod tests {
             return;
         }
         let mut src = Vec::new();
-        let mut s = 0x1234_5678u32;
+        let mut rng = Rng::new(0x1234_5678);
         for _ in 0..4099 {
-            s ^= s << 13;
-            s ^= s >> 17;
-            s ^= s << 5;
+            let s = (rng.next_u64() >> 32) as u32;
             let e = (s % 40) as i32 - 30;
             src.push(((s >> 8) as f32 / 16_777_216.0 - 0.5) * 2f32.powi(e));
         }

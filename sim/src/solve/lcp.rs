@@ -179,18 +179,14 @@ impl Lcp {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lop_test_support::rng::Rng;
 
     /// On small random positive definite problems the solution meets every condition that
     /// defines it (feasible, non-negative, complementary), which makes it the unique one.
     #[test]
     fn lcp_solutions_meet_the_complementarity_conditions() {
-        let mut seed = 7u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        };
+        let mut rng = Rng::new(7);
+        let mut rnd = || rng.signed();
         let mut lcp = Lcp::with_capacity(8);
         for m in 1..=6 {
             for _ in 0..30 {
