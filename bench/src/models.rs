@@ -104,9 +104,7 @@ use lop_sim::fem::FemMode;
 use lop_sim::msd::Integrator;
 use serde::Serialize;
 
-pub use common::{
-    integrator_key, integrator_label, summarize, table, us, workspace_root, Align, Bench,
-};
+pub use common::{integrator_key, integrator_label, summarize, us, workspace_root, Bench};
 use scaling::{ordering_rows, render_scaling, scaling};
 pub use scaling::{ScaleFit, ScaleRow};
 use step_times::{render_step_times, shipped_mesh, step_times};

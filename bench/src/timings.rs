@@ -17,6 +17,8 @@ use lop_sim::collide::{CollisionBody, CollisionParams, Collisions};
 use lop_sim::gc::{subdivided_box_cage, GreenCoordinates};
 use lop_sim::mesh::{read_mesh, TetMesh};
 
+use crate::stats::quantile_sorted;
+
 /// Arguments of `lop-bench timings`.
 #[derive(clap::Args)]
 pub struct TimingsArgs {
@@ -39,10 +41,6 @@ fn shipped(name: &str) -> Result<TetMesh> {
         .join("../assets/meshes")
         .join(name);
     read_mesh(&p).with_context(|| format!("shipped mesh {name}"))
-}
-
-fn percentile(sorted: &[f64], p: usize) -> f64 {
-    sorted[(sorted.len() * p / 100).min(sorted.len() - 1)]
 }
 
 /// Detection plus penalty loads on the organs scene's meshes, per call.
@@ -84,8 +82,8 @@ fn collisions(a: &TimingsArgs) -> Result<()> {
             skin * 1e3,
             limit * 1e3,
             c.stats(),
-            percentile(&times, 50),
-            percentile(&times, 99),
+            quantile_sorted(&times, 0.50),
+            quantile_sorted(&times, 0.99),
             times[times.len() - 1]
         );
     }

@@ -18,9 +18,10 @@ use lop_sim::model::{ContactSpring, ModelKind};
 use lop_sim::world::{BodyRound, Coupling, Round, RoundTool};
 use serde::Serialize;
 
-use super::{kind_label, listed, median, quantile_sorted, shipped_scene};
+use super::{kind_label, listed, shipped_scene};
 use crate::models::workspace_root;
 use crate::pipeline;
+use crate::stats::{median, quantile_sorted};
 
 pub use output::render;
 use output::{write_csv, write_detection_csv, write_svg};

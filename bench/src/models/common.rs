@@ -229,8 +229,6 @@ pub(super) fn time_model(
 // ---------------------------------------------------------------------------------------------
 // Tables (printed by `crate::table`).
 
-pub use crate::table::{table, Align};
-
 /// A time in µs with 3 significant digits or so.
 pub fn us(v: f64) -> String {
     if v >= 1000.0 {

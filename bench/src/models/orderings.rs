@@ -12,8 +12,9 @@ use lop_sim::fem::{Fem, FemMode, FemParameters, NodeOrdering};
 use lop_sim::mesh::TetMesh;
 use serde::Serialize;
 
-use super::{summarize, table, Align};
+use super::summarize;
 use crate::pipeline;
+use crate::table::{table, Align};
 
 /// One ordering on one mesh.
 #[derive(Debug, Clone, Serialize)]

@@ -11,9 +11,10 @@ use lop_sim::model::Model;
 use lop_sim::msd::{Integrator, MsdParameters, NodeMass};
 use serde::Serialize;
 
-use super::common::{build, table, time_model, Align, Bench, Budget, Timing};
+use super::common::{build, time_model, Bench, Budget, Timing};
 use super::orderings;
 use super::step_times::{scene_body, shipped_mesh, MESH_CASES};
+use crate::table::{table, Align};
 
 // ---------------------------------------------------------------------------------------------
 // Part 2.

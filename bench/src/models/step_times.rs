@@ -11,9 +11,8 @@ use lop_sim::mesh::{read_mesh, TetMesh};
 use lop_sim::model::ToolContact;
 use serde::Serialize;
 
-use super::common::{
-    build, dt_text, table, time_model, us, workspace_root, Align, Bench, Budget, Timing,
-};
+use super::common::{build, dt_text, time_model, us, workspace_root, Bench, Budget, Timing};
+use crate::table::{table, Align};
 
 // ---------------------------------------------------------------------------------------------
 // Part 1.

@@ -11,9 +11,10 @@ use lop_sim::mesh::TetMesh;
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass, SubstepPolicy};
 use serde::Serialize;
 
-use super::{integrator_key, integrator_label, summarize, table, us, Align, StepRow};
+use super::{integrator_key, integrator_label, summarize, us, StepRow};
 use crate::pipeline;
 use crate::plot::{self, Panel, Series};
+use crate::table::{table, Align};
 
 /// Node mass of the thesis' bar, kg.
 const NODE_MASS: f64 = 0.1;

@@ -26,8 +26,9 @@ use lop_sim::parallel::WorkerPool;
 use lop_sim::world::World;
 use serde::Serialize;
 
-use super::common::{summarize, table, Align};
+use super::common::summarize;
 use super::scaling::scaling_box;
+use crate::table::{table, Align};
 
 /// Default sizes, tetrahedra.
 const TARGETS: [usize; 4] = [2_000, 5_000, 10_000, 20_000];

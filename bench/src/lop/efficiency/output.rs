@@ -8,8 +8,9 @@ use anyhow::Result;
 
 use super::super::{kind_label, quantile_sorted, write_file};
 use super::{Detection, RunRow, Sample, Trace, Trial, PROPAGATED_M, TRIALS};
-use crate::models::{table, us, Align};
+use crate::models::us;
 use crate::plot::{self, Panel, Series};
+use crate::table::{table, Align};
 
 pub(super) fn write_csv(path: &Path, row: &RunRow, samples: &[Sample]) -> Result<()> {
     let mut s = String::from("iteration,body,time_s,model,step_us\n");
