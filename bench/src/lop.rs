@@ -106,7 +106,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::Args;
 use lop_config::{BodySpec, ModelPin, Scene};
-use lop_sim::lop::{CageDynamics, CageShape, GcParameters};
+use lop_sim::lop::{CageDynamics, CageShape, CageSprings, GcParameters};
 use lop_sim::mesh::TetMesh;
 use lop_sim::model::ModelKind;
 use serde::Serialize;
@@ -242,11 +242,9 @@ fn gc_variant(
     GcParameters {
         shape,
         dynamics: match dynamics {
-            DynKind::MassSpring => CageDynamics::MassSpring {
-                stiffness: gc.stiffness.unwrap_or(50.0),
-                density: gc.density.unwrap_or(20.0),
-                damping: gc.damping.unwrap_or(0.3),
-            },
+            DynKind::MassSpring => {
+                CageDynamics::MassSpring(gc.springs.unwrap_or(CageSprings::THESIS))
+            }
             DynKind::Galerkin => CageDynamics::Galerkin,
             DynKind::Projected => CageDynamics::Projected,
         },

@@ -345,9 +345,8 @@ pub use resolve::{
     scene_dirs, script_dirs,
 };
 pub use scene::{
-    load_scene, parse_scene, parse_selector, selector_toml, BodySpec, CageKind, CollisionSpec,
-    DeviceDefaults, GcDynamics, GcParams, HeatParams, HeatSpec, Importance, LopSpec, Rates, Scene,
-    ToolSpec,
+    load_scene, parse_scene, parse_selector, selector_toml, BodySpec, CollisionSpec,
+    DeviceDefaults, GcParams, HeatParams, HeatSpec, Importance, LopSpec, Rates, Scene, ToolSpec,
 };
 // The value types a scene names are `lop-sim`'s (one owner each, read through its `serde`
 // feature); re-exported so a reader of a scene needs only this crate.

@@ -9,7 +9,7 @@ use lop_sim::lop::StartLevel;
 use lop_sim::model::ModelPin;
 use lop_sim::msd::Integrator;
 
-use crate::scene::{CageKind, GcDynamics, Importance};
+use crate::scene::Importance;
 
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -154,6 +154,28 @@ pub(crate) struct RawMsd {
     pub damping: f64,
     pub dt: f64,
     pub integrator: Option<Integrator>,
+}
+
+/// `[body.gc] cage`: the tag of `lop-sim`'s `CageShape` (a subdivided box takes its count
+/// from `subdivisions`).
+#[derive(Debug, Clone, Copy, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub(crate) enum CageKind {
+    #[default]
+    Fitted,
+    Box,
+    SubdividedBox,
+}
+
+/// `[body.gc] dynamics`: the tag of `lop-sim`'s `CageDynamics` (a mass-spring cage takes its
+/// parameters from the table's `stiffness`, `density` and `damping`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub(crate) enum GcDynamics {
+    #[default]
+    Projected,
+    Galerkin,
+    MassSpring,
 }
 
 #[derive(Debug, Deserialize)]

@@ -19,7 +19,7 @@ use crate::raw::RawScene;
 use crate::source::{KeyPath, Source};
 use crate::WorkspaceMap;
 
-pub use body::{BodySpec, CageKind, GcDynamics, GcParams, HeatParams, Importance};
+pub use body::{BodySpec, GcParams, HeatParams, Importance};
 pub use fix::{parse_selector, selector_toml};
 pub use sections::{CollisionSpec, DeviceDefaults, HeatSpec, LopSpec, Rates, ToolSpec};
 use validate::{

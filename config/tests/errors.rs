@@ -175,6 +175,19 @@ fn mass_spring_cage_needs_its_parameters() {
     );
 }
 
+/// The three spring values describe one mass-spring cage: a table that gives some of them
+/// beside another dynamics is refused too, rather than silently keeping half a cage.
+#[test]
+fn cage_springs_come_all_together() {
+    expect_err(
+        &good_with(
+            "name = \"b\"\nmesh = \"m\"\n",
+            "name = \"b\"\nmesh = \"m\"\n[body.gc]\nstiffness = 50.0\ndensity = 20.0\n",
+        ),
+        &["body[1].gc.damping", "(missing)", "all three or none"],
+    );
+}
+
 #[test]
 fn cage_subdivisions_out_of_range() {
     expect_err(

@@ -2,8 +2,9 @@
 //! the scene is where they are argued and cited, the library is what new scenes get, and the two
 //! must not drift apart.
 
-use lop_config::{load_scene, resolve_scene, tissue, CageKind, GcDynamics, Integrator, NodeMass};
+use lop_config::{load_scene, resolve_scene, tissue, Integrator, NodeMass};
 use lop_config::{tissue_names, MSD_CALIBRATION};
+use lop_sim::lop::{CageDynamics, CageShape};
 
 #[test]
 fn library_matches_the_abdomen_scene() {
@@ -31,8 +32,8 @@ fn library_matches_the_abdomen_scene() {
         assert!((0.010..0.020).contains(&l), "{}: l = {l}", t.name);
         let gc = body.gc.as_ref().unwrap();
         assert_eq!(
-            (gc.cage, gc.dynamics, gc.dt),
-            (CageKind::Fitted, GcDynamics::Projected, Some(t.gc_dt)),
+            (gc.shape, gc.dynamics, gc.dt),
+            (CageShape::Fitted, CageDynamics::Projected, Some(t.gc_dt)),
             "{}",
             t.name
         );

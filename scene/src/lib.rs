@@ -14,9 +14,7 @@ use anyhow::{Context, Result};
 use lop_config::{BodySpec, Scene, ToolSpec};
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::{Fem, RefactorPolicy};
-use lop_sim::lop::{
-    CageDynamics, CageModel, CageShape, GcParameters, LopPolicy, PrecisionController,
-};
+use lop_sim::lop::{CageModel, GcParameters, LopPolicy, PrecisionController};
 pub use lop_sim::mesh::smallest_extent;
 use lop_sim::mesh::TetMesh;
 use lop_sim::model::{Model, ModelPin};
@@ -224,23 +222,9 @@ pub fn gc_parameters(spec: &BodySpec, mesh: &TetMesh, precise_dt: f64) -> GcPara
         .padding
         .unwrap_or_else(|| DEFAULT_CAGE_PADDING * smallest_extent(&mesh.nodes));
     GcParameters {
-        shape: match gc.cage {
-            lop_config::CageKind::Fitted => CageShape::Fitted,
-            lop_config::CageKind::Box => CageShape::Box,
-            lop_config::CageKind::SubdividedBox => {
-                CageShape::SubdividedBox(gc.subdivisions as usize)
-            }
-        },
+        shape: gc.shape,
         padding,
-        dynamics: match gc.dynamics {
-            lop_config::GcDynamics::Projected => CageDynamics::Projected,
-            lop_config::GcDynamics::Galerkin => CageDynamics::Galerkin,
-            lop_config::GcDynamics::MassSpring => CageDynamics::MassSpring {
-                stiffness: gc.stiffness.unwrap_or(50.0),
-                density: gc.density.unwrap_or(20.0),
-                damping: gc.damping.unwrap_or(0.3),
-            },
-        },
+        dynamics: gc.dynamics,
         dt: gc.dt.unwrap_or(precise_dt),
     }
 }

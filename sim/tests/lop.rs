@@ -7,8 +7,8 @@ use common::{cylinder, cylinder_fem_params};
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::Fem;
 use lop_sim::lop::{
-    fitted_cells, CageDynamics, CageModel, CageShape, GcParameters, LopPolicy, PrecisionController,
-    StartLevel, SwitchReason,
+    fitted_cells, CageDynamics, CageModel, CageShape, CageSprings, GcParameters, LopPolicy,
+    PrecisionController, StartLevel, SwitchReason,
 };
 use lop_sim::mesh::TetMesh;
 use lop_sim::model::{Model, ModelKind};
@@ -118,11 +118,7 @@ fn projected_cage_follows_the_fem_sag() {
 fn mass_spring_cage_settles_under_gravity() {
     let mesh = cylinder();
     let precise = Model::Fem(fem(&mesh));
-    let dynamics = CageDynamics::MassSpring {
-        stiffness: 50.0,
-        density: 20.0,
-        damping: 0.3,
-    };
+    let dynamics = CageDynamics::MassSpring(CageSprings::THESIS);
     let gc = CageModel::from_precise(&mesh, gc_params(CageShape::Box, dynamics), &precise).unwrap();
     let mut model = Model::Gc(Box::new(gc));
     settle(&mut model, 20_000);

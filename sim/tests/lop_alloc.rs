@@ -7,7 +7,7 @@ use common::{cylinder, cylinder_fem_params};
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::Fem;
 use lop_sim::lop::{
-    CageDynamics, CageModel, CageShape, GcParameters, LopPolicy, PrecisionController,
+    CageDynamics, CageModel, CageShape, CageSprings, GcParameters, LopPolicy, PrecisionController,
 };
 use lop_sim::model::{ContactSpring, Model, ModelKind, ToolContact};
 use lop_sim::patch::{PatchPoint, ToolPatch};
@@ -26,11 +26,7 @@ fn cage_steps_are_allocation_free() {
     let mesh = cylinder();
     let dynamics = [
         CageDynamics::Projected,
-        CageDynamics::MassSpring {
-            stiffness: 50.0,
-            density: 20.0,
-            damping: 0.3,
-        },
+        CageDynamics::MassSpring(CageSprings::THESIS),
     ];
     for dynamics in dynamics {
         let params = GcParameters {

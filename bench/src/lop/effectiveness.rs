@@ -10,7 +10,7 @@ use std::path::Path;
 use anyhow::{anyhow, bail, Context, Result};
 use lop_config::{BodySpec, ModelPin, Scene};
 use lop_scene::smallest_extent;
-use lop_sim::lop::{CageDynamics, CageModel, CageShape, GcParameters};
+use lop_sim::lop::{CageDynamics, CageModel, CageShape, CageSprings, GcParameters};
 use lop_sim::mesh::TetMesh;
 use lop_sim::model::Model;
 use serde::Serialize;
@@ -439,11 +439,11 @@ fn run_reference(
         .tune()
         .with_context(|| format!("{}: tuning the mass-spring box cage", case.body))?;
         let params = GcParameters {
-            dynamics: CageDynamics::MassSpring {
+            dynamics: CageDynamics::MassSpring(CageSprings {
                 stiffness: tuned.stiffness,
                 density: tuned.density,
                 damping: tuned.damping,
-            },
+            }),
             ..base
         };
         let gc = CageModel::from_precise(mesh, params, &precise)
@@ -639,11 +639,11 @@ impl Calibration<'_> {
     fn error(&self, log_p: [f64; 3]) -> f64 {
         let [stiffness, density, damping] = log_p.map(f64::exp);
         let params = GcParameters {
-            dynamics: CageDynamics::MassSpring {
+            dynamics: CageDynamics::MassSpring(CageSprings {
                 stiffness,
                 density,
                 damping,
-            },
+            }),
             ..self.base
         };
         let Ok(mut gc) = CageModel::from_precise(self.mesh, params, self.precise) else {
@@ -667,11 +667,11 @@ impl Calibration<'_> {
     /// parameters, from `base`'s, first steps ×/÷ 4, halved (in the logarithm) whenever no move
     /// helps.
     fn tune(&self) -> Result<Tuned> {
-        let CageDynamics::MassSpring {
+        let CageDynamics::MassSpring(CageSprings {
             stiffness,
             density,
             damping,
-        } = self.base.dynamics
+        }) = self.base.dynamics
         else {
             bail!("not a mass-spring cage");
         };

@@ -6,6 +6,7 @@
 use std::path::PathBuf;
 
 use lop_sim::fem::FemParameters;
+use lop_sim::lop::{CageDynamics, CageShape, CageSprings};
 use lop_sim::mesh::NodeSelector;
 use lop_sim::model::ModelPin;
 use lop_sim::msd::MsdParameters;
@@ -77,52 +78,20 @@ impl BodySpec {
     }
 }
 
-/// Shape of a body's Green-coordinates cage.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum CageKind {
-    /// The padded bounding box cut into roughly cubic cells (each axis gets
-    /// `round(extent / smallest extent)` segments): a long body can bend along its length.
-    #[default]
-    Fitted,
-    /// The thesis' cage: the padded bounding box, 8 vertices and 12 triangles.
-    Box,
-    /// The padded bounding box with every edge cut into `subdivisions` segments.
-    SubdividedBox,
-}
-
-/// What moves a body's cage.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum GcDynamics {
-    /// The body's precise model (FEM if important, else mass-spring) projected onto the cage,
-    /// with the stiffness matched to its compliance: nothing to tune.
-    #[default]
-    Projected,
-    /// The plain Galerkin projection (`GᵀKG`): stiffer than the body, kept for comparison.
-    Galerkin,
-    /// The thesis' mass-spring cage with the hand-tuned `stiffness`, `density` and `damping`.
-    MassSpring,
-}
-
-/// Green-coordinates cage parameters (thesis §4.3, Tables 6.1 and 6.2).
+/// Green-coordinates cage parameters, `[body.gc]` (thesis §4.3), in `lop-sim`'s types.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GcParams {
-    /// Cage shape.
-    pub cage: CageKind,
-    /// Segments per box edge for [`CageKind::SubdividedBox`] (1..=8).
-    pub subdivisions: u32,
+    /// Cage shape (`cage`, with `subdivisions` for a subdivided box).
+    pub shape: CageShape,
     /// Gap between the body's bounding box and the cage, m (> 0); `None`: 5 % of the body's
     /// smallest extent.
     pub padding: Option<f64>,
-    /// What moves the cage.
-    pub dynamics: GcDynamics,
-    /// Mass-spring cage: spring stiffness, N/m (> 0). Required for `mass-spring`.
-    pub stiffness: Option<f64>,
-    /// Mass-spring cage: density, kg/m³ (> 0). Required for `mass-spring`.
-    pub density: Option<f64>,
-    /// Mass-spring cage: damping, N·s/m per cage vertex (>= 0). Required for `mass-spring`.
-    pub damping: Option<f64>,
+    /// What moves the cage (`dynamics`; a mass-spring cage carries its `stiffness`, `density`
+    /// and `damping`).
+    pub dynamics: CageDynamics,
+    /// The mass-spring cage's `stiffness`, `density` and `damping` when the table gives them,
+    /// whatever `dynamics` is: the bench compares the thesis' cage with them.
+    pub springs: Option<CageSprings>,
     /// Time step, s (0 < dt <= 1); `None`: the body's precise model's.
     pub dt: Option<f64>,
 }
@@ -130,13 +99,10 @@ pub struct GcParams {
 impl Default for GcParams {
     fn default() -> Self {
         GcParams {
-            cage: CageKind::Fitted,
-            subdivisions: 2,
+            shape: CageShape::Fitted,
             padding: None,
-            dynamics: GcDynamics::Projected,
-            stiffness: None,
-            density: None,
-            damping: None,
+            dynamics: CageDynamics::Projected,
+            springs: None,
             dt: None,
         }
     }

@@ -5,16 +5,17 @@ use std::path::{Path, PathBuf};
 
 use crate::check::{fmt_f64, fmt_f64s, Check};
 use crate::error::ConfigError;
-use crate::raw::{RawBody, RawBodyHeat, RawFem, RawGc, RawMsd};
+use crate::raw::{CageKind, GcDynamics, RawBody, RawBodyHeat, RawFem, RawGc, RawMsd};
 use crate::source::{KeyPath, Source};
 
 use super::fix::validate_fix;
 use super::validate::check_name;
 use lop_sim::fem::FemParameters;
+use lop_sim::lop::{CageDynamics, CageShape, CageSprings};
 use lop_sim::model::ModelPin;
 use lop_sim::msd::{MsdParameters, NodeMass};
 
-use super::{BodySpec, GcDynamics, GcParams, HeatParams, Importance};
+use super::{BodySpec, GcParams, HeatParams, Importance};
 
 /// Default viewer colours, by body index (sRGB).
 const PALETTE: [[f32; 3]; 6] = [
@@ -261,10 +262,10 @@ fn validate_msd(c: &Check<'_, '_>, k: &KeyPath, raw: RawMsd) -> Result<MsdParame
 }
 
 fn validate_gc(c: &Check<'_, '_>, k: &KeyPath, raw: RawGc) -> Result<GcParams, ConfigError> {
-    let dynamics = raw.dynamics.unwrap_or_default();
+    let tag = raw.dynamics.unwrap_or_default();
     let subdivisions = match raw.subdivisions {
         None => 2,
-        Some(n) if (1..=8).contains(&n) => n as u32,
+        Some(n) if (1..=8).contains(&n) => n as usize,
         Some(n) => {
             return Err(c.invalid(
                 &k.key("subdivisions"),
@@ -273,38 +274,67 @@ fn validate_gc(c: &Check<'_, '_>, k: &KeyPath, raw: RawGc) -> Result<GcParams, C
             ))
         }
     };
+    let shape = match raw.cage.unwrap_or_default() {
+        CageKind::Fitted => CageShape::Fitted,
+        CageKind::Box => CageShape::Box,
+        CageKind::SubdividedBox => CageShape::SubdividedBox(subdivisions),
+    };
     let padding = raw
         .padding
         .map(|p| c.positive(&k.key("padding"), p, "cage padding (m)"))
         .transpose()?;
-    let need = |key: &str, v: Option<f64>| -> Result<Option<f64>, ConfigError> {
-        match (dynamics, v) {
-            (GcDynamics::MassSpring, None) => Err(c.invalid(
-                &k.key(key),
-                "(missing)",
-                format!("dynamics = \"mass-spring\" needs the cage's {key}"),
-            )),
-            _ => Ok(v),
-        }
-    };
-    let stiffness = need("stiffness", raw.stiffness)?
+    let stiffness = raw
+        .stiffness
         .map(|v| c.positive(&k.key("stiffness"), v, "GC stiffness (N/m)"))
         .transpose()?;
-    let density = need("density", raw.density)?
+    let density = raw
+        .density
         .map(|v| c.positive(&k.key("density"), v, "GC density (kg/m³)"))
         .transpose()?;
-    let damping = need("damping", raw.damping)?
+    let damping = raw
+        .damping
         .map(|v| c.non_negative(&k.key("damping"), v, "GC damping (N·s/m)"))
         .transpose()?;
+    // The three describe one mass-spring cage: all or none (a mass-spring cage needs all).
+    let springs = match (stiffness, density, damping) {
+        (Some(stiffness), Some(density), Some(damping)) => Some(CageSprings {
+            stiffness,
+            density,
+            damping,
+        }),
+        (None, None, None) if tag != GcDynamics::MassSpring => None,
+        given => {
+            let missing = [
+                ("stiffness", given.0),
+                ("density", given.1),
+                ("damping", given.2),
+            ]
+            .into_iter()
+            .find(|(_, v)| v.is_none())
+            .map_or("stiffness", |(key, _)| key);
+            let why = if tag == GcDynamics::MassSpring {
+                format!("dynamics = \"mass-spring\" needs the cage's {missing}")
+            } else {
+                format!(
+                    "stiffness, density and damping describe the mass-spring cage together: \
+                     give all three or none ({missing} is missing)"
+                )
+            };
+            return Err(c.invalid(&k.key(missing), "(missing)", why));
+        }
+    };
+    let dynamics = match tag {
+        GcDynamics::Projected => CageDynamics::Projected,
+        GcDynamics::Galerkin => CageDynamics::Galerkin,
+        // `springs` is `Some` here: a mass-spring table without them was refused above.
+        GcDynamics::MassSpring => CageDynamics::MassSpring(springs.unwrap_or(CageSprings::THESIS)),
+    };
     let dt = raw.dt.map(|v| c.time_step(&k.key("dt"), v)).transpose()?;
     Ok(GcParams {
-        cage: raw.cage.unwrap_or_default(),
-        subdivisions,
+        shape,
         padding,
         dynamics,
-        stiffness,
-        density,
-        damping,
+        springs,
         dt,
     })
 }

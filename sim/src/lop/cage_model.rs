@@ -50,15 +50,29 @@ pub enum CageDynamics {
     /// comparison.
     Galerkin,
     /// The thesis' way (§4.3): a mass-spring system on the cage vertices with its own,
-    /// hand-tuned parameters (the GC columns of Tables 6.1 and 6.2).
-    MassSpring {
-        /// Spring stiffness, N/m.
-        stiffness: f64,
-        /// Density, kg/m³: the cage's volume times this, shared equally by its vertices.
-        density: f64,
-        /// Damping per vertex, N·s/m.
-        damping: f64,
-    },
+    /// hand-tuned parameters.
+    MassSpring(CageSprings),
+}
+
+/// The hand-tuned parameters of a mass-spring cage ([`CageDynamics::MassSpring`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CageSprings {
+    /// Spring stiffness, N/m.
+    pub stiffness: f64,
+    /// Density, kg/m³: the cage's volume times this, shared equally by its vertices.
+    pub density: f64,
+    /// Damping per vertex, N·s/m.
+    pub damping: f64,
+}
+
+impl CageSprings {
+    /// The thesis' values for every organ (the GC columns of its Tables 6.1 and 6.2): what a
+    /// mass-spring cage gets when a scene gives none.
+    pub const THESIS: CageSprings = CageSprings {
+        stiffness: 50.0,
+        density: 20.0,
+        damping: 0.3,
+    };
 }
 
 /// Parameters of a body's GC model.
@@ -308,11 +322,11 @@ impl CageModel {
             CageDynamics::Galerkin => {
                 Dynamics::Projected(Box::new(Reduced::galerkin(&basis, ops, dt)?))
             }
-            CageDynamics::MassSpring {
+            CageDynamics::MassSpring(CageSprings {
                 stiffness,
                 density,
                 damping,
-            } => Dynamics::MassSpring(Box::new(mass_spring_cage(
+            }) => Dynamics::MassSpring(Box::new(mass_spring_cage(
                 mesh, &cage, &binding, stiffness, density, damping, dt,
             ))),
         };

@@ -103,7 +103,7 @@ mod kernel;
 
 pub(crate) use cage_model::Prestress;
 pub use cage_model::{
-    build_cage, fitted_cells, CageDynamics, CageModel, CageModelError, CageShape, Damping,
-    GcParameters, PreciseOperators, MAX_FITTED_VERTICES,
+    build_cage, fitted_cells, CageDynamics, CageModel, CageModelError, CageShape, CageSprings,
+    Damping, GcParameters, PreciseOperators, MAX_FITTED_VERTICES,
 };
 pub use controller::{LopPolicy, PrecisionController, StartLevel, Switch, SwitchReason};
