@@ -21,10 +21,10 @@ use hdrhistogram::Histogram;
 use lop_config::Scene;
 use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::BUTTON_GRAB;
-use lop_scene::{DeviceClamp, ToolLaws};
+use lop_scene::{DeviceClamp, Rounds, TickTool, ToolLaws};
 use lop_sim::haptic::{hand_force, GodObject, SurfaceSet};
 use lop_sim::model::ToolAnchor;
-use lop_sim::world::{Coupling, Round, RoundTool};
+use lop_sim::world::Coupling;
 use serde::Serialize;
 
 use crate::lop::shipped_scene;
@@ -139,6 +139,7 @@ fn haptic_ticks(scene_name: &str, script_name: &str, seconds: f64) -> Result<Row
     let ticks = (seconds * 1000.0) as u64;
     let mut sequence = 0;
     let mut coupling = Coupling::GodObject(None);
+    let mut rounds = Rounds::catching_up(laws.clone());
     for tick in 0..ticks {
         let t = tick as f64 * 1e-3;
         let sample = script.sample(t);
@@ -146,13 +147,13 @@ fn haptic_ticks(scene_name: &str, script_name: &str, seconds: f64) -> Result<Row
         let new_frame = tick % TICKS_PER_FRAME == 0;
         if new_frame {
             // The deformation process's side (not timed): one round, publish.
-            let tool = RoundTool {
+            let tool = TickTool {
                 center: device,
-                laws: &laws.bodies,
                 coupling,
-                heat_power: 0.0,
+                heat: false,
+                stiffness: None,
             };
-            world.round(&Round::to(t, u32::MAX).with_tool(Some(tool)), || 0);
+            rounds.advance(&mut world, t, Some(&tool), &[], false, || 0);
             for (b, body) in world.bodies.iter().enumerate() {
                 let x = body.model.positions();
                 frame[offsets[b]..offsets[b] + x.len()].copy_from_slice(x);
@@ -219,6 +220,7 @@ fn collision_steps(scene_name: &str, steps: usize) -> Result<Row> {
     if !world.collisions_enabled() {
         anyhow::bail!("scene {scene_name}: [collision] is off");
     }
+    let mut rounds = Rounds::catching_up(laws);
     let mut hist = Histogram::<u64>::new_with_bounds(1, 1_000_000_000, 3)?;
     let dt = world
         .bodies
@@ -227,16 +229,16 @@ fn collision_steps(scene_name: &str, steps: usize) -> Result<Row> {
         .fold(f64::INFINITY, f64::min);
     for step in 0..steps {
         let t = (step + 1) as f64 * dt + 1.0;
-        let tool = RoundTool {
+        let tool = TickTool {
             center: workspace.device_to_scene(script.sample(t).position_mm),
-            laws: &laws.bodies,
             coupling: Coupling::Nearest,
-            heat_power: 0.0,
+            heat: false,
+            stiffness: None,
         };
         // One round: detection and the contact springs (timed in the report), then the
         // bodies' steps (the springs' solve is part of them).
         let clock = Instant::now();
-        world.round(&Round::to(t, u32::MAX).with_tool(Some(tool)), || {
+        rounds.advance(&mut world, t, Some(&tool), &[], false, || {
             clock.elapsed().as_nanos() as u64
         });
         let report = world.last_round();

@@ -12,10 +12,10 @@ use std::time::Instant;
 use anyhow::{bail, Result};
 use lop_config::{Importance, ModelPin, Scene, StartLevel};
 use lop_drivers::mock::{MockDevice, MockScript};
-use lop_scene::{DeviceClamp, ToolLaws};
+use lop_scene::{DeviceClamp, Rounds, TickTool, ToolLaws};
 use lop_sim::collide::Collisions;
 use lop_sim::model::{ContactSpring, ModelKind};
-use lop_sim::world::{BodyRound, Coupling, Round, RoundTool};
+use lop_sim::world::{BodyRound, Coupling};
 use serde::Serialize;
 
 use super::{kind_label, listed, shipped_scene};
@@ -443,6 +443,9 @@ fn run_one(
             max_stiffness_n_per_mm: MockDevice::omni_limits().max_stiffness_n_per_mm,
         },
     );
+    // The rounds as the deformation process runs them, every step due taken (the thesis'
+    // trials never drop time), the tool pushing the nearest surface.
+    let mut world_rounds = Rounds::catching_up(laws);
     let collision_spec = scene.collision.clone();
     let loaded = lop_scene::load(scene)?;
     let mut world = loaded.world;
@@ -504,17 +507,17 @@ fn run_one(
             .fold(f64::INFINITY, f64::min);
         let tool = script.as_ref().and_then(|(s, _)| {
             let st = now + offset;
-            (st <= s.duration()).then(|| RoundTool {
+            (st <= s.duration()).then(|| TickTool {
                 center: workspace.device_to_scene(s.sample(st).position_mm),
-                laws: &laws.bodies,
                 coupling: Coupling::Nearest,
-                heat_power: 0.0,
+                heat: false,
+                stiffness: None,
             })
         });
         for (k, b) in before.iter_mut().zip(&world.bodies) {
             *k = b.model.kind();
         }
-        world.round(&Round::to(t, u32::MAX).with_tool(tool), || {
+        world_rounds.advance(&mut world, t, tool.as_ref(), &[], false, || {
             wall.elapsed().as_nanos() as u64
         });
         let report = world.last_round();
