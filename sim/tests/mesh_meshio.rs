@@ -16,29 +16,10 @@
 mod mesh_text;
 
 use std::path::Path;
-use std::process::Command;
 
 use base64::Engine as _;
-use lop_sim::mesh::{read_mesh, read_surface, MeshReadError, SurfaceMesh};
+use lop_sim::mesh::{read_mesh, read_surface, MeshReadError};
 use mesh_text::*;
-
-/// A Python interpreter that has meshio: `python3` on the PATH, else Debian's own (the
-/// `python3-meshio` package installs for `/usr/bin/python3`, which a pyenv shim may hide).
-fn python_with_meshio() -> &'static str {
-    for python in ["python3", "/usr/bin/python3"] {
-        let ok = Command::new(python)
-            .args(["-c", "import meshio"])
-            .output()
-            .is_ok_and(|o| o.status.success());
-        if ok {
-            return python;
-        }
-    }
-    panic!(
-        "Python's meshio is missing: these tests read files written by meshio; install it with \
-         `bash scripts/setup.sh` (Debian package python3-meshio)"
-    );
-}
 
 /// What the script wrote and computed.
 struct Reference {
@@ -53,18 +34,11 @@ struct Reference {
 }
 
 fn meshio_files(dir: &Path) -> Reference {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/meshio_write.py");
-    let out = Command::new(python_with_meshio())
-        .arg(&script)
-        .arg(dir)
-        .output()
-        .expect("run meshio_write.py");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "meshio_write.py failed: {}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
+    let stdout = run_writer(
+        "meshio_write.py",
+        "meshio",
+        "Debian package python3-meshio",
+        dir,
     );
     let mut r = Reference {
         points: 0,
@@ -91,16 +65,6 @@ fn meshio_files(dir: &Path) -> Reference {
     }
     assert!(r.files.len() >= 20, "{stdout}");
     r
-}
-
-fn area(s: &SurfaceMesh) -> f64 {
-    s.triangles
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|i| glam::DVec3::from(s.vertices[i as usize]));
-            (b - a).cross(c - a).length() / 2.0
-        })
-        .sum()
 }
 
 fn close(a: f64, b: f64, rel: f64) -> bool {

@@ -17,28 +17,9 @@
 mod mesh_text;
 
 use std::path::Path;
-use std::process::Command;
 
-use lop_sim::mesh::{read_surface, MeshReadError, SurfaceMesh};
+use lop_sim::mesh::{read_surface, MeshReadError};
 use mesh_text::*;
-
-/// A Python interpreter that has VTK: `python3` on the PATH, else `/usr/bin/python3` (a pyenv
-/// shim may hide the system one, or the reverse).
-fn python_with_vtk() -> &'static str {
-    for python in ["python3", "/usr/bin/python3"] {
-        let ok = Command::new(python)
-            .args(["-c", "import vtk"])
-            .output()
-            .is_ok_and(|o| o.status.success());
-        if ok {
-            return python;
-        }
-    }
-    panic!(
-        "Python's vtk is missing: these tests read files written by VTK's own writers; install \
-         it with `bash scripts/setup.sh` (PyPI package vtk)"
-    );
-}
 
 /// What the script wrote and computed.
 struct Reference {
@@ -50,19 +31,7 @@ struct Reference {
 }
 
 fn vtk_files(dir: &Path) -> Reference {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/vtk_write.py");
-    let out = Command::new(python_with_vtk())
-        .arg(&script)
-        .arg(dir)
-        .output()
-        .expect("run vtk_write.py");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "vtk_write.py failed: {}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stdout = run_writer("vtk_write.py", "vtk", "PyPI package vtk", dir);
     let mut r = Reference {
         points: 0,
         triangles: 0,
@@ -83,16 +52,6 @@ fn vtk_files(dir: &Path) -> Reference {
     assert_eq!((r.points, r.triangles), (5002, 10_000), "{stdout}");
     assert!(r.files.len() >= 20, "{stdout}");
     r
-}
-
-fn area(s: &SurfaceMesh) -> f64 {
-    s.triangles
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|i| glam::DVec3::from(s.vertices[i as usize]));
-            (b - a).cross(c - a).length() / 2.0
-        })
-        .sum()
 }
 
 #[test]

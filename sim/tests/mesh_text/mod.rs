@@ -1,12 +1,13 @@
-//! Shared by the mesh error tests (`mesh_errors.rs`, `mesh_errors_gmsh_vtk.rs`, `mesh_fuzz.rs`):
-//! scratch directories, the valid fixture texts of every format, and readers that expect an error.
+//! Shared by the mesh tests: scratch directories, the valid fixture texts of every format,
+//! readers that expect an error, and the runs of the Python scripts whose files other
+//! libraries write (`mesh_meshio.rs`, `mesh_vtk_writers.rs`).
 #![allow(dead_code)] // each test binary uses what it needs
 
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use lop_sim::mesh::{read_gmsh, read_tetgen, read_vtk, MeshReadError};
+use lop_sim::mesh::{read_gmsh, read_tetgen, read_vtk, MeshReadError, SurfaceMesh};
 
 /// A scratch directory, removed when dropped (unique per process, so concurrent runs of the
 /// suite don't clash).
@@ -279,4 +280,55 @@ pub fn gmsh(dim: &str, geo: &Path, format: &str, extra: &[&str], out: &Path) {
         output.status,
         String::from_utf8_lossy(&output.stderr)
     );
+}
+
+/// A Python interpreter that can import `module`: `python3` on the PATH, else
+/// `/usr/bin/python3` (a pyenv shim may hide the system one, or the reverse). Panics naming
+/// `package` and `scripts/setup.sh` when neither can: these tests fail, they do not skip.
+pub fn python_with(module: &str, package: &str) -> &'static str {
+    for python in ["python3", "/usr/bin/python3"] {
+        let ok = Command::new(python)
+            .args(["-c", &format!("import {module}")])
+            .output()
+            .is_ok_and(|o| o.status.success());
+        if ok {
+            return python;
+        }
+    }
+    panic!(
+        "Python's {module} is missing: this test reads files written by it; install it with \
+         `bash scripts/setup.sh` ({package})"
+    );
+}
+
+/// Runs `tests/data/<script>` (which needs `module`, from `package`) on `dir` and returns its
+/// standard output: the script writes its files into `dir` and prints what it computed, one
+/// `key value…` line each.
+pub fn run_writer(script: &str, module: &str, package: &str, dir: &Path) -> String {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(script);
+    let out = Command::new(python_with(module, package))
+        .arg(&path)
+        .arg(dir)
+        .output()
+        .unwrap_or_else(|e| panic!("run {script}: {e}"));
+    assert!(
+        out.status.success(),
+        "{script} failed: {}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// The surface's area, m², summed over its triangles.
+pub fn area(s: &SurfaceMesh) -> f64 {
+    s.triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| glam::DVec3::from(s.vertices[i as usize]));
+            (b - a).cross(c - a).length() / 2.0
+        })
+        .sum()
 }
