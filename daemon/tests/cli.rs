@@ -2,26 +2,14 @@
 //! meshes, bad scenes and unsupported devices give exit code 2 and a message naming the file,
 //! key or value — never a panic.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod lopd_cli;
 
-fn lopd() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_lopd"));
-    c.env("RUST_BACKTRACE", "0").env("LOP_LOG", "warn");
-    c
-}
+use std::path::{Path, PathBuf};
+
+use lopd_cli::{lopd, run};
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn run(c: &mut Command) -> (i32, String, String) {
-    let out = c.output().expect("run lopd");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
 }
 
 fn field(text: &str, key: &str) -> f64 {

@@ -10,29 +10,15 @@
 //! - a defective surface is refused with exit code 2 naming the triangles, a missing tetgen is
 //!   a message that says how to install it, and `--select` shows what a selector picks.
 
+mod lopd_cli;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-fn lopd() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_lopd"));
-    c.env("RUST_BACKTRACE", "0").env("LOP_LOG", "warn");
-    c
-}
+use lopd_cli::{lopd, run};
 
-fn run(c: &mut Command) -> (i32, String, String) {
-    let out = c.output().expect("run lopd");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
+/// This test's scratch folder `name`.
 fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("lopd-own-organ-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    lopd_cli::temp_dir("own-organ", name)
 }
 
 /// An icosphere subdivided `levels` times, scaled to semi-axes `axes` (file units), as OBJ.

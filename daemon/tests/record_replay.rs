@@ -8,17 +8,15 @@
 //!   never overwritten.
 //! - A damaged recording is bad input (exit 2) naming the file and the byte.
 
+mod lopd_cli;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use lopd_cli::lopd;
+
 use lop_drivers::mock::MockScript;
 use lop_drivers::replay::Recording;
-
-fn lopd() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_lopd"));
-    c.env("RUST_BACKTRACE", "0").env("LOP_LOG", "warn");
-    c
-}
 
 fn ok(c: &mut Command) -> String {
     let o = c.output().expect("run lopd");

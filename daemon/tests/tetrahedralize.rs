@@ -11,29 +11,15 @@
 //! The surfaces are small (320 triangles, 600–900 tetrahedra) to keep CI short. The tests
 //! need gmsh and pytetwild and fail, not skip, without them: run `scripts/setup.sh`.
 
+mod lopd_cli;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-fn lopd() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_lopd"));
-    c.env("RUST_BACKTRACE", "0").env("LOP_LOG", "warn");
-    c
-}
+use lopd_cli::{lopd, run};
 
-fn run(c: &mut Command) -> (i32, String, String) {
-    let out = c.output().expect("run lopd");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
+/// This test's scratch folder `name`.
 fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("lopd-tetra-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    lopd_cli::temp_dir("tetra", name)
 }
 
 /// A 15 × 10 × 8 cm ellipsoid (icosphere level 2: 162 vertices, 320 triangles), in cm.
