@@ -169,10 +169,32 @@ fn defective_surfaces_are_refused_then_repaired_on_request() {
 #[test]
 fn missing_meshers_are_named() {
     let dir = temp_dir("sheet");
-    // Not tested: an open bowl given `--repair`. fTetWild is refused as unrepairable on most
-    // runs but now and then wraps a thin shell around the sheet, which is then meshed (or
-    // refused by the distance check): a known defect of the repair, to be fixed by refusing
-    // surfaces with too large a share of open edges before fTetWild runs.
+    // Half the ellipsoid: a bowl, which encloses nothing. `--repair` refuses it before any
+    // mesher runs (fTetWild would now and then wrap a thin shell around the sheet), with
+    // both meshers that repair.
+    let (v, f) = ellipsoid();
+    let bowl: Vec<[u32; 3]> = f
+        .into_iter()
+        .filter(|t| t.iter().all(|&i| v[i as usize][2] <= 0.0))
+        .collect();
+    let obj = dir.join("bowl.obj");
+    write_obj(&obj, &v, &bowl);
+    for mesher in ["gmsh", "ftetwild"] {
+        let (code, _, err) = run(lopd()
+            .args(["mesh", "tetrahedralize"])
+            .arg(&obj)
+            .args(["--units", "cm", "--repair", "--mesher", mesher, "--out"])
+            .arg(dir.join("bowl")));
+        assert_eq!(code, 2, "{err}");
+        assert!(
+            err.contains("bowl.obj")
+                && err.contains("cannot be repaired")
+                && err.contains("open edges")
+                && err.contains("% of the surface they would close"),
+            "{err}"
+        );
+    }
+
     let (v, f) = ellipsoid();
     let good = dir.join("good.obj");
     write_obj(&good, &v, &f);

@@ -92,7 +92,7 @@ fn every_file_meshio_writes_reads_to_its_mesh() {
                 assert_eq!(s.triangles.len(), r.triangles, "{name}");
                 assert_eq!(s.vertices.len(), r.surface_points, "{name}");
                 let rel = if kind == "surface" { 1e-9 } else { 1e-6 };
-                assert!(close(area(&s), r.area, rel), "{name}: {}", area(&s));
+                assert!(close(s.area(), r.area, rel), "{name}: {}", s.area());
             }
             "refused" => {
                 let err = read_mesh(&path).unwrap_err();

@@ -69,7 +69,7 @@ fn every_layout_vtk_writes_reads_to_its_surface() {
                 // VTK's area is computed from the doubles; single precision rounds each
                 // coordinate by 6e-8 relative, ASCII files by VTK's printed digits.
                 let rel = if kind == "surface" { 1e-9 } else { 1e-6 };
-                let a = area(&s);
+                let a = s.area();
                 assert!(
                     (a - r.area).abs() <= rel * r.area,
                     "{name}: area {a} vs {}",
@@ -81,7 +81,7 @@ fn every_layout_vtk_writes_reads_to_its_surface() {
                 // A cube of 6 quadrilaterals, each split into 2 triangles.
                 let s = read_surface(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
                 assert_eq!((s.vertices.len(), s.triangles.len()), (24, 12), "{name}");
-                let a = area(&s);
+                let a = s.area();
                 let want = 2.0 * (0.03 * 0.02 + 0.03 * 0.01 + 0.02 * 0.01);
                 assert!((a - want).abs() < 1e-9, "{name}: area {a}");
             }

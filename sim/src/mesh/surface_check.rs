@@ -240,6 +240,15 @@ impl SurfaceMesh {
         }
     }
 
+    /// Area of the triangles, in the coordinates' units squared.
+    pub fn area(&self) -> f64 {
+        let p = |i: u32| DVec3::from_array(self.vertices[i as usize]);
+        self.triangles
+            .iter()
+            .map(|&[a, b, c]| 0.5 * (p(b) - p(a)).cross(p(c) - p(a)).length())
+            .sum()
+    }
+
     /// Signed volume enclosed by the triangles (`Σ a·(b×c) / 6`): positive when they are wound
     /// counter-clockwise seen from outside. Meaningful for a closed surface.
     pub fn signed_volume(&self) -> f64 {

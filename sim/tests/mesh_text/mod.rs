@@ -7,7 +7,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use lop_sim::mesh::{read_gmsh, read_tetgen, read_vtk, MeshReadError, SurfaceMesh};
+use lop_sim::mesh::{read_gmsh, read_tetgen, read_vtk, MeshReadError};
 
 /// A scratch directory, removed when dropped (unique per process, so concurrent runs of the
 /// suite don't clash).
@@ -320,15 +320,4 @@ pub fn run_writer(script: &str, module: &str, package: &str, dir: &Path) -> Stri
         String::from_utf8_lossy(&out.stderr)
     );
     String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-/// The surface's area, m², summed over its triangles.
-pub fn area(s: &SurfaceMesh) -> f64 {
-    s.triangles
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|i| glam::DVec3::from(s.vertices[i as usize]));
-            (b - a).cross(c - a).length() / 2.0
-        })
-        .sum()
 }
