@@ -2,7 +2,8 @@
 //! mesh, and the thesis' chapter-3 integrator study (§3.2, Figs. 3.7–3.11) re-run on our
 //! mass-spring model. Everything runs in this process on `lop-sim` directly (no daemon, no
 //! IPC); every figure is wall-clock time of one `step` call, timed with `std::time::Instant`,
-//! after a few warm-up steps that are not counted.
+//! after a few warm-up steps that are not counted. Figures: `docs/benchmarks.md`, "Deformation
+//! models — `lop-bench models`".
 //!
 //! # Part 1 — time per step on the shipped meshes
 //! Seven models — the mass-spring model (MSD) with each of its five integrators, linear FEM and
@@ -40,8 +41,7 @@
 //! time after the 2 warm-up steps) at every size, so every size and every version of the
 //! solver is measured on the same window: about 30 steps of smooth sagging, then the bar
 //! folds at its clamp (inverted elements), where the lagged preconditioner goes stale within
-//! a step. (Until 2026-11 the corotational rows had the 3 s budget too, which timed only the
-//! smooth first steps of the large boxes: 27 steps at 50k tets, 8 at 100k.)
+//! a step.
 //!
 //! # Part 2b — fill-reducing orderings
 //! On the shipped meshes (with their scenes' material) and the scaling boxes: the size of the

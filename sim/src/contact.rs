@@ -8,22 +8,15 @@
 //! the models, the daemon and the wire), converted at the boundary. Bit for bit the plain-array
 //! code it replaced (see `vec3`).
 //!
-//! # parry3d for tool queries, measured
-//! `cargo run --release -p lop-bench --features parry -- collide` times tool-sized queries
-//! (2 000 points within 6 mm of the liver's surface, 944 triangles) on the shared 2-core
-//! machine (2026-11-25), mean per query, heap allocations by a counting allocator:
-//! [`closest_on_surface`] (brute force) 50 µs; the god-object's
-//! [`SurfaceSet::closest_in_body`](crate::haptic::SurfaceSet::closest_in_body) (greedy walk +
-//! hierarchy) 3.4 µs, 3.8 µs bounded by the tip's reach; parry-f64's `TriMesh`
-//! `project_local_point_and_get_location` 1.5 µs, 1.0 µs bounded, `contains_local_point`
-//! 1.5 µs — all allocation-free. Distances agree to 5.4e-17 m (not bit for bit); the
-//! inside/outside answer agrees on all 2 000 points. But the haptic loop must also bring
-//! parry's mesh up to date with each new frame: `set_vertices` costs 29 µs for the four organs
-//! without pseudo-normals and 414 µs with 82 heap allocations with them, where our
-//! [`SurfaceSet`](crate::haptic::SurfaceSet) refits lazily, only bodies in reach and only once
-//! a node has moved past a 2 mm margin, without allocating. Decision: **not adopted**: its
-//! update breaks the real-time rules (with pseudo-normals) or the tick budget on a frame
-//! arrival, and its last-bit differences would change the shipped trajectories.
+//! # parry3d for tool queries
+//! parry3d-f64's `TriMesh` point queries are faster than the god-object's walk plus hierarchy
+//! ([`SurfaceSet::closest_in_body`](crate::haptic::SurfaceSet::closest_in_body)), but not
+//! adopted: the haptic loop would also have to bring parry's mesh up to date with each new frame,
+//! which allocates (with the pseudo-normals its inside test needs) or alone exceeds the tick
+//! budget (without them), where [`SurfaceSet`](crate::haptic::SurfaceSet) refits lazily, only
+//! bodies in reach, without allocating; and its answers differ from [`closest_on_surface`]'s in
+//! the last bits, which would change the shipped trajectories. Measured by `lop-bench collide`;
+//! figures in `docs/benchmarks.md`, "Collision and tool queries against parry3d".
 
 /// A position source: `f64` model state or `f32` frame data.
 pub trait Positions {

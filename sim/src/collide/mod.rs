@@ -64,31 +64,19 @@
 //!   sharp edges off too, and break the torque balance.
 //! - Self-collision is not handled.
 //!
-//! # parry3d, measured
+//! # parry3d
 //! The design names parry3d. Its `f64` build, `parry3d-f64` 0.31, supports deformable meshes
 //! (`TriMesh::set_vertices` refits its BVH; with the `ORIENTED` flag it also recomputes the
-//! angle-weighted pseudo-normals that make `is_inside` right at edges and corners). `lop-bench
-//! collide` (feature `parry`, off by default; `cargo run --release -p lop-bench --features
-//! parry -- collide`) runs this module's vertex-in-body detection and the same test written on
-//! parry's `project_local_point_and_get_location_with_max_dist`, on the organs scene (2 360
-//! surface triangles, skin 0.5 mm, depth limit 10 mm). Medians on the shared 2-core machine
-//! (2026-11-25; heap allocations per call by a counting allocator):
-//!
-//! | per detection | ours (refit + queries) | parry queries | parry update per frame |
-//! |---|---|---|---|
-//! | at rest, rigid | 136 µs, 0 allocations | 57 µs, 0 | — |
-//! | at rest, deforming | 168 µs, 0 | 58 µs, 0 | `set_vertices` with pseudo-normals 414 µs, **82 allocations**; without them 29 µs, 0; rebuild 1 077 µs, 110 |
-//! | overlapped 3 mm, deforming | 231 µs, 0 | 78 µs, 0 | as above |
-//!
-//! Both find the same penetrating vertices (0, 2, 34 and 38 in the four cases), with depths
-//! equal to within 1.2e-17 m — equal, but not bit for bit. Decision: **not adopted** here.
-//! With its pseudo-normals parry costs 2–3× ours per frame and allocates on every update (hash
-//! maps and vectors in `compute_pseudo_normals`); without them its refit plus queries
-//! (~110 µs) would beat our 170–230 µs, but the inside test would have to be rebuilt on our
-//! side from the location it returns, and its last-bit differences in the depths would change
-//! the shipped trajectories, which must not change. Its queries being about twice as fast as
-//! ours says our hierarchy and traversal have room to improve; that is the thing to study
-//! in it.
+//! angle-weighted pseudo-normals that make `is_inside` right at edges and corners), and the
+//! same vertex-in-body test written on it finds the same penetrating vertices as this module,
+//! with depths equal to within rounding but not bit for bit. Not adopted: with its
+//! pseudo-normals its update per frame costs more than our whole detection and allocates (hash
+//! maps and vectors in `compute_pseudo_normals`); without them the inside test would have to be
+//! rebuilt on our side; and its last-bit differences would change the shipped trajectories,
+//! which must not change. Its queries being faster than ours
+//! says our hierarchy and traversal have room to improve. Measured by `lop-bench collide`
+//! (feature `parry`); figures in `docs/benchmarks.md`, "Collision and tool queries against
+//! parry3d".
 //!
 //! # Real-time properties
 //! [`Collisions::new`] sizes every buffer (the hierarchies' nodes, the penetration list for every

@@ -9,8 +9,9 @@
 //! (the lagged factor and its refactor policy), `contact.rs` (the tool inside the step),
 //! `statics.rs` (static equilibrium); below them `element.rs`, `rotation.rs`, `batch.rs`
 //! (element kernels), `system.rs`, `ordering.rs`, `packed.rs` (sparse matrix and factor).
-//! Measured step times, iteration counts and factor sizes are in `docs/benchmarks.md` ("FEM
-//! internals").
+//! Measured step times, iteration counts and factor sizes are in `docs/benchmarks.md`
+//! ("Deformation models — `lop-bench models`"; what each solver phase costs, and why it is built
+//! as it is, under "FEM internals").
 //!
 //! # Discretisation
 //!

@@ -680,9 +680,10 @@ mod tests {
     /// Dimitriadis et al.'s factor corrects (+2.4 % at 0.1 mm). What is left is mostly the
     /// mesh: linear tetrahedra are too stiff and converge from above, more so the fewer
     /// elements span the contact radius (0.55 mm here, two edges of the 0.26 mm mesh). Measured
-    /// by `lop-bench haptics`: F / (Hertz × layer) at 0.1 mm is 1.18 on the 0.4 mm mesh, 1.09
-    /// on this one, 1.06 on the 0.1 mm one (docs/benchmarks.md). Hence the band: not softer than
-    /// the continuum by more than the discrete contact's few per cent, not stiffer than 12 %.
+    /// by `lop-bench haptics`: F / (Hertz × layer) at 0.1 mm is 1.13 on the 0.4 mm mesh, 1.06
+    /// on this one, 1.04 on the 0.1 mm one (docs/benchmarks.md, "Haptics", part 1). Hence the
+    /// band: not softer than the continuum by more than the discrete contact's few per cent, not
+    /// stiffer than 12 %.
     #[test]
     fn reference_matches_hertz_at_small_depth() {
         let r = reference(0.2e-3);
