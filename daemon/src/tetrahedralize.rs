@@ -592,7 +592,6 @@ fn defects(
     }
 }
 
-/// fTetWild's mesh of a defective surface (metres), and its boundary as the new surface.
 /// The share of the closed surface's area that fanning every hole of `surface` shut adds
 /// (0 for a closed surface).
 fn open_share(surface: &SurfaceMesh) -> f64 {
@@ -606,6 +605,7 @@ fn open_share(surface: &SurfaceMesh) -> f64 {
     }
 }
 
+/// fTetWild's mesh of a defective surface (metres), and its boundary as the new surface.
 fn repair_surface(
     opts: &TetrahedralizeOptions,
     input: &SurfaceMesh,
