@@ -6,6 +6,10 @@
 //!   the bodies deforming under the tool as in `lopd` (frames at 100 Hz: one world pass every
 //!   10 ticks, untimed). Target: p99 ≤ 20 µs on `organs`. IPC and the device are left out:
 //!   `lop-bench latency` measures the whole live tick.
+//! - **Haptic tick against one body of growing size**: the same contact part of the tick on
+//!   the test block of `lop-bench haptics` meshed at 0.8, 0.4 and 0.2 mm under the tool (up to
+//!   ~32k tetrahedra), frames written on the other core. Target: p99 ≤ 20 µs whatever the
+//!   size (the tick copies only the surface the tool can reach).
 //! - **Collision detection** per world step, with the contact springs built from it (`World::detect_collisions`, all body pairs, the scene's `[collision]`); the springs' solve is inside each body's step.
 //! - **Heat step** per body (`lop_sim::heat`, one implicit step, cautery on) and for the whole
 //!   scene (bodies plus the links between touching organs).
@@ -22,6 +26,7 @@ use lop_config::Scene;
 use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::BUTTON_GRAB;
 use lop_scene::{DeviceClamp, Rounds, TickTool, ToolLaws};
+use lop_sim::contact::ForceLaw;
 use lop_sim::haptic::{hand_force, GodObject, SurfaceSet};
 use lop_sim::model::ToolAnchor;
 use lop_sim::world::Coupling;
@@ -56,6 +61,13 @@ const TICKS_PER_FRAME: u64 = 10;
 /// Bodies within this of the device or the god-object are refreshed (as in the haptic loop), m.
 const REACH: f64 = 0.02;
 
+/// The tool sphere pressed into the block, m (the haptics bench's 3 mm sphere).
+const BLOCK_TOOL_RADIUS: f64 = 0.003;
+/// How far the device goes below the undeformed top face, and how deep the tissue's dimple
+/// follows it, m.
+const BLOCK_PRESS: f64 = 0.0004;
+const BLOCK_DIMPLE: f64 = 0.0003;
+
 /// Runs the benchmark.
 pub fn run(a: InteractionArgs) -> Result<()> {
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
@@ -67,6 +79,15 @@ pub fn run(a: InteractionArgs) -> Result<()> {
         }
         rows.push(collision_steps(scene, if a.quick { 50 } else { 500 })?);
         rows.extend(heat_steps(scene, if a.quick { 50 } else { 500 })?);
+    }
+    // The tick against one body of growing size: the test block of `lop-bench haptics`.
+    let sizes: &[f64] = if a.quick {
+        &[0.0008]
+    } else {
+        &[0.0008, 0.0004, 0.0002]
+    };
+    for &size in sizes {
+        rows.extend(block_ticks(size, seconds)?);
     }
     println!("lop-bench interaction (one core; µs per call)\n");
     println!("{}", table::render(&rows));
@@ -209,6 +230,143 @@ fn haptic_ticks(scene_name: &str, script_name: &str, seconds: f64) -> Result<Row
 }
 
 /// Collision detection per world step while the poke deforms the scene.
+/// The contact part of the haptic tick against one body of growing size: the test block of
+/// `lop-bench haptics` (40 × 40 × 20 mm, meshed by gmsh at `size` under the tool), pressed
+/// 0.4 mm at its top face's centre while circling 0.5 mm, frames every 10 ticks. The tissue's
+/// side is a prescribed dimple under the device (Gaussian, 1.5 mm wide, 0.3 mm deep, fading to
+/// the clamped bottom) instead of a world step: what the tick pays for is the frame's copy and
+/// the queries, which depend on the body's size, not on how it was deformed; stepping the
+/// 32k-tet block itself takes ~0.1 s a frame. The frame is written on the second core and
+/// read on the first, as live.
+fn block_ticks(size: f64, seconds: f64) -> Result<[Row; 2]> {
+    use crate::haptics::block::{block, cache_dir, CONTACT, HEIGHT};
+    use std::sync::{mpsc, Mutex};
+    let b = block(size, &cache_dir())?;
+    let rest = &b.mesh.nodes;
+    let slices: [&[[u32; 3]]; 1] = [&b.mesh.surface];
+    let mut set = SurfaceSet::new(rest.len(), &slices);
+    let mut god = GodObject::new(BLOCK_TOOL_RADIUS, set.triangles().len());
+    // The frame as shared memory holds it (single precision), written on the other core as
+    // the deformation process writes it: reading it costs the tick what it costs live.
+    let frame = Mutex::new(vec![[0f32; 3]; rest.len()]);
+    let bounds = Mutex::new(lop_sim::mesh::bounds(rest));
+    // Ticks that take a new frame, and the others.
+    let mut framed = Histogram::<u64>::new_with_bounds(1, 1_000_000_000, 3)?;
+    let mut between = framed.clone();
+    let ticks = (seconds * 1000.0) as u64;
+    let mut contacts = 0u64;
+    let width2 = 2.0 * 0.0015f64.powi(2);
+    std::thread::scope(|scope| -> Result<()> {
+        let (ask, asked) = mpsc::channel::<(f64, f64, f64)>();
+        let (done, finished) = mpsc::channel::<()>();
+        let (frame, bounds) = (&frame, &bounds);
+        scope.spawn(move || {
+            pin_to_cpu(1);
+            for (dx, dy, depth) in asked {
+                let mut f = frame.lock().unwrap_or_else(|e| e.into_inner());
+                let mut lo = [f64::INFINITY; 3];
+                let mut hi = [f64::NEG_INFINITY; 3];
+                for (x, r) in f.iter_mut().zip(rest) {
+                    let d2 = (r[0] - dx).powi(2) + (r[1] - dy).powi(2);
+                    let p = [
+                        r[0],
+                        r[1],
+                        r[2] - depth * (-d2 / width2).exp() * r[2] / HEIGHT,
+                    ];
+                    for k in 0..3 {
+                        lo[k] = lo[k].min(p[k]);
+                        hi[k] = hi[k].max(p[k]);
+                    }
+                    *x = p.map(|c| c as f32);
+                }
+                *bounds.lock().unwrap_or_else(|e| e.into_inner()) = (lo, hi);
+                drop(f);
+                if done.send(()).is_err() {
+                    return;
+                }
+            }
+        });
+        pin_to_cpu(0);
+        let mut sequence = 0;
+        for tick in 0..ticks {
+            let t = tick as f64 * 1e-3;
+            // Press over the first third, hold, release over the last third.
+            let s = (3.0 * t / seconds)
+                .min(3.0 - 3.0 * t / seconds)
+                .clamp(0.0, 1.0);
+            let turn = std::f64::consts::TAU * 0.5 * t;
+            let (dx, dy) = (5e-4 * turn.cos() * s, 5e-4 * turn.sin() * s);
+            let device = [
+                CONTACT[0] + dx,
+                CONTACT[1] + dy,
+                CONTACT[2] + BLOCK_TOOL_RADIUS - BLOCK_PRESS * s,
+            ];
+            let new_frame = tick % TICKS_PER_FRAME == 0;
+            if new_frame {
+                // The deformation process's side (not timed): the dimple under the device.
+                ask.send((dx, dy, BLOCK_DIMPLE * s))?;
+                finished.recv()?;
+                sequence += 1;
+            }
+            let f = frame.lock().unwrap_or_else(|e| e.into_inner());
+            let bb = *bounds.lock().unwrap_or_else(|e| e.into_inner());
+            let t0 = Instant::now();
+            let proxy = god.proxy();
+            let moved = set.refresh_reachable(
+                |_| sequence,
+                &[device, proxy],
+                REACH,
+                |_| bb,
+                |i| f[i].map(f64::from),
+            );
+            if moved {
+                god.follow_surface(&set);
+            }
+            let g = god.update(&mut set, device, false);
+            let force = hand_force(&g, ForceLaw::Linear, 200.0, 0.0, [0.0; 3]);
+            let ns = t0.elapsed().as_nanos() as u64;
+            drop(f);
+            std::hint::black_box(force);
+            if new_frame { &mut framed } else { &mut between }.saturating_record(ns.max(1));
+            contacts += u64::from(g.anchor.is_some());
+        }
+        Ok(())
+    })?;
+    let stats = set.stats();
+    anyhow::ensure!(
+        contacts > ticks / 4,
+        "block {}: the tool touched in only {contacts} of {ticks} ticks",
+        b.label()
+    );
+    let label = format!(
+        "block {} ({} nodes; {} surface triangles; {}/{} walks fell back; {} refits)",
+        b.label(),
+        rest.len(),
+        b.mesh.surface.len(),
+        stats.fallbacks,
+        stats.walks,
+        stats.refits
+    );
+    let key = format!("tick_block_{}mm", crate::haptics::block::size_mm(size));
+    Ok([
+        Row::from_histogram_ns(&key, &format!("tick between frames: {label}"), &between),
+        Row::from_histogram_ns(
+            &format!("{key}_frame"),
+            &format!("tick taking a frame: {label}"),
+            &framed,
+        ),
+    ])
+}
+
+fn pin_to_cpu(cpu: usize) {
+    // SAFETY: a zeroed `cpu_set_t` is a valid empty set; the call only reads it.
+    unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_SET(cpu, &mut set);
+        libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
+    }
+}
+
 fn collision_steps(scene_name: &str, steps: usize) -> Result<Row> {
     let scene = shipped_scene(scene_name)?;
     let script = script_of(&scene, "poke")?;

@@ -29,7 +29,7 @@
 // best as index loops.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 
-mod block;
+pub(crate) mod block;
 mod hertz;
 mod liver;
 mod press;

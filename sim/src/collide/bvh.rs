@@ -72,8 +72,8 @@ pub(crate) struct Bvh {
     built_cost: f64,
     /// Builds so far (the first one included).
     builds: u64,
-    /// Every box is grown by this much, m (see [`Bvh::set_margin`]).
-    margin: f64,
+    /// Queries treat every box as grown by this much, m (see [`Bvh::set_slack`]).
+    slack: f64,
 }
 
 #[inline]
@@ -86,13 +86,6 @@ fn union(a: &mut Node, lo: DVec3, hi: DVec3) {
 fn half_area(lo: DVec3, hi: DVec3) -> f64 {
     let e = hi - lo;
     e.x * e.y + e.y * e.z + e.z * e.x
-}
-
-/// Squared distance from `p` to the box (0 inside).
-#[inline]
-fn box_d2(n: &Node, p: DVec3) -> f64 {
-    let d = (n.lo - p).max(p - n.hi).max(DVec3::ZERO);
-    d.dot(d)
 }
 
 const EMPTY: Node = Node {
@@ -114,19 +107,30 @@ impl Bvh {
             built: false,
             built_cost: 0.0,
             builds: 0,
-            margin: 0.0,
+            slack: 0.0,
         }
     }
 
-    /// Grows every box by `margin` m from the next update on: the boxes then stay valid while
-    /// no vertex has moved farther than `margin` since, so a caller that tracks how far the
-    /// vertices moved can skip refits (queries stay exact, with slightly looser pruning).
-    pub fn set_margin(&mut self, margin: f64) {
-        self.margin = if margin.is_finite() {
-            margin.max(0.0)
+    /// Queries treat every box as grown by `slack` m until the next call: a caller that moved
+    /// the vertices by at most `slack` since the last [`update`](Self::update) can query
+    /// without one, and the answers stay exact (pruning is looser by `slack`). Tracking how far
+    /// the vertices moved lets a caller refit only once that grows past what it accepts,
+    /// while a query near an unmoved surface prunes with tight boxes.
+    pub fn set_slack(&mut self, slack: f64) {
+        self.slack = if slack.is_finite() {
+            slack.max(0.0)
         } else {
             0.0
         };
+    }
+
+    /// Squared distance from `p` to node `n`'s box grown by the slack (0 inside).
+    #[inline]
+    fn node_d2(&self, n: &Node, p: DVec3) -> f64 {
+        let d = (n.lo - self.slack - p)
+            .max(p - n.hi - self.slack)
+            .max(DVec3::ZERO);
+        d.dot(d)
     }
 
     /// Number of (re)builds so far.
@@ -181,7 +185,7 @@ impl Bvh {
         for &t in &self.order[s..e] {
             for &i in &tris[t as usize] {
                 let p = v(positions[i as usize]);
-                union(&mut node, p - self.margin, p + self.margin);
+                union(&mut node, p, p);
             }
             let c = self.centroids[t as usize];
             clo = clo.min(c);
@@ -228,7 +232,7 @@ impl Bvh {
                 for &t in &self.order[s..e] {
                     for &i in &tris[t as usize] {
                         let p = v(positions[i as usize]);
-                        union(&mut fresh, p - self.margin, p + self.margin);
+                        union(&mut fresh, p, p);
                     }
                 }
             } else {
@@ -281,7 +285,7 @@ impl Bvh {
         while top > 0 {
             top -= 1;
             let n = &self.nodes[stack[top] as usize];
-            if box_d2(n, p) > best_d2 {
+            if self.node_d2(n, p) > best_d2 {
                 continue;
             }
             if n.count > 0 {
@@ -310,8 +314,8 @@ impl Bvh {
             } else {
                 let (l, r) = (stack[top] + 1, n.first);
                 let (dl, dr) = (
-                    box_d2(&self.nodes[l as usize], p),
-                    box_d2(&self.nodes[r as usize], p),
+                    self.node_d2(&self.nodes[l as usize], p),
+                    self.node_d2(&self.nodes[r as usize], p),
                 );
                 // Push the farther child first so the nearer one is searched first.
                 let (near, d_near, far, d_far) = if dl <= dr {
@@ -340,6 +344,7 @@ impl Bvh {
         if self.nodes.is_empty() {
             return;
         }
+        let (lo, hi) = (lo - self.slack, hi + self.slack);
         let overlaps = |n: &Node| n.lo.cmple(hi).all() && n.hi.cmpge(lo).all();
         let mut stack = [0u32; STACK];
         let mut top = 1;
@@ -348,6 +353,37 @@ impl Bvh {
             let i = stack[top] as usize;
             let n = &self.nodes[i];
             if !overlaps(n) {
+                continue;
+            }
+            if n.count > 0 {
+                let (s, e) = (n.first as usize, (n.first + n.count) as usize);
+                self.order[s..e].iter().for_each(|&t| f(t));
+            } else {
+                stack[top] = n.first;
+                stack[top + 1] = i as u32 + 1;
+                top += 2;
+            }
+        }
+    }
+}
+
+impl Bvh {
+    /// Calls `f` with every triangle whose box comes within `radius` of `centre` (each once,
+    /// in tree order): a sphere's query, which on a fine surface visits far fewer boxes than
+    /// the cube around the sphere (the cube's faces cut the surface over an area of `(2r)²`,
+    /// the sphere over a cap). Allocation-free.
+    pub fn near_sphere(&self, centre: DVec3, radius: f64, mut f: impl FnMut(u32)) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let r2 = radius * radius;
+        let mut stack = [0u32; STACK];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let i = stack[top] as usize;
+            let n = &self.nodes[i];
+            if self.node_d2(n, centre) > r2 {
                 continue;
             }
             if n.count > 0 {

@@ -294,10 +294,8 @@ impl GodObject {
         let reach = r + 4.0 * SKIN;
         let p = self.proxy;
         self.candidates.clear();
-        let lo = p - reach;
-        let hi = p + reach;
         let cands = &mut self.candidates;
-        set.triangles_in_box_v(lo, hi, |t| {
+        set.triangles_near_v(p, reach, |t| {
             if cands.len() < cands.capacity() {
                 cands.push(t as u32);
             }
@@ -355,12 +353,12 @@ impl GodObject {
     fn sweep(&mut self, set: &mut SurfaceSet, d: DVec3) -> Option<(f64, DVec3)> {
         let r = self.radius + 2.0 * SKIN;
         let p = self.proxy;
-        let end = p + d;
-        let lo = p.min(end) - r;
-        let hi = p.max(end) + r;
+        // Every triangle the swept sphere can meet lies within the sphere around the sweep.
+        let centre = p + d * 0.5;
+        let bound = d.length() * 0.5 + r;
         self.candidates.clear();
         let cands = &mut self.candidates;
-        set.triangles_in_box_v(lo, hi, |t| {
+        set.triangles_near_v(centre, bound, |t| {
             if cands.len() < cands.capacity() {
                 cands.push(t as u32);
             }

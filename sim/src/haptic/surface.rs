@@ -11,10 +11,19 @@ use crate::collide::bvh::Bvh;
 use crate::contact::{bary_point, closest_bary, unit_normal, SurfaceHit};
 use crate::vec3::v;
 
-/// Growth of every hierarchy box, m: a body's hierarchy is refitted only once one of its nodes
-/// has moved farther than this since the last refit. Tissue under the tool moves a few mm/s
-/// to cm/s, so at 100 frames/s most frames need no refit.
+/// How far a node may move before its body's hierarchy is refitted, m. Until then queries
+/// treat the boxes as grown by the largest distance a node has moved since the last refit, so
+/// answers stay exact; a refit costs one pass over the body's triangles. Tissue under the tool
+/// moves a few mm/s to cm/s, so on an organ's centimetre triangles most frames need no refit.
 pub const REFIT_MARGIN: f64 = 0.002;
+
+/// A sphere query that meets more leaf triangles than this on a body whose nodes have moved
+/// since its last refit refits it before the next query. The slack costs the queries: a tool
+/// sphere of radius `r` resting on a surface reaches boxes within `√(2 r s)` of its contact at
+/// slack `s`, hundreds of triangles on a surface meshed at 0.2 mm under a 3 mm tool at
+/// `s` = 0.25 mm. A coarse organ stays under this at the full [`REFIT_MARGIN`]; a finely
+/// meshed one is refitted as often as its queries need.
+const CROWDED_QUERY: usize = 64;
 
 /// A surface query's answer: the body, the triangle (index into [`SurfaceSet::triangles`]) and
 /// the closest point on it.
@@ -50,8 +59,14 @@ pub struct SurfaceSet {
     body_tris: Vec<(usize, usize)>,
     /// Per body: bounding box of its nodes (updated with the positions).
     body_box: Vec<(DVec3, DVec3)>,
-    /// Per body: the range of node indices its triangles use.
+    /// Per body: its surface nodes (the nodes its triangles use, each once, ascending) are
+    /// `surface_nodes[start..end]`. Only these are copied from a frame: a tetrahedral organ
+    /// has several times more interior nodes than surface ones, and the tool touches none of
+    /// them.
     body_nodes: Vec<(usize, usize)>,
+    surface_nodes: Vec<u32>,
+    /// Per body: its last sphere query met more than [`CROWDED_QUERY`] triangles.
+    crowded: Vec<bool>,
     /// Per body: whether queries consider it (its positions are current).
     active: Vec<bool>,
     /// Per body: the stamp of the positions it holds (see [`SurfaceSet::refresh_reachable`]).
@@ -130,23 +145,24 @@ impl SurfaceSet {
             .iter()
             .map(|&(s, e)| if s < e { tris[s][0] } else { 0 })
             .collect();
-        let bvh = body_tris
-            .iter()
-            .map(|&(s, e)| {
-                let mut b = Bvh::new(e - s);
-                b.set_margin(REFIT_MARGIN);
-                b
-            })
-            .collect();
+        let bvh = body_tris.iter().map(|&(s, e)| Bvh::new(e - s)).collect();
         let bodies = body_tris.len();
+        let mut surface_nodes = Vec::new();
         let body_nodes = body_tris
             .iter()
             .map(|&(s, e)| {
-                let it = || tris[s..e].iter().flatten().map(|&v| v as usize);
-                match it().min() {
-                    Some(lo) => (lo, it().max().unwrap_or(lo) + 1),
-                    None => (0, 0),
+                let start = surface_nodes.len();
+                surface_nodes.extend(tris[s..e].iter().flatten());
+                surface_nodes[start..].sort_unstable();
+                let mut kept = start;
+                for k in start..surface_nodes.len() {
+                    if kept == start || surface_nodes[k] != surface_nodes[kept - 1] {
+                        surface_nodes[kept] = surface_nodes[k];
+                        kept += 1;
+                    }
                 }
+                surface_nodes.truncate(kept);
+                (start, kept)
             })
             .collect();
         SurfaceSet {
@@ -154,6 +170,8 @@ impl SurfaceSet {
             body_tris,
             body_box: vec![(DVec3::ZERO, DVec3::ZERO); bodies],
             body_nodes,
+            surface_nodes,
+            crowded: vec![false; bodies],
             active: vec![true; bodies],
             body_frame: vec![None; bodies],
             warm,
@@ -191,7 +209,8 @@ impl SurfaceSet {
         self.body_tris.iter().position(|&(s, e)| t >= s && t < e)
     }
 
-    /// Current positions.
+    /// Current positions of the surface nodes (indexed by node; interior nodes are not kept
+    /// and read as the origin or an old value).
     pub fn positions(&self) -> &[[f64; 3]] {
         &self.x
     }
@@ -206,11 +225,12 @@ impl SurfaceSet {
         self.x.len()
     }
 
-    /// Replaces the positions: `at(i)` for every node `i`. Hierarchies are refitted lazily, only
-    /// for bodies a query reaches. Allocation-free.
+    /// Replaces the positions: `at(i)` for every surface node `i` (interior nodes are not
+    /// asked for). Hierarchies are refitted lazily, only for bodies a query reaches.
+    /// Allocation-free.
     pub fn set_positions(&mut self, mut at: impl FnMut(usize) -> [f64; 3]) {
-        for (i, x) in self.x.iter_mut().enumerate() {
-            *x = at(i);
+        for &i in &self.surface_nodes {
+            self.x[i as usize] = at(i as usize);
         }
         for b in 0..self.body_tris.len() {
             let (s, e) = self.body_tris[b];
@@ -230,8 +250,8 @@ impl SurfaceSet {
         }
     }
 
-    /// Replaces the positions of body `b`'s nodes only (`at(i)` for each of its node indices)
-    /// and makes it active; the other bodies keep theirs. Allocation-free.
+    /// Replaces the positions of body `b`'s surface nodes only (`at(i)` for each of them) and
+    /// makes it active; the other bodies keep theirs. Allocation-free.
     pub fn set_body_positions(&mut self, b: usize, mut at: impl FnMut(usize) -> [f64; 3]) {
         let Some(&(n0, n1)) = self.body_nodes.get(b) else {
             return;
@@ -239,7 +259,8 @@ impl SurfaceSet {
         let mut lo = DVec3::INFINITY;
         let mut hi = DVec3::NEG_INFINITY;
         let mut drift2 = self.drift2[b];
-        for i in n0..n1 {
+        for &i in &self.surface_nodes[n0..n1] {
+            let i = i as usize;
             let p = at(i);
             self.x[i] = p;
             let p = v(p);
@@ -313,21 +334,27 @@ impl SurfaceSet {
         p.cmpge(lo - margin).all() && p.cmple(hi + margin).all()
     }
 
-    /// Refits body `b`'s hierarchy if a node has moved farther than the boxes' margin since the
-    /// last refit (a frame that barely moved the body costs nothing here).
+    /// Refits body `b`'s hierarchy if a node has moved farther than [`REFIT_MARGIN`] since the
+    /// last refit or its last sphere query was crowded, and otherwise widens its queries by how
+    /// far the nodes did move (a frame that barely moved the body costs nothing here).
     fn refit(&mut self, b: usize) {
-        if !self.dirty[b] {
+        let crowded = std::mem::take(&mut self.crowded[b]);
+        if !self.dirty[b] && !crowded {
             return;
         }
         self.dirty[b] = false;
-        if self.drift2[b] <= REFIT_MARGIN * REFIT_MARGIN {
+        if !crowded && self.drift2[b] <= REFIT_MARGIN * REFIT_MARGIN {
+            self.bvh[b].set_slack(self.drift2[b].sqrt());
             return;
         }
         let (s, e) = self.body_tris[b];
         self.bvh[b].update(&self.x, &self.tris[s..e]);
         let (n0, n1) = self.body_nodes[b];
-        self.refit_x[n0..n1].copy_from_slice(&self.x[n0..n1]);
+        for &i in &self.surface_nodes[n0..n1] {
+            self.refit_x[i as usize] = self.x[i as usize];
+        }
         self.drift2[b] = 0.0;
+        self.bvh[b].set_slack(0.0);
         self.stats.refits += 1;
     }
 
@@ -462,6 +489,45 @@ impl SurfaceSet {
             self.refit(b);
             let s = self.body_tris[b].0;
             self.bvh[b].overlapping(lo, hi, |t| f(s + t as usize));
+        }
+    }
+
+    /// Calls `f(global triangle)` for every triangle of every active body that comes within
+    /// `radius` of `centre` (its own bounding box does; refitting those bodies' hierarchies
+    /// first). The god-object's queries: on a surface finely meshed under a large tool, the
+    /// cube around the tool sphere holds thousands of triangles that the sphere never
+    /// reaches, and each would be tested exactly.
+    pub(crate) fn triangles_near_v(
+        &mut self,
+        centre: DVec3,
+        radius: f64,
+        mut f: impl FnMut(usize),
+    ) {
+        let r2 = radius * radius;
+        for b in 0..self.body_tris.len() {
+            let (blo, bhi) = self.body_box[b];
+            let d = (blo - centre).max(centre - bhi).max(DVec3::ZERO);
+            if !(self.active[b] && d.dot(d) <= r2) {
+                continue;
+            }
+            self.refit(b);
+            let s = self.body_tris[b].0;
+            let (tris, x) = (&self.tris, &self.x);
+            let mut met = 0;
+            self.bvh[b].near_sphere(centre, radius, |t| {
+                met += 1;
+                let t = s + t as usize;
+                let [a, b, c] = tris[t].map(|i| v(x[i as usize]));
+                let d = (a.min(b).min(c) - centre)
+                    .max(centre - a.max(b).max(c))
+                    .max(DVec3::ZERO);
+                if d.dot(d) <= r2 {
+                    f(t);
+                }
+            });
+            if met > CROWDED_QUERY && self.drift2[b] > 0.0 {
+                self.crowded[b] = true;
+            }
         }
     }
 
