@@ -27,7 +27,7 @@ use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::BUTTON_GRAB;
 use lop_scene::{DeviceClamp, Rounds, TickTool, ToolLaws};
 use lop_sim::contact::ForceLaw;
-use lop_sim::haptic::{hand_force, GodObject, SurfaceSet};
+use lop_sim::haptic::{hand_force, GodObject, GodState, SurfaceSet};
 use lop_sim::model::ToolAnchor;
 use lop_sim::world::Coupling;
 use serde::Serialize;
@@ -183,18 +183,16 @@ fn haptic_ticks(scene_name: &str, script_name: &str, seconds: f64) -> Result<Row
             sequence += 1;
         }
         let t0 = Instant::now();
-        let proxy = god.proxy();
-        let moved = set.refresh_reachable(
-            |_| sequence,
-            &[device, proxy],
-            REACH,
+        let grab = sample.pressed(BUTTON_GRAB);
+        let g = contact(
+            &mut set,
+            &mut god,
+            sequence,
+            device,
+            grab,
             |b| bounds[b],
             |i| frame[i],
         );
-        if moved {
-            god.follow_surface(&set);
-        }
-        let g = god.update(&mut set, device, sample.pressed(BUTTON_GRAB));
         let k = g
             .anchor
             .map_or(laws.tool.stiffness, |a| laws.stiffness(a.body));
@@ -311,18 +309,15 @@ fn block_ticks(size: f64, seconds: f64) -> Result<[Row; 2]> {
             let f = frame.lock().unwrap_or_else(|e| e.into_inner());
             let bb = *bounds.lock().unwrap_or_else(|e| e.into_inner());
             let t0 = Instant::now();
-            let proxy = god.proxy();
-            let moved = set.refresh_reachable(
-                |_| sequence,
-                &[device, proxy],
-                REACH,
+            let g = contact(
+                &mut set,
+                &mut god,
+                sequence,
+                device,
+                false,
                 |_| bb,
                 |i| f[i].map(f64::from),
             );
-            if moved {
-                god.follow_surface(&set);
-            }
-            let g = god.update(&mut set, device, false);
             let force = hand_force(&g, ForceLaw::Linear, 200.0, 0.0, [0.0; 3]);
             let ns = t0.elapsed().as_nanos() as u64;
             drop(f);
@@ -358,6 +353,27 @@ fn block_ticks(size: f64, seconds: f64) -> Result<[Row; 2]> {
     ])
 }
 
+/// The timed contact part of a tick up to the god-object's state: the surface refresh of the
+/// bodies within [`REACH`] (positions `at`, bounds `bounds`, once per frame `sequence`), the
+/// proxy carried with the tissue, the god-object's move.
+fn contact(
+    set: &mut SurfaceSet,
+    god: &mut GodObject,
+    sequence: u64,
+    device: [f64; 3],
+    grab: bool,
+    bounds: impl Fn(usize) -> ([f64; 3], [f64; 3]),
+    at: impl FnMut(usize) -> [f64; 3],
+) -> GodState {
+    let proxy = god.proxy();
+    if set.refresh_reachable(|_| sequence, &[device, proxy], REACH, bounds, at) {
+        god.follow_surface(set);
+    }
+    god.update(set, device, grab)
+}
+
+/// Pins the calling thread to `cpu` (best effort: a machine with fewer cores or a refusal
+/// leaves it where the scheduler puts it).
 fn pin_to_cpu(cpu: usize) {
     // SAFETY: a zeroed `cpu_set_t` is a valid empty set; the call only reads it.
     unsafe {

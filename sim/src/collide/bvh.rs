@@ -340,50 +340,33 @@ impl Bvh {
 impl Bvh {
     /// Calls `f` with every triangle whose box overlaps the box `[lo, hi]` (each once, in tree
     /// order). Allocation-free.
-    pub fn overlapping(&self, lo: DVec3, hi: DVec3, mut f: impl FnMut(u32)) {
-        if self.nodes.is_empty() {
-            return;
-        }
+    pub fn overlapping(&self, lo: DVec3, hi: DVec3, f: impl FnMut(u32)) {
         let (lo, hi) = (lo - self.slack, hi + self.slack);
-        let overlaps = |n: &Node| n.lo.cmple(hi).all() && n.hi.cmpge(lo).all();
-        let mut stack = [0u32; STACK];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let i = stack[top] as usize;
-            let n = &self.nodes[i];
-            if !overlaps(n) {
-                continue;
-            }
-            if n.count > 0 {
-                let (s, e) = (n.first as usize, (n.first + n.count) as usize);
-                self.order[s..e].iter().for_each(|&t| f(t));
-            } else {
-                stack[top] = n.first;
-                stack[top + 1] = i as u32 + 1;
-                top += 2;
-            }
-        }
+        self.visit(|n| n.lo.cmple(hi).all() && n.hi.cmpge(lo).all(), f);
     }
-}
 
-impl Bvh {
     /// Calls `f` with every triangle whose box comes within `radius` of `centre` (each once,
     /// in tree order): a sphere's query, which on a fine surface visits far fewer boxes than
     /// the cube around the sphere (the cube's faces cut the surface over an area of `(2r)²`,
     /// the sphere over a cap). Allocation-free.
-    pub fn near_sphere(&self, centre: DVec3, radius: f64, mut f: impl FnMut(u32)) {
+    pub fn near_sphere(&self, centre: DVec3, radius: f64, f: impl FnMut(u32)) {
+        let r2 = radius * radius;
+        self.visit(|n| self.node_d2(n, centre) <= r2, f);
+    }
+
+    /// Depth-first over the nodes `keep` accepts: `f` with the triangles of every accepted
+    /// leaf, in tree order.
+    fn visit(&self, keep: impl Fn(&Node) -> bool, mut f: impl FnMut(u32)) {
         if self.nodes.is_empty() {
             return;
         }
-        let r2 = radius * radius;
         let mut stack = [0u32; STACK];
         let mut top = 1;
         while top > 0 {
             top -= 1;
             let i = stack[top] as usize;
             let n = &self.nodes[i];
-            if self.node_d2(n, centre) > r2 {
+            if !keep(n) {
                 continue;
             }
             if n.count > 0 {
