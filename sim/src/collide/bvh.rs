@@ -88,6 +88,13 @@ fn half_area(lo: DVec3, hi: DVec3) -> f64 {
     e.x * e.y + e.y * e.z + e.z * e.x
 }
 
+/// Squared distance from `p` to the box `[lo, hi]` (0 inside).
+#[inline]
+pub(crate) fn box_d2(lo: DVec3, hi: DVec3, p: DVec3) -> f64 {
+    let d = (lo - p).max(p - hi).max(DVec3::ZERO);
+    d.dot(d)
+}
+
 const EMPTY: Node = Node {
     lo: DVec3::INFINITY,
     hi: DVec3::NEG_INFINITY,
@@ -127,10 +134,7 @@ impl Bvh {
     /// Squared distance from `p` to node `n`'s box grown by the slack (0 inside).
     #[inline]
     fn node_d2(&self, n: &Node, p: DVec3) -> f64 {
-        let d = (n.lo - self.slack - p)
-            .max(p - n.hi - self.slack)
-            .max(DVec3::ZERO);
-        d.dot(d)
+        box_d2(n.lo - self.slack, n.hi + self.slack, p)
     }
 
     /// Number of (re)builds so far.
@@ -471,6 +475,64 @@ mod tests {
             bvh.builds() < 6,
             "smooth deformation should refit, not rebuild"
         );
+    }
+
+    /// With the vertices moved by up to `s` since the last update and the slack set to `s`,
+    /// the sphere query still meets every triangle that comes within the radius (checked on the
+    /// moved positions by brute force), and the box query every triangle overlapping the box.
+    #[test]
+    fn slack_keeps_sphere_and_box_queries_complete() {
+        let (pos, tris) = sheet(12, 0.05);
+        let mut bvh = Bvh::new(tris.len());
+        bvh.update(&pos, &tris);
+        let s = 0.02;
+        let moved: Vec<[f64; 3]> = pos
+            .iter()
+            .map(|p| {
+                let k = (p[0] * 31.0 + p[1] * 17.0).sin();
+                [p[0] + 0.5 * s * k, p[1] - 0.5 * s * k, p[2] + 0.5 * s * k]
+            })
+            .collect();
+        let tri_box = |t: usize| {
+            let [a, b, c] = tris[t].map(|i| v(moved[i as usize]));
+            (a.min(b).min(c), a.max(b).max(c))
+        };
+        let mut missed_without_slack = 0;
+        for i in 0..100 {
+            let f = i as f64;
+            let c = DVec3::new((f * 0.137).fract(), (f * 0.291).fract(), 0.06);
+            let r = 0.02 + 0.1 * (f * 0.533).fract();
+            let want: Vec<u32> = (0..tris.len())
+                .filter(|&t| {
+                    let (lo, hi) = tri_box(t);
+                    box_d2(lo, hi, c) <= r * r
+                })
+                .map(|t| t as u32)
+                .collect();
+            let got = |bvh: &Bvh| {
+                let mut got = Vec::new();
+                bvh.near_sphere(c, r, |t| got.push(t));
+                got
+            };
+            bvh.set_slack(0.0);
+            let tight = got(&bvh);
+            missed_without_slack += want.iter().filter(|t| !tight.contains(t)).count();
+            bvh.set_slack(s);
+            let loose = got(&bvh);
+            for t in &want {
+                assert!(loose.contains(t), "query {i}: triangle {t} missed");
+            }
+            let mut in_box = Vec::new();
+            bvh.overlapping(c - r, c + r, |t| in_box.push(t));
+            for t in 0..tris.len() {
+                let (lo, hi) = tri_box(t);
+                if lo.cmple(c + r).all() && hi.cmpge(c - r).all() {
+                    assert!(in_box.contains(&(t as u32)), "box {i}: triangle {t} missed");
+                }
+            }
+        }
+        // The motion matters: without the slack the stale boxes miss some.
+        assert!(missed_without_slack > 0);
     }
 
     #[test]

@@ -7,7 +7,7 @@
 
 use glam::DVec3;
 
-use crate::collide::bvh::Bvh;
+use crate::collide::bvh::{box_d2, Bvh};
 use crate::contact::{bary_point, closest_bary, unit_normal, SurfaceHit};
 use crate::vec3::v;
 
@@ -151,18 +151,12 @@ impl SurfaceSet {
         let body_nodes = body_tris
             .iter()
             .map(|&(s, e)| {
+                let mut nodes: Vec<u32> = tris[s..e].iter().flatten().copied().collect();
+                nodes.sort_unstable();
+                nodes.dedup();
                 let start = surface_nodes.len();
-                surface_nodes.extend(tris[s..e].iter().flatten());
-                surface_nodes[start..].sort_unstable();
-                let mut kept = start;
-                for k in start..surface_nodes.len() {
-                    if kept == start || surface_nodes[k] != surface_nodes[kept - 1] {
-                        surface_nodes[kept] = surface_nodes[k];
-                        kept += 1;
-                    }
-                }
-                surface_nodes.truncate(kept);
-                (start, kept)
+                surface_nodes.extend(nodes);
+                (start, surface_nodes.len())
             })
             .collect();
         SurfaceSet {
@@ -506,8 +500,7 @@ impl SurfaceSet {
         let r2 = radius * radius;
         for b in 0..self.body_tris.len() {
             let (blo, bhi) = self.body_box[b];
-            let d = (blo - centre).max(centre - bhi).max(DVec3::ZERO);
-            if !(self.active[b] && d.dot(d) <= r2) {
+            if !(self.active[b] && box_d2(blo, bhi, centre) <= r2) {
                 continue;
             }
             self.refit(b);
@@ -518,10 +511,7 @@ impl SurfaceSet {
                 met += 1;
                 let t = s + t as usize;
                 let [a, b, c] = tris[t].map(|i| v(x[i as usize]));
-                let d = (a.min(b).min(c) - centre)
-                    .max(centre - a.max(b).max(c))
-                    .max(DVec3::ZERO);
-                if d.dot(d) <= r2 {
+                if box_d2(a.min(b).min(c), a.max(b).max(c), centre) <= r2 {
                     f(t);
                 }
             });
