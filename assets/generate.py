@@ -856,6 +856,21 @@ ORGANS = [
 ]
 
 
+# Render surfaces: the same analytic organ sampled finer than its mesh's boundary, written as
+# <name>.render.obj for the scene to draw the organ by (each vertex follows the tetrahedron it
+# lies in).  Only organs that stay where their origin puts them (slide None).
+RENDER_GRIDS = {"liver": (24, 16, 14)}
+
+
+def write_obj(path, s, comment):
+    with open(path, "w") as f:
+        f.write(f"# {comment}\n")
+        for p in s.verts:
+            f.write(f"v {p[0]!r} {p[1]!r} {p[2]!r}\n")
+        for t in s.tris:
+            f.write(f"f {t[0] + 1} {t[1] + 1} {t[2] + 1}\n")
+
+
 # Pairs that must touch (gap <= 2 mm).  The stomach touches all three others, as in the
 # thesis (section 6.3: "the stomach is near all the other organs").
 CONTACTS = [("liver", "stomach"), ("stomach", "spleen"), ("stomach", "pancreas"),
@@ -1016,6 +1031,14 @@ def generate(out_dir, verbose=True):
             rows.append(dict(name=name, counts=counts, targets=spec["targets"],
                              fixed=len(fixed), stats=st, lo=lo, hi=hi,
                              switches=spec["switches"]))
+    for name, grid in RENDER_GRIDS.items():
+        o = next(o for o in ORGANS if o["name"] == name)
+        assert o["slide"] is None, name
+        s = organ_surface(*grid, o["shape"], o["frame"], o["origin"])
+        check_closed_surface(f"{name} (render)", s)
+        write_obj(os.path.join(out_dir, f"{name}.render.obj"), s,
+                  f"{name}: render surface, the organ's analytic shape on a {grid} cube-sphere "
+                  f"lattice ({len(s.verts)} vertices, {len(s.tris)} triangles), scene frame, m")
     return rows, gaps, problems
 
 

@@ -57,12 +57,54 @@ pub struct Topology {
     pub triangles: Vec<[u32; 3]>,
     /// Tetrahedra, global node indices.
     pub tets: Vec<[u32; 4]>,
+    /// Render surfaces' triangles, global render vertex indices (see
+    /// [`BodyTopology::render_triangle_offset`]).
+    pub render_triangles: Vec<[u32; 3]>,
+    /// Render vertices: where each sits in the mesh.
+    pub render_vertices: Vec<RenderVertex>,
+}
+
+/// A vertex of a render surface: it follows four nodes by fixed weights.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RenderVertex {
+    /// Global node indices.
+    pub nodes: [u32; 4],
+    /// Weights (sum 1).
+    pub weights: [f32; 4],
+}
+
+impl RenderVertex {
+    /// `Σ wᵢ · f(nodeᵢ)` over the frame's nodes (a position, a temperature…); 0 for a node
+    /// out of the frame's range.
+    pub fn blend<const N: usize>(
+        &self,
+        nodes: &[NodeSample],
+        f: impl Fn(&NodeSample) -> [f32; N],
+    ) -> [f32; N] {
+        let mut out = [0.0f32; N];
+        for (&k, &w) in self.nodes.iter().zip(&self.weights) {
+            if let Some(s) = nodes.get(k as usize) {
+                for (o, v) in out.iter_mut().zip(f(s)) {
+                    *o += w * v;
+                }
+            }
+        }
+        out
+    }
 }
 
 impl Topology {
     /// The bodies in use.
     pub fn bodies(&self) -> &[BodyTopology] {
         &self.header.bodies[..(self.header.body_count as usize).min(MAX_BODIES)]
+    }
+
+    /// Every render vertex's position in `frame` (empty when the scene has no render surface).
+    pub fn render_positions(&self, frame: &Frame) -> Vec<[f32; 3]> {
+        self.render_vertices
+            .iter()
+            .map(|v| v.blend(&frame.nodes, |s| s.position))
+            .collect()
     }
 }
 
@@ -152,10 +194,27 @@ impl Attachment {
                 .chunks_exact(4)
                 .map(|c| [c[0], c[1], c[2], c[3]])
                 .collect();
+            let rest = &rest[ne * 4..];
+            let nr = (h.render_triangle_count as usize).min(rest.len() / 3);
+            let render_triangles = rest[..nr * 3]
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect();
+            let rest = &rest[nr * 3..];
+            let nv = (h.render_vertex_count as usize).min(rest.len() / RENDER_VERTEX_WORDS);
+            let render_vertices = rest[..nv * RENDER_VERTEX_WORDS]
+                .chunks_exact(RENDER_VERTEX_WORDS)
+                .map(|c| RenderVertex {
+                    nodes: [c[0], c[1], c[2], c[3]],
+                    weights: [4, 5, 6, 7].map(|i| f32::from_bits(c[i])),
+                })
+                .collect();
             self.topology = Some(Topology {
                 header: h,
                 triangles,
                 tets,
+                render_triangles,
+                render_vertices,
             });
         }
         Ok(self.topology.as_ref())

@@ -1,6 +1,6 @@
 //! Writing frames as a VTK time series that ParaView opens: one XML unstructured grid (`.vtu`,
-//! ASCII) per frame with the tetrahedra, node temperatures and a body id per cell, and a `.pvd`
-//! collection indexing them by simulated time.
+//! ASCII) per frame with the tetrahedra, node temperatures and a body id per cell (and the
+//! render surfaces as a second piece), and a `.pvd` collection indexing them by simulated time.
 
 use std::fmt::Write as _;
 use std::io::Write;
@@ -8,41 +8,92 @@ use std::path::{Path, PathBuf};
 
 use crate::{Frame, Topology};
 
-/// Writes one frame as `.vtu`.
+/// Writes one frame as `.vtu`: a piece with the tetrahedra over the frame's nodes and, when the
+/// scene has render surfaces, a second piece with their triangles over the render vertices
+/// (placed by their weights, temperatures blended the same way). Cell array `part` tells them
+/// apart in ParaView (0: tetrahedra, 1: render surface; `Threshold` on it shows either).
 pub fn write_vtu(path: &Path, topology: &Topology, frame: &Frame) -> std::io::Result<()> {
-    let n = frame.nodes.len();
-    let e = topology.tets.len();
-    let mut s = String::with_capacity(64 * (n + e) + 1024);
+    let mut s = String::with_capacity(64 * (frame.nodes.len() + topology.tets.len()) + 1024);
     s += "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\">\n<UnstructuredGrid>\n";
-    let _ = writeln!(s, "<Piece NumberOfPoints=\"{n}\" NumberOfCells=\"{e}\">");
-    s += "<PointData Scalars=\"temperature\">\n<DataArray type=\"Float32\" Name=\"temperature\" format=\"ascii\">\n";
-    for p in &frame.nodes {
-        let _ = writeln!(s, "{}", p.temperature);
+    let points: Vec<([f32; 3], f32)> = frame
+        .nodes
+        .iter()
+        .map(|p| (p.position, p.temperature))
+        .collect();
+    let bodies: Vec<usize> = topology
+        .bodies()
+        .iter()
+        .enumerate()
+        .flat_map(|(b, body)| std::iter::repeat_n(b, body.tet_count as usize))
+        .collect();
+    let cells: Vec<&[u32]> = topology.tets.iter().map(|t| &t[..]).collect();
+    piece(&mut s, &points, &cells, &bodies, 0, 10);
+    if !topology.render_vertices.is_empty() {
+        let points: Vec<([f32; 3], f32)> = topology
+            .render_vertices
+            .iter()
+            .map(|v| {
+                let [t] = v.blend(&frame.nodes, |s| [s.temperature]);
+                (v.blend(&frame.nodes, |s| s.position), t)
+            })
+            .collect();
+        let bodies: Vec<usize> = topology
+            .bodies()
+            .iter()
+            .enumerate()
+            .flat_map(|(b, body)| std::iter::repeat_n(b, body.render_triangle_count as usize))
+            .collect();
+        let cells: Vec<&[u32]> = topology.render_triangles.iter().map(|t| &t[..]).collect();
+        piece(&mut s, &points, &cells, &bodies, 1, 5);
     }
-    s += "</DataArray>\n</PointData>\n<CellData Scalars=\"body\">\n<DataArray type=\"Int32\" Name=\"body\" format=\"ascii\">\n";
-    for (b, body) in topology.bodies().iter().enumerate() {
-        for _ in 0..body.tet_count {
-            let _ = writeln!(s, "{b}");
-        }
-    }
-    s += "</DataArray>\n</CellData>\n<Points>\n<DataArray type=\"Float32\" Name=\"Points\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-    for p in &frame.nodes {
-        let _ = writeln!(s, "{} {} {}", p.position[0], p.position[1], p.position[2]);
-    }
-    s += "</DataArray>\n</Points>\n<Cells>\n<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
-    for t in &topology.tets {
-        let _ = writeln!(s, "{} {} {} {}", t[0], t[1], t[2], t[3]);
-    }
-    s += "</DataArray>\n<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n";
-    for i in 0..e {
-        let _ = writeln!(s, "{}", 4 * (i + 1));
-    }
-    s += "</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
-    for _ in 0..e {
-        s += "10\n";
-    }
-    s += "</DataArray>\n</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n";
+    s += "</UnstructuredGrid>\n</VTKFile>\n";
     std::fs::write(path, s)
+}
+
+/// One `<Piece>`: points with their temperatures, cells of one VTK type with their body and
+/// `part`.
+fn piece(
+    s: &mut String,
+    points: &[([f32; 3], f32)],
+    cells: &[&[u32]],
+    bodies: &[usize],
+    part: u8,
+    vtk_type: u8,
+) {
+    let (n, e) = (points.len(), cells.len());
+    let _ = writeln!(s, "<Piece NumberOfPoints=\"{n}\" NumberOfCells=\"{e}\">");
+    *s += "<PointData Scalars=\"temperature\">\n<DataArray type=\"Float32\" Name=\"temperature\" format=\"ascii\">\n";
+    for (_, t) in points {
+        let _ = writeln!(s, "{t}");
+    }
+    *s += "</DataArray>\n</PointData>\n<CellData Scalars=\"body\">\n<DataArray type=\"Int32\" Name=\"body\" format=\"ascii\">\n";
+    for b in bodies {
+        let _ = writeln!(s, "{b}");
+    }
+    *s += "</DataArray>\n<DataArray type=\"UInt8\" Name=\"part\" format=\"ascii\">\n";
+    for _ in 0..e {
+        let _ = writeln!(s, "{part}");
+    }
+    *s += "</DataArray>\n</CellData>\n<Points>\n<DataArray type=\"Float32\" Name=\"Points\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+    for (p, _) in points {
+        let _ = writeln!(s, "{} {} {}", p[0], p[1], p[2]);
+    }
+    *s += "</DataArray>\n</Points>\n<Cells>\n<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">\n";
+    for c in cells {
+        let line: Vec<String> = c.iter().map(u32::to_string).collect();
+        let _ = writeln!(s, "{}", line.join(" "));
+    }
+    *s += "</DataArray>\n<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">\n";
+    let mut offset = 0;
+    for c in cells {
+        offset += c.len();
+        let _ = writeln!(s, "{offset}");
+    }
+    *s += "</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
+    for _ in 0..e {
+        let _ = writeln!(s, "{vtk_type}");
+    }
+    *s += "</DataArray>\n</Cells>\n</Piece>\n";
 }
 
 /// Collects written frames and writes the `.pvd` index.

@@ -108,6 +108,7 @@ pub(crate) struct RawDevice {
 pub(crate) struct RawBody {
     pub name: String,
     pub mesh: String,
+    pub render_surface: Option<String>,
     pub importance: Option<Importance>,
     pub model: Option<ModelPin>,
     pub translate: Option<[f64; 3]>,

@@ -428,6 +428,8 @@ pub fn wire_topology(scene: &Scene, topology: &Topology) -> Result<TopologyHeade
         node_count: topology.node_count as u32,
         triangle_count: topology.triangle_count as u32,
         tet_count: topology.tet_count as u32,
+        render_triangle_count: topology.render_triangle_count as u32,
+        render_vertex_count: topology.render_vertex_count as u32,
         ..Default::default()
     };
     for (bt, b) in h.bodies.iter_mut().zip(&topology.bodies) {
@@ -438,6 +440,10 @@ pub fn wire_topology(scene: &Scene, topology: &Topology) -> Result<TopologyHeade
         bt.triangle_count = b.triangle_count as u32;
         bt.tet_offset = b.tet_offset as u32;
         bt.tet_count = b.tet_count as u32;
+        bt.render_vertex_offset = b.render_vertex_offset as u32;
+        bt.render_vertex_count = b.render_vertex_count as u32;
+        bt.render_triangle_offset = b.render_triangle_offset as u32;
+        bt.render_triangle_count = b.render_triangle_count as u32;
         bt.color = b.color;
         bt.importance = if b.important {
             IMPORTANCE_IMPORTANT
@@ -515,3 +521,4 @@ fn bounds(p: &[[f64; 3]]) -> ([f32; 3], [f32; 3]) {
     }
     (lo, hi)
 }
+const _: () = assert!(lop_scene::RENDER_VERTEX_WORDS == lop_ipc::RENDER_VERTEX_WORDS);

@@ -196,6 +196,10 @@ struct SceneNewArgs {
     /// Overwrite existing files.
     #[arg(long)]
     force: bool,
+    /// Draw the bodies by their meshes' boundaries, not by the surfaces `lopd mesh
+    /// tetrahedralize` kept beside the meshes (MESH.render.obj).
+    #[arg(long)]
+    no_render_surface: bool,
 }
 
 #[derive(Args, Clone)]
@@ -645,6 +649,7 @@ fn cmd_scene_new(a: SceneNewArgs) -> Result<i32> {
         units: a.units,
         out,
         force: a.force,
+        render_surface: !a.no_render_surface,
     };
     match run(&opts) {
         Ok(done) => {

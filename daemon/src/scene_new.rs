@@ -64,6 +64,9 @@ pub struct SceneNewOptions {
     pub out: PathBuf,
     /// Overwrite existing files.
     pub force: bool,
+    /// Draw each body by the surface `lopd mesh tetrahedralize` wrote beside its mesh
+    /// (`MESH.render.obj`), when there is one.
+    pub render_surface: bool,
 }
 
 /// What was generated.
@@ -615,6 +618,11 @@ fn body_table(opts: &SceneNewOptions, b: &Body, scene_dir: &Path) -> Result<Tabl
     ));
     t["name"] = value(b.name.as_str());
     t["mesh"] = value(mesh.display().to_string());
+    let render = crate::tetrahedralize::render_surface_path(&b.mesh_path);
+    if opts.render_surface && render.is_file() {
+        let path = relative(&std::path::absolute(&render)?, scene_dir);
+        t["render_surface"] = value(path.display().to_string());
+    }
     t["importance"] = value(match tissue.importance {
         Importance::Important => "important",
         Importance::Normal => "normal",

@@ -204,6 +204,9 @@ pub struct Attempt {
 pub struct Tetrahedralized {
     /// The volume mesh, in metres, as written.
     pub mesh: TetMesh,
+    /// The input surface in metres, wound outward, as written beside the mesh for drawing
+    /// ([`render_surface_path`]).
+    pub render: PathBuf,
     /// The mesher.
     pub mesher: Mesher,
     /// The surface check (after closing holes, before flipping; in the file's units).
@@ -351,6 +354,14 @@ fn check_options(opts: &TetrahedralizeOptions) -> Result<Mesher, TetrahedralizeE
         Mesher::Ftetwild => drop(mesher::ftetwild::find_python()?),
     }
     Ok(mesher)
+}
+
+/// Where the mesh written to base path `out` keeps its render surface: `out.render.obj`.
+/// `lopd scene new` finds it there.
+pub fn render_surface_path(out: &std::path::Path) -> PathBuf {
+    let mut name = out.as_os_str().to_owned();
+    name.push(".render.obj");
+    PathBuf::from(name)
 }
 
 /// Runs the whole job (see the [module docs](self)).
@@ -514,7 +525,17 @@ pub fn run(opts: &TetrahedralizeOptions) -> Result<Tetrahedralized, Tetrahedrali
     }
     write_tetgen(&mesh, &opts.out)
         .map_err(|e| TetrahedralizeError::Io(format!("writing {}: {e}", opts.out.display())))?;
+    // The surface as it came (in metres, outward), to draw the organ as segmented: the mesher
+    // smooths and coarsens, and a repaired surface's defects never show at a renderer's scale.
+    let render = render_surface_path(&opts.out);
+    if input.signed_volume() < 0.0 {
+        input.flip();
+    }
+    input
+        .write_obj(&render)
+        .map_err(|e| TetrahedralizeError::Io(format!("writing {}: {e}", render.display())))?;
     Ok(Tetrahedralized {
+        render,
         mesh,
         mesher,
         report,
@@ -826,8 +847,12 @@ impl Tetrahedralized {
         write!(
             s,
             "wrote {}.node, .ele, .face, .bnd (no fixed nodes: fix them in the scene, e.g. with \
-             [[body.fix]])",
-            opts.out.display()
+             [[body.fix]]), and the input surface to draw the organ by, {} ({} vertices, {} \
+             triangles; `lopd scene new` uses it)",
+            opts.out.display(),
+            self.render.display(),
+            self.report.vertices,
+            self.report.triangles
         )
         .ok();
         s

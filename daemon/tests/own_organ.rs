@@ -4,6 +4,7 @@
 //!
 //! Invariants guarded:
 //! - the surface is checked and filled; the mesh is in metres and `lopd mesh info` reads it;
+//!   the input surface is kept beside it and the scene draws the body by it;
 //! - the generated scene validates and loads, its fixed patch is on the back (−z) and the
 //!   front is free; the poke script presses into the body: offline (`lopd simulate`) and live
 //!   (`lopd run` with the mock device) the tool force is clearly nonzero;
@@ -74,6 +75,11 @@ fn an_obj_surface_in_centimetres_becomes_a_running_scene() {
     for ext in ["node", "ele", "face"] {
         assert!(prefix.with_extension(ext).is_file(), "{ext}");
     }
+    // The input surface, kept beside the mesh to draw the organ by.
+    let render = dir.join("mesh/liver.render.obj");
+    assert!(out.contains(&render.display().to_string()), "{out}");
+    let kept = lop_sim::mesh::read_surface(&render).unwrap();
+    assert_eq!((kept.vertices.len(), kept.triangles.len()), (162, 320));
     let (code, info, err) = run(lopd().args(["mesh", "info"]).arg(&prefix));
     assert_eq!(code, 0, "{err}");
     // In metres: 0.15 x 0.10 x 0.08 m.
@@ -89,7 +95,18 @@ fn an_obj_surface_in_centimetres_becomes_a_running_scene() {
     assert_eq!(code, 0, "{out}\n{err}");
     let script = dir.join("scenes/myliver-poke.toml");
     assert!(script.is_file());
+    let text = std::fs::read_to_string(&scene).unwrap();
+    assert!(
+        text.contains("render_surface = \"../mesh/liver.render.obj\""),
+        "{text}"
+    );
     let loaded = lop_scene::load(lop_config::load_scene(&scene).unwrap()).unwrap();
+    // Drawn by the surface as it came: every vertex embedded, none far outside the mesh.
+    let drawn = &loaded.topology.bodies[0];
+    assert_eq!(
+        (drawn.render_vertex_count, drawn.render_triangle_count),
+        (162, 320)
+    );
     let body = &loaded.world.bodies[0];
     assert_eq!(loaded.scene.bodies[0].fem.as_ref().unwrap().young, 4100.0);
     // Fixed on the back only: every fixed node in the back 15 % of the depth (z <= -0.028).

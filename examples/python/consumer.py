@@ -22,9 +22,11 @@ import time
 
 import iceoryx2 as iox2
 
-CONTRACT_VERSION = 7
+CONTRACT_VERSION = 8
 MAX_BODIES = 16
 BODY_NAME_LEN = 32
+# uint32 words per render vertex in the topology payload: 4 node indices, 4 float32 weights.
+RENDER_VERTEX_WORDS = 8
 MODELS = {0: "GC", 1: "MSD", 2: "FEM"}
 
 
@@ -102,6 +104,10 @@ class BodyTopology(ctypes.Structure):
         ("color", ctypes.c_float * 3),
         ("importance", ctypes.c_uint8),
         ("_pad", ctypes.c_uint8 * 3),
+        ("render_vertex_offset", ctypes.c_uint32),
+        ("render_vertex_count", ctypes.c_uint32),
+        ("render_triangle_offset", ctypes.c_uint32),
+        ("render_triangle_count", ctypes.c_uint32),
     ]
 
     @staticmethod
@@ -120,6 +126,8 @@ class TopologyHeader(ctypes.Structure):
         ("node_count", ctypes.c_uint32),
         ("triangle_count", ctypes.c_uint32),
         ("tet_count", ctypes.c_uint32),
+        ("render_triangle_count", ctypes.c_uint32),
+        ("render_vertex_count", ctypes.c_uint32),
         ("_pad", ctypes.c_uint32),
         ("bodies", BodyTopology * MAX_BODIES),
     ]
@@ -132,7 +140,7 @@ class TopologyHeader(ctypes.Structure):
 # The sizes every reader must agree on (docs/ipc.md).
 assert ctypes.sizeof(FrameHeader) == 1032 and ctypes.alignment(FrameHeader) == 8
 assert ctypes.sizeof(NodeSample) == 20
-assert ctypes.sizeof(TopologyHeader) == 1184
+assert ctypes.sizeof(TopologyHeader) == 1448
 
 
 def open_retry(node, name, payload, header, timeout):
@@ -190,15 +198,24 @@ def main() -> None:
     th = topo.user_header().contents
     if th.contract_version != CONTRACT_VERSION:
         sys.exit(f"consumer: lopd speaks contract {th.contract_version}, this reader {CONTRACT_VERSION}")
+    render_start = 3 * th.triangle_count + 4 * th.tet_count + 3 * th.render_triangle_count
     indices = element_count(
-        topo.payload(), ctypes.c_uint32, 3 * th.triangle_count + 4 * th.tet_count
+        topo.payload(), ctypes.c_uint32, render_start + RENDER_VERTEX_WORDS * th.render_vertex_count
     )
+    words = (ctypes.c_uint32 * indices).from_address(topo.payload().as_ptr())
+    # Render surfaces: each vertex follows four nodes by fixed weights (float32 bits).
+    render = []
+    for v in range(th.render_vertex_count):
+        w = words[render_start + RENDER_VERTEX_WORDS * v : render_start + RENDER_VERTEX_WORDS * (v + 1)]
+        weights = [ctypes.c_float.from_buffer_copy(ctypes.c_uint32(x)).value for x in w[4:]]
+        render.append((list(w[:4]), weights))
     bodies = [th.bodies[i] for i in range(th.body_count)]
     print(
         f"topology {th.topology_id:#x}: {th.node_count} nodes, {th.triangle_count} triangles, "
-        f"{th.tet_count} tets, {indices} indices; bodies "
+        f"{th.tet_count} tets, {th.render_vertex_count} render vertices, {indices} indices; bodies "
         + ", ".join(f"{b.name_str()}[{b.node_offset}+{b.node_count}]" for b in bodies)
     )
+    del words
 
     frame_service = open_retry(
         node, f"{args.prefix}/scene/frame", iox2.Slice[NodeSample], FrameHeader, args.timeout
@@ -213,7 +230,14 @@ def main() -> None:
             continue  # another topology: a renderer would re-read the topology here
         n = element_count(sample.payload(), NodeSample, h.node_count)
         nodes = (NodeSample * n).from_address(sample.payload().as_ptr())
-        finite = all(math.isfinite(c) for s in nodes for c in s.position)
+        # A render vertex is drawn at the weighted sum of its nodes' positions.
+        placed = [
+            [sum(wk * nodes[k].position[d] for k, wk in zip(ks, ws)) for d in range(3)]
+            for ks, ws in render
+        ]
+        finite = all(math.isfinite(c) for s in nodes for c in s.position) and all(
+            math.isfinite(c) for p in placed for c in p
+        )
         all_finite &= finite
         first = nodes[bodies[0].node_offset]
         models = " ".join(
@@ -226,7 +250,10 @@ def main() -> None:
         )
         got += 1
         del sample
-    print(f"OK frames={got} nodes={th.node_count} bodies={th.body_count} finite={all_finite}")
+    print(
+        f"OK frames={got} nodes={th.node_count} bodies={th.body_count} "
+        f"render_vertices={th.render_vertex_count} finite={all_finite}"
+    )
 
 
 if __name__ == "__main__":

@@ -20,7 +20,9 @@
 extern "C" {
 #endif
 
-#define LOP_CONTRACT_VERSION 7u
+#define LOP_CONTRACT_VERSION 8u
+/* uint32_t words per render vertex in the topology payload: 4 node indices, 4 float weights. */
+#define LOP_RENDER_VERTEX_WORDS 8
 #define LOP_MAX_BODIES 16
 #define LOP_BODY_NAME_LEN 32
 #define LOP_MAX_SUBSCRIBERS 16
@@ -125,7 +127,8 @@ typedef struct lop_NodeSample {
     uint32_t flags;
 } lop_NodeSample;
 
-/* "lop::BodyTopology", inside TopologyHeader. 72 bytes, align 4. */
+/* "lop::BodyTopology", inside TopologyHeader. 88 bytes, align 4. render_vertex_count 0: the
+ * body has no render surface; draw its surface triangles over the frame's nodes. */
 typedef struct lop_BodyTopology {
     uint8_t name[LOP_BODY_NAME_LEN];
     uint32_t node_offset;
@@ -137,9 +140,17 @@ typedef struct lop_BodyTopology {
     float color[3];
     uint8_t importance;
     uint8_t _pad[3];
+    uint32_t render_vertex_offset;
+    uint32_t render_vertex_count;
+    uint32_t render_triangle_offset;
+    uint32_t render_triangle_count;
 } lop_BodyTopology;
 
-/* "lop::TopologyHeader", user header of PREFIX/scene/topology (payload: uint32_t[]). 1184 bytes. */
+/* "lop::TopologyHeader", user header of PREFIX/scene/topology. 1448 bytes. Payload, uint32_t[]:
+ * 3 * triangle_count node indices (surface triangles), 4 * tet_count (tetrahedra),
+ * 3 * render_triangle_count render vertex indices (render triangles), then per render vertex
+ * LOP_RENDER_VERTEX_WORDS words: 4 node indices and 4 weights (float bits). A render vertex is
+ * drawn at sum(weight[i] * position[node[i]]) over the frame's nodes. */
 typedef struct lop_TopologyHeader {
     uint32_t contract_version;
     uint32_t body_count;
@@ -147,6 +158,8 @@ typedef struct lop_TopologyHeader {
     uint32_t node_count;
     uint32_t triangle_count;
     uint32_t tet_count;
+    uint32_t render_triangle_count;
+    uint32_t render_vertex_count;
     uint32_t _pad;
     lop_BodyTopology bodies[LOP_MAX_BODIES];
 } lop_TopologyHeader;
@@ -270,11 +283,12 @@ LOP_ASSERT(offsetof(lop_FrameHeader, node_count) == 64, "FrameHeader.node_count"
 LOP_ASSERT(offsetof(lop_FrameHeader, bodies) == 72, "FrameHeader.bodies");
 LOP_ASSERT(sizeof(lop_NodeSample) == 20, "NodeSample size");
 LOP_ASSERT(offsetof(lop_NodeSample, flags) == 16, "NodeSample.flags");
-LOP_ASSERT(sizeof(lop_BodyTopology) == 72, "BodyTopology size");
+LOP_ASSERT(sizeof(lop_BodyTopology) == 88, "BodyTopology size");
+LOP_ASSERT(offsetof(lop_BodyTopology, render_vertex_offset) == 72, "BodyTopology.render_vertex_offset");
 LOP_ASSERT(offsetof(lop_BodyTopology, color) == 56, "BodyTopology.color");
 LOP_ASSERT(offsetof(lop_BodyTopology, importance) == 68, "BodyTopology.importance");
-LOP_ASSERT(sizeof(lop_TopologyHeader) == 32 + 72 * LOP_MAX_BODIES, "TopologyHeader size");
-LOP_ASSERT(offsetof(lop_TopologyHeader, bodies) == 32, "TopologyHeader.bodies");
+LOP_ASSERT(sizeof(lop_TopologyHeader) == 40 + 88 * LOP_MAX_BODIES, "TopologyHeader size");
+LOP_ASSERT(offsetof(lop_TopologyHeader, bodies) == 40, "TopologyHeader.bodies");
 LOP_ASSERT(sizeof(lop_Percentiles) == 40, "Percentiles size");
 LOP_ASSERT(sizeof(lop_HapticTelemetry) == 392, "HapticTelemetry size");
 LOP_ASSERT(offsetof(lop_HapticTelemetry, window_jitter) == 64, "HapticTelemetry.window_jitter");

@@ -276,6 +276,15 @@ pub struct BodyTopology {
     pub importance: u8,
     /// Padding, zero.
     pub _pad: [u8; 3],
+    /// First vertex of the body's render surface in the topology's render vertex list.
+    pub render_vertex_offset: u32,
+    /// Render vertices of the body; 0 when it has no render surface (draw its surface
+    /// triangles over the frame's nodes instead).
+    pub render_vertex_count: u32,
+    /// First triangle of the body's render surface in the topology's render triangle list.
+    pub render_triangle_offset: u32,
+    /// Render triangles of the body.
+    pub render_triangle_count: u32,
 }
 
 impl BodyTopology {
@@ -300,8 +309,15 @@ impl BodyTopology {
 }
 
 /// User header of the topology (`PREFIX/scene/topology`), published once per scene load with
-/// history 1 so late subscribers get it. The payload is `[u32]`: `3 × triangle_count` global node
-/// indices of the outward-wound surface triangles, then `4 × tet_count` of the tetrahedra.
+/// history 1 so late subscribers get it. The payload is `[u32]`, in this order:
+/// - `3 × triangle_count` global node indices of the outward-wound surface triangles;
+/// - `4 × tet_count` of the tetrahedra;
+/// - `3 × render_triangle_count` global render vertex indices of the render surfaces'
+///   triangles (the surfaces the scene draws in place of its bodies' mesh boundaries);
+/// - [`RENDER_VERTEX_WORDS`]` × render_vertex_count`: per render vertex, the four global nodes
+///   it follows, then its four weights as `f32` bits. Its position in a frame is
+///   `Σ weightᵢ · position[nodeᵢ]` (weights sum to 1; a vertex just outside the mesh has some
+///   negative). Renderers compute it: a frame carries the nodes only.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
 #[type_name("lop::TopologyHeader")]
@@ -318,11 +334,18 @@ pub struct TopologyHeader {
     pub triangle_count: u32,
     /// Tetrahedra over all bodies.
     pub tet_count: u32,
+    /// Render triangles over all bodies.
+    pub render_triangle_count: u32,
+    /// Render vertices over all bodies.
+    pub render_vertex_count: u32,
     /// Padding, zero.
     pub _pad: u32,
     /// Per-body description; the first `body_count` are valid.
     pub bodies: [BodyTopology; MAX_BODIES],
 }
+
+/// `u32`s per render vertex in the topology payload: four node indices, four `f32` weights.
+pub const RENDER_VERTEX_WORDS: usize = 8;
 
 /// Latency percentiles of one measured quantity, ns.
 #[repr(C)]

@@ -45,9 +45,10 @@ fn c_header_matches_the_rust_layouts() {
             contact_horizon, contact_local, _pad3 }
         NodeSample { position, temperature, flags }
         BodyTopology { name, node_offset, node_count, triangle_offset, triangle_count,
-            tet_offset, tet_count, color, importance, _pad }
+            tet_offset, tet_count, color, importance, _pad, render_vertex_offset,
+            render_vertex_count, render_triangle_offset, render_triangle_count }
         TopologyHeader { contract_version, body_count, topology_id, node_count, triangle_count,
-            tet_count, _pad, bodies }
+            tet_count, render_triangle_count, render_vertex_count, _pad, bodies }
         Percentiles { count, p50, p99, p999, max }
         HapticTelemetry { contract_version, rt_flags, stamp_ns, ticks, overruns, stale_ticks,
             device_faults, rate_hz, force_norm, window_jitter, window_compute, window_frame_age,

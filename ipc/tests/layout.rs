@@ -9,8 +9,8 @@ use iceoryx2::prelude::ZeroCopySend;
 use lop_ipc::*;
 
 #[test]
-fn contract_version_is_seven() {
-    assert_eq!(CONTRACT_VERSION, 7);
+fn contract_version_is_eight() {
+    assert_eq!(CONTRACT_VERSION, 8);
 }
 
 #[test]
@@ -96,7 +96,7 @@ fn frame_layout() {
 
 #[test]
 fn topology_layout() {
-    assert_eq!(size_of::<BodyTopology>(), 72);
+    assert_eq!(size_of::<BodyTopology>(), 88);
     assert_eq!(align_of::<BodyTopology>(), 4);
     assert_eq!(offset_of!(BodyTopology, name), 0);
     assert_eq!(offset_of!(BodyTopology, node_offset), 32);
@@ -107,13 +107,19 @@ fn topology_layout() {
     assert_eq!(offset_of!(BodyTopology, tet_count), 52);
     assert_eq!(offset_of!(BodyTopology, color), 56);
     assert_eq!(offset_of!(BodyTopology, importance), 68);
+    assert_eq!(offset_of!(BodyTopology, render_vertex_offset), 72);
+    assert_eq!(offset_of!(BodyTopology, render_vertex_count), 76);
+    assert_eq!(offset_of!(BodyTopology, render_triangle_offset), 80);
+    assert_eq!(offset_of!(BodyTopology, render_triangle_count), 84);
 
-    assert_eq!(size_of::<TopologyHeader>(), 32 + 72 * MAX_BODIES);
+    assert_eq!(size_of::<TopologyHeader>(), 40 + 88 * MAX_BODIES);
     assert_eq!(offset_of!(TopologyHeader, topology_id), 8);
     assert_eq!(offset_of!(TopologyHeader, node_count), 16);
     assert_eq!(offset_of!(TopologyHeader, triangle_count), 20);
     assert_eq!(offset_of!(TopologyHeader, tet_count), 24);
-    assert_eq!(offset_of!(TopologyHeader, bodies), 32);
+    assert_eq!(offset_of!(TopologyHeader, render_triangle_count), 28);
+    assert_eq!(offset_of!(TopologyHeader, render_vertex_count), 32);
+    assert_eq!(offset_of!(TopologyHeader, bodies), 40);
 }
 
 #[test]

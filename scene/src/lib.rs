@@ -10,13 +10,13 @@
 //! `lopd simulate` run ([`Rounds`]), the [`OfflineSession`] every offline run and benchmark
 //! steps, and the closed loop with the simulated hand ([`closed_loop`]).
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use lop_config::{BodySpec, Scene, ToolSpec};
 use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::fem::{Fem, RefactorPolicy};
 use lop_sim::lop::{CageModel, GcParameters, LopPolicy, PrecisionController};
 pub use lop_sim::mesh::smallest_extent;
-use lop_sim::mesh::TetMesh;
+use lop_sim::mesh::{read_surface, Embedding, TetMesh};
 use lop_sim::model::{Model, ModelPin};
 use lop_sim::msd::MassSpring;
 use lop_sim::world::World;
@@ -62,6 +62,14 @@ pub struct BodyTopology {
     pub color: [f32; 3],
     /// Marked important in the scene (runs FEM when touched).
     pub important: bool,
+    /// First vertex of the body's render surface in the scene-wide render vertex list.
+    pub render_vertex_offset: usize,
+    /// Its render vertices (0: the body has no render surface; draw its surface triangles).
+    pub render_vertex_count: usize,
+    /// First triangle of the body's render surface.
+    pub render_triangle_offset: usize,
+    /// Its render triangles.
+    pub render_triangle_count: usize,
 }
 
 /// The static topology of a scene: fixed for a load, published once.
@@ -75,8 +83,65 @@ pub struct Topology {
     pub triangle_count: usize,
     /// Tetrahedra of all bodies.
     pub tet_count: usize,
-    /// Triangles (3 indices each) then tetrahedra (4 each), global node indices.
+    /// Render vertices of all bodies.
+    pub render_vertex_count: usize,
+    /// Render triangles of all bodies.
+    pub render_triangle_count: usize,
+    /// Triangles (3 indices each) then tetrahedra (4 each), global node indices; then the
+    /// render triangles (3 global render vertex indices each); then, per render vertex, the
+    /// four global nodes it follows and its four weights as `f32` bits ([`f32::to_bits`]).
     pub indices: Vec<u32>,
+}
+
+/// `u32`s per render vertex in [`Topology::indices`]: four nodes, four weights.
+pub const RENDER_VERTEX_WORDS: usize = 8;
+
+/// A body's render surface, placed in the scene and embedded in its placed mesh.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderSurface {
+    /// Triangles over the surface's own vertices, outward as the file winds them.
+    pub triangles: Vec<[u32; 3]>,
+    /// Where each vertex sits in the body's mesh.
+    pub embedding: Embedding,
+}
+
+/// Reads a body's `render_surface`, places it like the body's mesh and embeds it in `mesh`
+/// (the placed mesh), or `None` when the body has none.
+///
+/// # Errors
+/// The file cannot be read as a surface, or a vertex lies too far outside the mesh; both name
+/// the scene, the body and the file.
+pub fn render_surface(
+    scene: &Scene,
+    index: usize,
+    mesh: &TetMesh,
+) -> Result<Option<RenderSurface>> {
+    let spec = &scene.bodies[index];
+    let Some(path) = &spec.render_surface else {
+        return Ok(None);
+    };
+    let what = || {
+        format!(
+            "{}: body {:?}: render_surface {}",
+            scene.path.display(),
+            spec.name,
+            path.display()
+        )
+    };
+    let surface = read_surface(path).with_context(what)?;
+    if surface.triangles.is_empty() {
+        bail!("{}: the file holds no triangles", what());
+    }
+    let placed: Vec<[f64; 3]> = surface
+        .vertices
+        .iter()
+        .map(|&p| spec.transform_point(p))
+        .collect();
+    let embedding = Embedding::new(mesh, &placed).with_context(what)?;
+    Ok(Some(RenderSurface {
+        triangles: surface.triangles,
+        embedding,
+    }))
 }
 
 impl Topology {
@@ -274,10 +339,23 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
     let mut topology = Topology::default();
     let mut triangles: Vec<u32> = Vec::new();
     let mut tets: Vec<u32> = Vec::new();
+    let mut render_triangles: Vec<u32> = Vec::new();
+    let mut render_vertices: Vec<u32> = Vec::new();
     let mut node_offset = 0usize;
     for (index, spec) in scene.bodies.iter().enumerate() {
         let mesh = place_body(&scene, index)?;
+        let render = render_surface(&scene, index, &mesh)?;
         let (model, lop) = body_models(&scene, spec, &mesh)?;
+        let render_vertex_offset = render_vertices.len() / RENDER_VERTEX_WORDS;
+        let render_triangle_offset = render_triangles.len() / 3;
+        if let Some(r) = &render {
+            let (off, voff) = (node_offset as u32, render_vertex_offset as u32);
+            render_triangles.extend(r.triangles.iter().flatten().map(|&k| k + voff));
+            for (n, w) in r.embedding.nodes.iter().zip(&r.embedding.weights) {
+                render_vertices.extend(n.iter().map(|&k| k + off));
+                render_vertices.extend(w.iter().map(|&x| (x as f32).to_bits()));
+            }
+        }
         topology.bodies.push(BodyTopology {
             name: spec.name.clone(),
             node_offset,
@@ -288,6 +366,10 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
             tet_count: mesh.tets.len(),
             color: spec.color,
             important: spec.importance == lop_config::Importance::Important,
+            render_vertex_offset,
+            render_vertex_count: render.as_ref().map_or(0, |r| r.embedding.len()),
+            render_triangle_offset,
+            render_triangle_count: render.as_ref().map_or(0, |r| r.triangles.len()),
         });
         let off = node_offset as u32;
         triangles.extend(mesh.surface.iter().flatten().map(|&k| k + off));
@@ -313,8 +395,12 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
     topology.node_count = node_offset;
     topology.triangle_count = triangles.len() / 3;
     topology.tet_count = tets.len() / 4;
+    topology.render_vertex_count = render_vertices.len() / RENDER_VERTEX_WORDS;
+    topology.render_triangle_count = render_triangles.len() / 3;
     topology.indices = triangles;
     topology.indices.extend(tets);
+    topology.indices.extend(render_triangles);
+    topology.indices.extend(render_vertices);
     Ok(LoadedScene {
         scene,
         world,

@@ -2,8 +2,9 @@
 //!
 //! Invariants guarded:
 //! - the Python consumer example (`examples/python/consumer.py`, PyPI `iceoryx2` at the
-//!   daemon's exact version, ctypes structures only) reads the topology and frames: node count
-//!   equal to the topology's, finite positions;
+//!   daemon's exact version, ctypes structures only) reads the topology and frames of the
+//!   default scene: node count equal to the topology's, the liver's render surface decoded
+//!   (1,890 vertices) and placed from each frame's nodes, finite positions;
 //! - one subscriber beyond `MAX_SUBSCRIBERS` is refused with an error naming the service and
 //!   the limit, and the daemon keeps publishing;
 //! - a frozen subscriber (holding its borrowed samples, never receiving again) never stalls the
@@ -17,10 +18,10 @@ use lop_client::services::{self, IpcError, Role, MAX_SUBSCRIBERS};
 use lop_client::{Attachment, ServiceNames};
 use lop_system_tests::{unique_prefix, Daemon};
 
-fn daemon(tag: &str) -> (Daemon, String) {
+fn daemon(tag: &str, scene: &str) -> (Daemon, String) {
     let prefix = unique_prefix(tag);
     let d = Daemon::spawn(
-        &["run", "--scene", "organs", "--prefix", &prefix, "--quiet"],
+        &["run", "--scene", scene, "--prefix", &prefix, "--quiet"],
         &prefix,
         Duration::from_secs(150),
     );
@@ -29,7 +30,7 @@ fn daemon(tag: &str) -> (Daemon, String) {
 
 #[test]
 fn python_consumer_reads_frames_of_a_live_daemon() {
-    let (mut daemon, prefix) = daemon("python");
+    let (mut daemon, prefix) = daemon("python", "abdomen");
     let mut client = Attachment::open(&prefix, Duration::from_secs(60))
         .unwrap_or_else(|e| panic!("attach: {e}\n{}", daemon.log_text()));
     let nodes = client
@@ -63,7 +64,7 @@ fn python_consumer_reads_frames_of_a_live_daemon() {
     let last = stdout.lines().last().unwrap_or("");
     assert_eq!(
         last,
-        format!("OK frames=5 nodes={nodes} bodies=4 finite=True"),
+        format!("OK frames=5 nodes={nodes} bodies=4 render_vertices=1890 finite=True"),
         "\n{stdout}"
     );
     assert!(stdout.contains("liver[0+"), "{stdout}");
@@ -82,7 +83,7 @@ fn python_consumer_reads_frames_of_a_live_daemon() {
 
 #[test]
 fn clients_beyond_capacity_are_refused_and_frozen_clients_never_stall_the_publisher() {
-    let (mut daemon, prefix) = daemon("limits");
+    let (mut daemon, prefix) = daemon("limits", "organs");
     let names = ServiceNames::new(&prefix).unwrap();
     let mut reader = Attachment::open(&prefix, Duration::from_secs(60))
         .unwrap_or_else(|e| panic!("attach: {e}\n{}", daemon.log_text()));

@@ -81,7 +81,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use lop_client::{Attachment, ControlRequest, ControlResponse, ServiceNames};
+use lop_client::{Attachment, ControlRequest, ControlResponse, ServiceNames, Topology};
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU64, Ordering};
 use tokio::sync::{Notify, OwnedSemaphorePermit, Semaphore};
@@ -474,9 +474,13 @@ fn hub(shared: &Shared) {
         let mut last_frame = Instant::now();
         let mut tools = Vec::new();
         let mut tool = None;
+        let mut topology: Option<Topology> = None;
         loop {
             if let Ok(Some(t)) = att.poll_topology() {
                 let id = t.header.topology_id;
+                if topology.as_ref().map(|x| x.header.topology_id) != Some(id) {
+                    topology = Some(t.clone());
+                }
                 let mut latest = shared.latest.lock().expect("hub lock");
                 if latest.topology.as_ref().map(|x| x.0) != Some(id) {
                     latest.topology = Some((
@@ -501,7 +505,7 @@ fn hub(shared: &Shared) {
                 Ok(Some(f)) => {
                     last_frame = Instant::now();
                     frame_counter += 1;
-                    let bytes = wire::frame_binary(&f, tool.as_ref());
+                    let bytes = wire::frame_binary(&f, topology.as_ref(), tool.as_ref());
                     let mut latest = shared.latest.lock().expect("hub lock");
                     latest.frame = Some((frame_counter, bytes::Bytes::from(bytes)));
                     latest.connected = true;

@@ -2,9 +2,13 @@
 //!
 //! Text messages are JSON objects with a `type`:
 //! - `status` `{connected, prefix}`: whether a daemon is attached;
-//! - `topology` `{id, node_count, triangle_count, bodies: [{name, color, node_offset,
-//!   node_count, triangle_offset, triangle_count, importance}]}`, followed at once by the
-//!   binary triangle message;
+//! - `topology` `{id, node_count, vertex_count, triangle_count, bodies: [{name, color,
+//!   node_offset, node_count, render_vertex_offset, render_vertex_count, triangle_offset,
+//!   triangle_count, importance}]}`, followed at once by the binary triangle message. The page
+//!   draws `vertex_count` vertices: the frame's nodes, then every body's render surface
+//!   vertices (`render_vertex_offset` counts from 0 over all of them, after the nodes). A body
+//!   with a render surface is drawn by its render triangles, one without by its mesh's surface
+//!   triangles;
 //! - `telemetry` `{rate_hz, overruns, stale_ticks, force, jitter_p99_us, compute_p99_us,
 //!   frame_age_p99_ms, history: {jitter, compute, age}}`, about 4 times a second;
 //! - `control` `{ok, status, status_name, message, body, body_index, pin, model, paused,
@@ -13,14 +17,16 @@
 //!   never reaches the daemon.
 //!
 //! Binary messages start with a `u32` kind:
-//! - `1` triangles: `u32 1, u32 triangle_count`, then `3 × triangle_count` `u32` global node
-//!   indices;
+//! - `1` triangles: `u32 1, u32 triangle_count`, then `3 × triangle_count` `u32` vertex
+//!   indices (as drawn: nodes, then render vertices);
 //! - `2` frame: a 64-byte header (`u32 2, u32 node_count, u32 body_count, u32 tool_flags`
 //!   (bit 31: a tool state is present, low bits `TOOL_FLAG_*`), `f32 sim_time, f32 frame_age_ms`
 //!   (publish → viewer receive), `f32 device[3], f32 proxy[3], f32 tool_radius, f32 force[3]`),
 //!   then per body 8 × 4 bytes (`u32 model, u32 state, u32 switches, u32 resets,
 //!   f32 kinetic_energy, f32 max_speed, f32 step_ms, u32 0`), then `f32 position[3 × N]`,
-//!   `f32 temperature[N]`, `u8 flags[N]` (`NODE_FLAG_*`) padded to 4 bytes.
+//!   `f32 temperature[N]`, `u8 flags[N]` (`NODE_FLAG_*`) padded to 4 bytes, over the `N` drawn
+//!   vertices: a render vertex's position and temperature are blended from its four nodes by
+//!   its weights here, its flags are its heaviest node's.
 //!
 //! The page sends control requests as JSON text: `{"op": "get"|"set"|"pin"|"release"|"reset"|
 //! "pause"|"resume", "body": NAME, "key": KEY, "value": NUMBER, "model": "gc"|"msd"|"fem",
@@ -52,6 +58,8 @@ pub fn topology_json(t: &Topology, prefix: &str) -> String {
                 "color": b.color,
                 "node_offset": b.node_offset,
                 "node_count": b.node_count,
+                "render_vertex_offset": b.render_vertex_offset,
+                "render_vertex_count": b.render_vertex_count,
                 "triangle_offset": b.triangle_offset,
                 "triangle_count": b.triangle_count,
                 "importance": if b.importance == IMPORTANCE_IMPORTANT { "important" } else { "normal" },
@@ -63,18 +71,43 @@ pub fn topology_json(t: &Topology, prefix: &str) -> String {
         "prefix": prefix,
         "id": format!("{:#x}", t.header.topology_id),
         "node_count": t.header.node_count,
-        "triangle_count": t.triangles.len(),
+        "vertex_count": t.header.node_count as usize + t.render_vertices.len(),
+        "triangle_count": drawn_triangles(t).len(),
         "bodies": bodies,
     })
     .to_string()
 }
 
+/// The triangles drawn, over the drawn vertices (nodes, then render vertices): each body's
+/// render surface if it has one, else its mesh's surface.
+pub fn drawn_triangles(t: &Topology) -> Vec<[u32; 3]> {
+    let nodes = t.header.node_count;
+    let mut out = Vec::new();
+    for b in t.bodies() {
+        let (first, count) = (
+            b.render_triangle_offset as usize,
+            b.render_triangle_count as usize,
+        );
+        match t.render_triangles.get(first..first + count) {
+            Some(render) if b.render_vertex_count > 0 && count > 0 => {
+                out.extend(render.iter().map(|tri| tri.map(|k| k + nodes)));
+            }
+            _ => {
+                let (first, count) = (b.triangle_offset as usize, b.triangle_count as usize);
+                out.extend_from_slice(t.triangles.get(first..first + count).unwrap_or(&[]));
+            }
+        }
+    }
+    out
+}
+
 /// The triangle message.
 pub fn topology_binary(t: &Topology) -> Vec<u8> {
-    let mut out = Vec::with_capacity(8 + t.triangles.len() * 12);
+    let triangles = drawn_triangles(t);
+    let mut out = Vec::with_capacity(8 + triangles.len() * 12);
     out.extend_from_slice(&KIND_TRIANGLES.to_le_bytes());
-    out.extend_from_slice(&(t.triangles.len() as u32).to_le_bytes());
-    for tri in &t.triangles {
+    out.extend_from_slice(&(triangles.len() as u32).to_le_bytes());
+    for tri in &triangles {
         for k in tri {
             out.extend_from_slice(&k.to_le_bytes());
         }
@@ -88,9 +121,14 @@ fn f32s(out: &mut Vec<u8>, v: &[f32]) {
     }
 }
 
-/// The frame message.
-pub fn frame_binary(f: &Frame, tool: Option<&ToolState>) -> Vec<u8> {
-    let n = f.nodes.len();
+/// The frame message, over the frame's nodes and `topology`'s render vertices (none without a
+/// topology, or when the frame belongs to another).
+pub fn frame_binary(f: &Frame, topology: Option<&Topology>, tool: Option<&ToolState>) -> Vec<u8> {
+    let render: &[RenderVertex] = match topology {
+        Some(t) if t.header.topology_id == f.header.topology_id => &t.render_vertices,
+        _ => &[],
+    };
+    let n = f.nodes.len() + render.len();
     let bodies = f.bodies();
     let mut out =
         Vec::with_capacity(FRAME_HEADER_BYTES + bodies.len() * FRAME_BODY_BYTES + n * 17 + 4);
@@ -121,10 +159,22 @@ pub fn frame_binary(f: &Frame, tool: Option<&ToolState>) -> Vec<u8> {
     for s in &f.nodes {
         f32s(&mut out, &s.position);
     }
+    for v in render {
+        f32s(&mut out, &v.blend(&f.nodes, |s| s.position));
+    }
     for s in &f.nodes {
         f32s(&mut out, &[s.temperature]);
     }
+    for v in render {
+        f32s(&mut out, &v.blend(&f.nodes, |s| [s.temperature]));
+    }
     out.extend(f.nodes.iter().map(|s| s.flags.min(255) as u8));
+    out.extend(render.iter().map(|v| {
+        let heaviest = (0..4).fold(0, |m, i| if v.weights[i] > v.weights[m] { i } else { m });
+        f.nodes
+            .get(v.nodes[heaviest] as usize)
+            .map_or(0, |s| s.flags.min(255) as u8)
+    }));
     while out.len() % 4 != 0 {
         out.push(0);
     }

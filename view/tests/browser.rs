@@ -19,7 +19,8 @@ use lop_system_tests::{unique_prefix, Daemon};
 const WIDTH: u32 = 1200;
 const HEIGHT: u32 = 700;
 const SIDE_PANEL: u32 = 340;
-/// Organ colours of the organs scene (config/scenes/organs.toml).
+/// Organ colours of the default scene (config/scenes/abdomen.toml; the liver is drawn by its
+/// render surface).
 const ORGANS: [(&str, [f32; 3]); 4] = [
     ("liver", [0.47, 0.13, 0.11]),
     ("spleen", [0.40, 0.12, 0.30]),
@@ -114,7 +115,7 @@ fn in_scene(x: u32, y: u32, w: u32, h: u32) -> bool {
 fn browser_shows_the_organs_drawn_and_moving() {
     let prefix = unique_prefix("view-browser");
     let mut daemon = Daemon::spawn(
-        &["run", "--scene", "organs", "--prefix", &prefix, "--quiet"],
+        &["run", "--scene", "abdomen", "--prefix", &prefix, "--quiet"],
         &prefix,
         Duration::from_secs(180),
     );

@@ -56,7 +56,7 @@ fn control(ws: &mut Ws, token: &str, mut req: serde_json::Value) -> serde_json::
 
 fn start_daemon(prefix: &str) -> Daemon {
     Daemon::spawn(
-        &["run", "--scene", "organs", "--prefix", prefix, "--quiet"],
+        &["run", "--scene", "abdomen", "--prefix", prefix, "--quiet"],
         prefix,
         Duration::from_secs(180),
     )
@@ -73,9 +73,17 @@ fn websocket_streams_frames_forwards_control_and_survives_a_daemon_restart() {
             .unwrap();
     }
 
-    // Topology, its triangles, then frames of that many nodes.
+    // Topology, its triangles, then frames of that many vertices: the nodes, then the liver's
+    // render surface.
     let topo = until(&mut ws, Duration::from_secs(60), |m| json(m, "topology"));
-    let nodes = topo["node_count"].as_u64().unwrap() as usize;
+    let nodes = topo["vertex_count"].as_u64().unwrap() as usize;
+    let liver = &topo["bodies"][0];
+    assert_eq!(liver["render_vertex_count"], 1890, "{topo}");
+    assert_eq!(
+        nodes,
+        topo["node_count"].as_u64().unwrap() as usize + 1890,
+        "{topo}"
+    );
     let names: Vec<&str> = topo["bodies"]
         .as_array()
         .unwrap()
@@ -94,6 +102,13 @@ fn websocket_streams_frames_forwards_control_and_survives_a_daemon_restart() {
     assert!(tris[8..]
         .chunks_exact(4)
         .all(|c| (u32::from_le_bytes(c.try_into().unwrap()) as usize) < nodes));
+    // The liver is drawn by its render surface's 3,776 triangles, over the render vertices.
+    let first_render = topo["node_count"].as_u64().unwrap() as u32;
+    let render_refs = tris[8..]
+        .chunks_exact(4)
+        .filter(|c| u32::from_le_bytes((*c).try_into().unwrap()) >= first_render)
+        .count();
+    assert_eq!(render_refs, 3 * 3776);
     let frame = until(&mut ws, Duration::from_secs(30), |m| match m {
         Message::Binary(b) if u32_at(b, 0) == KIND_FRAME => Some(b.to_vec()),
         _ => None,
@@ -125,7 +140,7 @@ fn websocket_streams_frames_forwards_control_and_survives_a_daemon_restart() {
         .iter()
         .find(|p| p["key"] == "fem.young")
         .unwrap();
-    assert_eq!(young["value"], 140.0);
+    assert_eq!(young["value"], 18000.0);
     let r = control(
         &mut ws,
         &token,

@@ -112,8 +112,13 @@ const MODELS = ["GC", "MSD", "FEM"], STATES = ["rest", "active", "reset"];
 // ---- messages ----------------------------------------------------------------------------
 function onTopology(t) {
   topo = t; tris = null; frame = null; camera.fitted = false;
-  nodeBody = new Uint8Array(t.node_count);
-  t.bodies.forEach((b, i) => nodeBody.fill(i, b.node_offset, b.node_offset + b.node_count));
+  // Drawn vertices: the nodes, then the render surfaces' vertices.
+  nodeBody = new Uint8Array(t.vertex_count);
+  t.bodies.forEach((b, i) => {
+    nodeBody.fill(i, b.node_offset, b.node_offset + b.node_count);
+    const r = t.node_count + b.render_vertex_offset;
+    nodeBody.fill(i, r, r + b.render_vertex_count);
+  });
   const sel = $("ctl-body"), prev = sel.value;
   sel.innerHTML = "";
   for (const b of t.bodies) { const o = document.createElement("option"); o.textContent = b.name; sel.appendChild(o); }
@@ -254,7 +259,7 @@ function draw() {
   if (canvas.width !== w || canvas.height !== h) { canvas.width = w; canvas.height = h; }
   gl.viewport(0, 0, w, h);
   gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
-  if (!topo || !tris || !frame || frame.n !== topo.node_count) return;
+  if (!topo || !tris || !frame || frame.n !== topo.vertex_count) return;
   const n = frame.n;
   if (!posData || posData.length !== 3 * n) {
     nrmData = new Float32Array(3 * n); colData = new Float32Array(3 * n);

@@ -33,6 +33,10 @@ pub struct BodySpec {
     /// Mesh path, resolved against the scene file's directory: a TetGen base path (`.node`,
     /// `.ele`, optional `.face` and `.bnd` beside it) or a mesh file.
     pub mesh: PathBuf,
+    /// The surface to draw, resolved like `mesh` (STL, OBJ, PLY or VTK, in the mesh's units and
+    /// frame: the body's scale, rotation and translation apply to it too), or `None` to draw
+    /// the mesh's own boundary. Each of its vertices follows the tetrahedron it lies in.
+    pub render_surface: Option<PathBuf>,
     /// Which precise model the body gets when touched.
     pub importance: Importance,
     /// Model pin; `Auto` lets the LoP controller decide.

@@ -179,10 +179,16 @@ pub(super) fn validate_body(
         .map(|(i, f)| validate_fix(&c, &key.key("fix").index(i), f))
         .collect::<Result<Vec<_>, _>>()?;
     let mesh = resolve_mesh(&c, &key.key("mesh"), &rb.mesh, dir)?;
+    let render_surface = rb
+        .render_surface
+        .as_deref()
+        .map(|given| resolve_surface(&c, &key.key("render_surface"), given, dir))
+        .transpose()?;
 
     Ok(BodySpec {
         name: rb.name.clone(),
         mesh,
+        render_surface,
         importance,
         model,
         translate,
@@ -336,6 +342,26 @@ fn validate_gc(c: &Check<'_, '_>, k: &KeyPath, raw: RawGc) -> Result<GcParams, C
         dynamics,
         springs,
         dt,
+    })
+}
+
+/// Resolves `given` against `dir` and checks that it names an existing file.
+fn resolve_surface(
+    c: &Check<'_, '_>,
+    key: &KeyPath,
+    given: &str,
+    dir: &Path,
+) -> Result<PathBuf, ConfigError> {
+    let path = dir.join(given);
+    if !given.trim().is_empty() && path.is_file() {
+        return Ok(path);
+    }
+    Err(ConfigError::MeshNotFound {
+        at: Box::new(c.src.locate(key)),
+        key: key.to_string(),
+        body: c.body.map(str::to_owned),
+        given: given.to_owned(),
+        tried: vec![path],
     })
 }
 

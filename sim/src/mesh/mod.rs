@@ -138,6 +138,7 @@
 //! bit.
 
 mod bnd;
+mod embed;
 mod error;
 mod gmsh;
 mod obj;
@@ -160,6 +161,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 pub use bnd::write_bnd;
+pub use embed::{EmbedError, Embedding, MAX_OUTSIDE_FRACTION};
 pub use error::MeshReadError;
 pub use gmsh::read_gmsh;
 pub use select::{vertex_normals, NodeSelector, FACING_ANGLE_DEFAULT_DEG};

@@ -21,6 +21,22 @@ pub struct SurfaceMesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
+impl SurfaceMesh {
+    /// Writes the surface as Wavefront OBJ (`v x y z` at full precision, then `f a b c`,
+    /// 1-based), which every surface reader here and every 3D tool reads back.
+    pub fn write_obj(&self, path: &Path) -> std::io::Result<()> {
+        use std::fmt::Write as _;
+        let mut s = String::with_capacity(40 * self.vertices.len() + 24 * self.triangles.len());
+        for v in &self.vertices {
+            let _ = writeln!(s, "v {:?} {:?} {:?}", v[0], v[1], v[2]);
+        }
+        for t in &self.triangles {
+            let _ = writeln!(s, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1);
+        }
+        std::fs::write(path, s)
+    }
+}
+
 /// The surface formats, as recognised from a file's content (the extension only breaks ties).
 #[derive(Debug, PartialEq, Eq)]
 enum Kind {
