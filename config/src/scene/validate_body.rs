@@ -356,13 +356,18 @@ fn resolve_surface(
     if !given.trim().is_empty() && path.is_file() {
         return Ok(path);
     }
-    Err(ConfigError::MeshNotFound {
+    Err(not_found(c, key, given, vec![path]))
+}
+
+/// The error for a `key` whose file `given` is none of the paths `tried`.
+fn not_found(c: &Check<'_, '_>, key: &KeyPath, given: &str, tried: Vec<PathBuf>) -> ConfigError {
+    ConfigError::MeshNotFound {
         at: Box::new(c.src.locate(key)),
         key: key.to_string(),
         body: c.body.map(str::to_owned),
         given: given.to_owned(),
-        tried: vec![path],
-    })
+        tried,
+    }
 }
 
 /// Resolves `given` against `dir` and checks that it names a mesh: either an existing file or a
@@ -390,11 +395,5 @@ fn resolve_mesh(
     if node.is_file() {
         return Ok(path);
     }
-    Err(ConfigError::MeshNotFound {
-        at: Box::new(c.src.locate(key)),
-        key: key.to_string(),
-        body: c.body.map(str::to_owned),
-        given: given.to_owned(),
-        tried: vec![path, node],
-    })
+    Err(not_found(c, key, given, vec![path, node]))
 }
