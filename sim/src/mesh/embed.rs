@@ -17,7 +17,8 @@
 //! enough for every frame on the renderer's side.
 
 use super::TetMesh;
-use crate::contact::closest_point_on_triangle;
+use crate::contact::{bary_point, closest_point_on_triangle};
+use crate::vec3::{cross, dot, sub, v};
 
 /// The farthest a render vertex may lie outside the mesh, as a fraction of the mesh's smallest
 /// extent.
@@ -134,22 +135,6 @@ fn corners(mesh: &TetMesh, tet: usize) -> [[f64; 3]; 4] {
     mesh.tets[tet].map(|k| mesh.nodes[k as usize])
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
 /// Barycentric coordinates of `p` in the tetrahedron `c` (any sign; they sum to 1).
 fn barycentric(c: [[f64; 3]; 4], p: [f64; 3]) -> [f64; 4] {
     let (e1, e2, e3, q) = (
@@ -178,9 +163,7 @@ fn distance_to_tet(c: [[f64; 3]; 4], p: [f64; 3]) -> f64 {
         .map(|f| {
             let (a, b, e) = (c[f[0]], c[f[1]], c[f[2]]);
             let w = closest_point_on_triangle(p, a, b, e);
-            let q = [0, 1, 2].map(|d| w[0] * a[d] + w[1] * b[d] + w[2] * e[d]);
-            let d = sub(p, q);
-            dot(d, d)
+            v(p).distance_squared(bary_point(v(a), v(b), v(e), w))
         })
         .fold(f64::INFINITY, f64::min)
         .sqrt()
