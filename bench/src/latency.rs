@@ -21,6 +21,11 @@
 //! | deform round | wall time of the round behind each frame (`FrameHeader::step_ns`: collision, every body due, heat), every frame in the window: at the haptic rate a round longer than a millisecond delays the next frame | bench, from every frame received in the window |
 //! | touched body: step | wall time of the touched body's last step (`BodyFrame::step_ns` of `contact_body`), once per frame in contact | bench, from the frames in contact |
 //!
+//! Below the table: the periods the touched body stepped at in the frames in contact
+//! (`BodyFrame::period_us`: longer than configured where its step costs more on this machine)
+//! and the lowest real-time factor they carried (`BodyFrame::real_time_factor`, simulated over
+//! wall time per second).
+//!
 //! The haptic rows come from the loop's own preallocated histograms, which cover everything from
 //! one second after the haptic process started (its own warm-up) to the last telemetry sample
 //! taken after the window ends; the bench's window starts one second after the first frame, so
@@ -138,6 +143,11 @@ pub struct LatencyReport {
     pub device_faults: u64,
     /// Real-time privileges of the haptic loop.
     pub rt: RtReport,
+    /// The periods the touched body stepped at in the frames in contact, ms, shortest first.
+    pub touched_periods_ms: Vec<f64>,
+    /// The lowest real-time factor of the touched body in the frames in contact (simulated
+    /// over wall time per second; `None` before a second of it).
+    pub touched_real_time_factor_min: Option<f64>,
     /// Frames received in the window.
     pub frames_received: u64,
     /// Frames published in the window but never received (sequence gaps).
@@ -329,6 +339,12 @@ pub fn run(a: LatencyArgs) -> Result<()> {
         stale_ticks: tel.stale_ticks,
         device_faults: tel.device_faults,
         rt,
+        touched_periods_ms: m
+            .touched_periods_us
+            .iter()
+            .map(|&us| f64::from(us) * 1e-3)
+            .collect(),
+        touched_real_time_factor_min: m.touched_rt_min,
         frames_received: m.frames_received,
         frames_missed: m.frames_missed,
         frames_without_tool: m.frames_without_tool,
@@ -356,6 +372,8 @@ struct Measured {
     deform_round: Histogram<u64>,
     touched_interval: Histogram<u64>,
     touched_step: Histogram<u64>,
+    touched_periods_us: std::collections::BTreeSet<u32>,
+    touched_rt_min: Option<f64>,
     frames_received: u64,
     frames_missed: u64,
     frames_without_tool: u64,
@@ -396,6 +414,8 @@ fn measure(lopd: &mut Lopd, a: &LatencyArgs, period_us: u64, ct: &CtPlan) -> Res
     let mut deform_round = table::latency_histogram();
     let mut touched_interval = table::latency_histogram();
     let mut touched_step = table::latency_histogram();
+    let mut touched_periods_us = std::collections::BTreeSet::new();
+    let mut touched_rt_min: Option<f64> = None;
     let mut last_touched: Option<(u32, u64)> = None;
     let mut frames_received = 0u64;
     let mut frames_missed = 0u64;
@@ -455,6 +475,11 @@ fn measure(lopd: &mut Lopd, a: &LatencyArgs, period_us: u64, ct: &CtPlan) -> Res
                             .saturating_record(h.publish_ns.saturating_sub(h.tool_stamp_ns));
                     }
                     touched_step.saturating_record(u64::from(body.step_ns));
+                    touched_periods_us.insert(body.period_us);
+                    if body.real_time_factor > 0.0 {
+                        let f = f64::from(body.real_time_factor);
+                        touched_rt_min = Some(touched_rt_min.map_or(f, |m| m.min(f)));
+                    }
                     if let Some((b, at)) = last_touched {
                         if b == h.contact_body {
                             touched_interval.saturating_record(h.publish_ns.saturating_sub(at));
@@ -520,6 +545,8 @@ fn measure(lopd: &mut Lopd, a: &LatencyArgs, period_us: u64, ct: &CtPlan) -> Res
         deform_round,
         touched_interval,
         touched_step,
+        touched_periods_us,
+        touched_rt_min,
         frames_received,
         frames_missed,
         frames_without_tool,
@@ -560,6 +587,19 @@ fn render(r: &LatencyReport, period_us: u64) -> String {
         "overruns: {} of {} ticks in the window ({:.2} s, {} since start); stale-frame ticks since start: {}; device faults: {}\n",
         r.window_overruns, r.window_ticks, r.window_seconds, r.overruns, r.stale_ticks, r.device_faults
     );
+    if !r.touched_periods_ms.is_empty() {
+        let periods: Vec<String> = r
+            .touched_periods_ms
+            .iter()
+            .map(|p| format!("{p}"))
+            .collect();
+        s += &format!(
+            "touched body: stepped at {} ms; real-time factor at least {}\n",
+            periods.join(", "),
+            r.touched_real_time_factor_min
+                .map_or("(not yet measured)".into(), |f| format!("{f:.3}"))
+        );
+    }
     s += &format!(
         "frames received: {} ({:.1}/s), missed: {}, without a tool state: {}\n",
         r.frames_received,

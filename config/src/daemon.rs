@@ -86,13 +86,25 @@ pub struct DeformConfig {
     /// Threads the touched body's FEM step runs on (`[deform] threads`), resolved: at least
     /// 1, at most the machine's cores. 0 or missing in the file: [`default_deform_threads`].
     pub threads: usize,
+    /// The longest period a touched body may step at when its step costs more than its
+    /// configured period on this machine (`[deform] max_period_ms`, 1..=100; default 10): the
+    /// deformation process lengthens the period so that simulated time keeps up with the wall
+    /// clock (`lop_sim::world::pace`), and the haptic loop renders the local model between the
+    /// frames. A period at or below the body's own keeps the body at its own.
+    pub max_period_ms: u32,
 }
+
+/// `[deform] max_period_ms` when missing: 10 ms, the longest frame interval at which the local
+/// model keeps the coupling smooth on the organs measured (`docs/benchmarks.md`, pipeline
+/// latency).
+pub const DEFAULT_MAX_PERIOD_MS: u32 = 10;
 
 impl Default for DeformConfig {
     fn default() -> Self {
         DeformConfig {
             core: None,
             threads: default_deform_threads(),
+            max_period_ms: DEFAULT_MAX_PERIOD_MS,
         }
     }
 }
@@ -204,6 +216,14 @@ pub fn parse_daemon_config(text: &str, path: &Path) -> Result<DaemonConfig, Conf
         }
         n => n,
     };
+    let max_period_ms = raw.deform.max_period_ms.unwrap_or(DEFAULT_MAX_PERIOD_MS);
+    if !(1..=100).contains(&max_period_ms) {
+        return Err(c.invalid(
+            &KeyPath::top("deform").key("max_period_ms"),
+            max_period_ms,
+            "the longest step period must be between 1 and 100 ms",
+        ));
+    }
     Ok(DaemonConfig {
         haptic: HapticConfig {
             core: h.core.or(dh.core),
@@ -220,6 +240,7 @@ pub fn parse_daemon_config(text: &str, path: &Path) -> Result<DaemonConfig, Conf
         deform: DeformConfig {
             core: raw.deform.core,
             threads,
+            max_period_ms,
         },
         status_interval_ms,
         device: device_config(raw.device, path),

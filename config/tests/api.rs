@@ -35,6 +35,31 @@ fn empty_daemon_config_is_the_default() {
     assert_eq!(cfg.haptic.max_force_step_n, 0.05);
     assert_eq!(cfg.deform.core, None);
     assert_eq!(cfg.deform.threads, lop_config::default_deform_threads());
+    assert_eq!(cfg.deform.max_period_ms, 10);
+}
+
+/// `[deform] max_period_ms`: 1 to 100 ms; outside, refused with the key and the value.
+#[test]
+fn the_longest_period_is_checked() {
+    let parse = |ms: i64| {
+        parse_daemon_config(
+            &format!("[deform]\nmax_period_ms = {ms}\n"),
+            Path::new("lopd.toml"),
+        )
+    };
+    assert_eq!(parse(1).unwrap().deform.max_period_ms, 1);
+    assert_eq!(parse(100).unwrap().deform.max_period_ms, 100);
+    for bad in [0, 101] {
+        daemon_err(
+            &format!("[deform]\nmax_period_ms = {bad}\n"),
+            &[
+                "deform.max_period_ms",
+                &bad.to_string(),
+                "between 1 and 100 ms",
+            ],
+        );
+    }
+    assert!(parse(-5).is_err());
 }
 
 /// `[deform] threads`: 0 or missing is the documented default (every core but one, at least

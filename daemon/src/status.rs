@@ -119,6 +119,13 @@ impl StatusMonitor {
                         ""
                     };
                     s += &format!(" {} {model}{mark}", b.name_str());
+                    // A body in motion: the period it steps at and whether it keeps real time.
+                    if bf.state == BODY_STATE_ACTIVE && bf.period_us > 0 {
+                        s += &format!(" {}", fmt_period(bf.period_us));
+                        if bf.real_time_factor > 0.0 {
+                            s += &format!(" x{:.2}", bf.real_time_factor);
+                        }
+                    }
                 }
             }
             _ => s += " | deform: waiting",
@@ -145,5 +152,27 @@ pub fn fmt_ns(ns: u64) -> String {
         format!("{:.0} µs", ns as f64 * 1e-3)
     } else {
         format!("{ns} ns")
+    }
+}
+
+/// A step period in µs as the status line shows it: `1ms`, `2.5ms`.
+fn fmt_period(us: u32) -> String {
+    let ms = f64::from(us) * 1e-3;
+    if (ms - ms.round()).abs() < 1e-6 {
+        format!("{}ms", ms.round())
+    } else {
+        format!("{ms:.1}ms")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::fmt_period;
+
+    #[test]
+    fn periods_read_in_milliseconds() {
+        assert_eq!(fmt_period(1000), "1ms");
+        assert_eq!(fmt_period(10_000), "10ms");
+        assert_eq!(fmt_period(2500), "2.5ms");
     }
 }

@@ -835,11 +835,14 @@ impl Tetrahedralized {
         if self.mesh.tets.len() > REAL_TIME_TETS {
             writeln!(
                 s,
-                "warning: {} tetrahedra. A touched body steps its FEM every millisecond; on a \
-                 2-core machine the shipped liver (1,706 tetrahedra) takes about 0.7 ms in \
-                 contact, a generated mesh of 2,800 about 2 ms and one of 8,000 about 10 ms, so \
-                 the tissue would lag the hand. Keep a body under about {REAL_TIME_TETS} \
-                 tetrahedra (--tets) unless the machine is faster",
+                "warning: {} tetrahedra. A touched body steps its FEM every millisecond where \
+                 the machine keeps up, else at a longer period (up to [deform] max_period_ms, \
+                 10 ms by default) with frames that much older; on a 2-core machine the shipped \
+                 liver (1,706 tetrahedra) takes about 0.8 ms in contact, a generated mesh of \
+                 4,500 about 2.4 ms (it steps at 4 ms) and one of 8,000 about 5.7 ms (10 ms), and \
+                 one of 20,000 about 32 ms, beyond 10 ms, so its tissue lags the hand. Keep a \
+                 body under about {REAL_TIME_TETS} tetrahedra (--tets) to be felt at 1 kHz \
+                 unless the machine is faster",
                 self.mesh.tets.len()
             )
             .ok();

@@ -22,7 +22,7 @@ import time
 
 import iceoryx2 as iox2
 
-CONTRACT_VERSION = 8
+CONTRACT_VERSION = 9
 MAX_BODIES = 16
 BODY_NAME_LEN = 32
 # uint32 words per render vertex in the topology payload: 4 node indices, 4 float32 weights.
@@ -42,6 +42,8 @@ class BodyFrame(ctypes.Structure):
         ("state", ctypes.c_uint8),
         ("_pad", ctypes.c_uint8 * 2),
         ("switches", ctypes.c_uint32),
+        ("period_us", ctypes.c_uint32),
+        ("real_time_factor", ctypes.c_float),
     ]
 
     @staticmethod
@@ -138,7 +140,7 @@ class TopologyHeader(ctypes.Structure):
 
 
 # The sizes every reader must agree on (docs/ipc.md).
-assert ctypes.sizeof(FrameHeader) == 1032 and ctypes.alignment(FrameHeader) == 8
+assert ctypes.sizeof(FrameHeader) == 1160 and ctypes.alignment(FrameHeader) == 8
 assert ctypes.sizeof(NodeSample) == 20
 assert ctypes.sizeof(TopologyHeader) == 1448
 

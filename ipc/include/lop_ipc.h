@@ -20,7 +20,7 @@
 extern "C" {
 #endif
 
-#define LOP_CONTRACT_VERSION 8u
+#define LOP_CONTRACT_VERSION 9u
 /* uint32_t words per render vertex in the topology payload: 4 node indices, 4 float weights. */
 #define LOP_RENDER_VERTEX_WORDS 8
 #define LOP_MAX_BODIES 16
@@ -76,7 +76,7 @@ typedef struct lop_ToolState {
     double tool_stiffness;
 } lop_ToolState;
 
-/* "lop::BodyFrame", inside FrameHeader. 48 bytes, align 4. */
+/* "lop::BodyFrame", inside FrameHeader. 56 bytes, align 4. */
 typedef struct lop_BodyFrame {
     float aabb_min[3];
     float aabb_max[3];
@@ -88,9 +88,11 @@ typedef struct lop_BodyFrame {
     uint8_t state;
     uint8_t _pad[2];
     uint32_t switches;
+    uint32_t period_us;       /* the period of the body's next step, us */
+    float real_time_factor;   /* simulated over wall time in the last second; 0: not yet */
 } lop_BodyFrame;
 
-/* "lop::FrameHeader", user header of PREFIX/scene/frame. 872 bytes, align 8. */
+/* "lop::FrameHeader", user header of PREFIX/scene/frame. 1160 bytes, align 8. */
 typedef struct lop_FrameHeader {
     uint32_t contract_version;
     uint32_t body_count;
@@ -272,13 +274,15 @@ LOP_ASSERT(offsetof(lop_ToolState, proxy_position) == 48, "ToolState.proxy_posit
 LOP_ASSERT(offsetof(lop_ToolState, buttons) == 128, "ToolState.buttons");
 LOP_ASSERT(offsetof(lop_ToolState, topology_id) == 144, "ToolState.topology_id");
 LOP_ASSERT(offsetof(lop_ToolState, tool_stiffness) == 152, "ToolState.tool_stiffness");
-LOP_ASSERT(sizeof(lop_BodyFrame) == 48, "BodyFrame size");
+LOP_ASSERT(sizeof(lop_BodyFrame) == 56, "BodyFrame size");
 LOP_ASSERT(offsetof(lop_BodyFrame, model) == 40, "BodyFrame.model");
 LOP_ASSERT(offsetof(lop_BodyFrame, switches) == 44, "BodyFrame.switches");
-LOP_ASSERT(sizeof(lop_FrameHeader) == 72 + 48 * LOP_MAX_BODIES + 192, "FrameHeader size");
-LOP_ASSERT(offsetof(lop_FrameHeader, contact_force) == 104 + 48 * LOP_MAX_BODIES, "FrameHeader.contact_force");
-LOP_ASSERT(offsetof(lop_FrameHeader, contact_local) == 256 + 48 * LOP_MAX_BODIES, "FrameHeader.contact_local");
-LOP_ASSERT(offsetof(lop_FrameHeader, contact_body) == 96 + 48 * LOP_MAX_BODIES, "FrameHeader.contact_body");
+LOP_ASSERT(offsetof(lop_BodyFrame, period_us) == 48, "BodyFrame.period_us");
+LOP_ASSERT(offsetof(lop_BodyFrame, real_time_factor) == 52, "BodyFrame.real_time_factor");
+LOP_ASSERT(sizeof(lop_FrameHeader) == 72 + 56 * LOP_MAX_BODIES + 192, "FrameHeader size");
+LOP_ASSERT(offsetof(lop_FrameHeader, contact_force) == 104 + 56 * LOP_MAX_BODIES, "FrameHeader.contact_force");
+LOP_ASSERT(offsetof(lop_FrameHeader, contact_local) == 256 + 56 * LOP_MAX_BODIES, "FrameHeader.contact_local");
+LOP_ASSERT(offsetof(lop_FrameHeader, contact_body) == 96 + 56 * LOP_MAX_BODIES, "FrameHeader.contact_body");
 LOP_ASSERT(offsetof(lop_FrameHeader, node_count) == 64, "FrameHeader.node_count");
 LOP_ASSERT(offsetof(lop_FrameHeader, bodies) == 72, "FrameHeader.bodies");
 LOP_ASSERT(sizeof(lop_NodeSample) == 20, "NodeSample size");

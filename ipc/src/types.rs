@@ -137,6 +137,12 @@ pub struct BodyFrame {
     pub _pad: [u8; 2],
     /// Levels-of-precision transitions (cage ↔ precise model) since the scene loaded.
     pub switches: u32,
+    /// The period of the body's next step, µs: its configured period, or a longer one the
+    /// deformation process chose because a step costs more than that on this machine.
+    pub period_us: u32,
+    /// Simulated time stepped over wall time in the last second (1: real time; below: the
+    /// body falls behind the wall clock); 0 before a second has passed.
+    pub real_time_factor: f32,
 }
 
 /// User header of a scene frame (`PREFIX/scene/frame`); the payload is `[NodeSample]` with

@@ -38,7 +38,7 @@ fn c_header_matches_the_rust_layouts() {
             force, tool_radius, contact_barycentric, buttons, contact_body, contact_triangle,
             _pad, topology_id, tool_stiffness }
         BodyFrame { aabb_min, aabb_max, kinetic_energy, max_speed, step_ns, resets, model, state,
-            _pad, switches }
+            _pad, switches, period_us, real_time_factor }
         FrameHeader { contract_version, body_count, topology_id, sequence, sim_time, publish_ns,
             tool_stamp_ns, tool_read_ns, step_ns, node_count, _pad, bodies, contact_proxy,
             contact_body, _pad2, contact_force, contact_device, contact_stiffness, contact_drift,

@@ -9,8 +9,8 @@ use iceoryx2::prelude::ZeroCopySend;
 use lop_ipc::*;
 
 #[test]
-fn contract_version_is_eight() {
-    assert_eq!(CONTRACT_VERSION, 8);
+fn contract_version_is_nine() {
+    assert_eq!(CONTRACT_VERSION, 9);
 }
 
 #[test]
@@ -36,7 +36,7 @@ fn tool_state_layout() {
 
 #[test]
 fn frame_layout() {
-    assert_eq!(size_of::<BodyFrame>(), 48);
+    assert_eq!(size_of::<BodyFrame>(), 56);
     assert_eq!(align_of::<BodyFrame>(), 4);
     assert_eq!(offset_of!(BodyFrame, aabb_min), 0);
     assert_eq!(offset_of!(BodyFrame, aabb_max), 12);
@@ -47,8 +47,10 @@ fn frame_layout() {
     assert_eq!(offset_of!(BodyFrame, model), 40);
     assert_eq!(offset_of!(BodyFrame, state), 41);
     assert_eq!(offset_of!(BodyFrame, switches), 44);
+    assert_eq!(offset_of!(BodyFrame, period_us), 48);
+    assert_eq!(offset_of!(BodyFrame, real_time_factor), 52);
 
-    assert_eq!(size_of::<FrameHeader>(), 72 + 48 * MAX_BODIES + 192);
+    assert_eq!(size_of::<FrameHeader>(), 72 + 56 * MAX_BODIES + 192);
     assert_eq!(align_of::<FrameHeader>(), 8);
     assert_eq!(offset_of!(FrameHeader, contract_version), 0);
     assert_eq!(offset_of!(FrameHeader, body_count), 4);
@@ -61,31 +63,31 @@ fn frame_layout() {
     assert_eq!(offset_of!(FrameHeader, step_ns), 56);
     assert_eq!(offset_of!(FrameHeader, node_count), 64);
     assert_eq!(offset_of!(FrameHeader, bodies), 72);
-    assert_eq!(offset_of!(FrameHeader, contact_proxy), 72 + 48 * MAX_BODIES);
-    assert_eq!(offset_of!(FrameHeader, contact_body), 96 + 48 * MAX_BODIES);
+    assert_eq!(offset_of!(FrameHeader, contact_proxy), 72 + 56 * MAX_BODIES);
+    assert_eq!(offset_of!(FrameHeader, contact_body), 96 + 56 * MAX_BODIES);
     assert_eq!(
         offset_of!(FrameHeader, contact_force),
-        104 + 48 * MAX_BODIES
+        104 + 56 * MAX_BODIES
     );
     assert_eq!(
         offset_of!(FrameHeader, contact_device),
-        128 + 48 * MAX_BODIES
+        128 + 56 * MAX_BODIES
     );
     assert_eq!(
         offset_of!(FrameHeader, contact_stiffness),
-        152 + 48 * MAX_BODIES
+        152 + 56 * MAX_BODIES
     );
     assert_eq!(
         offset_of!(FrameHeader, contact_drift),
-        224 + 48 * MAX_BODIES
+        224 + 56 * MAX_BODIES
     );
     assert_eq!(
         offset_of!(FrameHeader, contact_horizon),
-        248 + 48 * MAX_BODIES
+        248 + 56 * MAX_BODIES
     );
     assert_eq!(
         offset_of!(FrameHeader, contact_local),
-        256 + 48 * MAX_BODIES
+        256 + 56 * MAX_BODIES
     );
 
     assert_eq!(size_of::<NodeSample>(), 20);

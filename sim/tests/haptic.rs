@@ -248,6 +248,45 @@ fn no_pop_through_a_thin_slab_at_half_a_metre_per_second() {
     assert!(below.normal[1] < -0.99);
 }
 
+/// A proxy that ends up inside the tissue (the surface lagged the hand and it went through)
+/// is not trapped there: faces are one-sided, so it passes out as the hand withdraws, feels
+/// nothing on the way, and the next press from outside is felt again.
+#[test]
+fn a_proxy_inside_the_tissue_passes_out_and_the_next_press_is_felt() {
+    // A 2 cm thick slab, top at y = 0; the device starts inside it (the proxy with it).
+    let (x, t) = box_surface([-0.05, -0.02, -0.05], [0.05, 0.0, 0.05], 6);
+    let mut set = set_of(&x, &t);
+    let r = 0.003;
+    let mut god = GodObject::new(r, t.len());
+    for k in 0..=60 {
+        // 1 mm from an edge of the top's triangles, so the sphere meets edges from behind too.
+        let device = [0.001, -0.01 + 0.0005 * k as f64 + 1e-5, -0.007];
+        let s = god.update(&mut set, device, false);
+        // Within a radius above the top the sphere overlaps the top from outside, which is a
+        // contact like any other; below the top and beyond the radius, nothing holds it.
+        if device[1] < 0.0 || device[1] > r {
+            assert!(
+                s.anchor.is_none() && s.depth == 0.0,
+                "held at {device:?}: {s:?}"
+            );
+            assert!(
+                (s.proxy[1] - device[1]).abs() < 1e-9,
+                "proxy {:?} stuck under device {device:?}",
+                s.proxy
+            );
+        }
+    }
+    // 2 cm above now; press again from outside: the top holds the proxy.
+    let mut last = None;
+    for k in 0..=50 {
+        let device = [0.001, 0.02 - 0.0005 * k as f64, -0.007];
+        last = Some(god.update(&mut set, device, false));
+    }
+    let s = last.unwrap();
+    assert!(s.anchor.is_some(), "{s:?}");
+    assert!((s.proxy[1] - r).abs() < 1e-6 && (s.depth - (r + 0.005)).abs() < 1e-6);
+}
+
 #[test]
 fn picking_holds_the_point_and_release_lets_go() {
     let (x, t) = box_surface([-0.05, -0.02, -0.05], [0.05, 0.0, 0.05], 4);

@@ -22,8 +22,9 @@
 //! - `2` frame: a 64-byte header (`u32 2, u32 node_count, u32 body_count, u32 tool_flags`
 //!   (bit 31: a tool state is present, low bits `TOOL_FLAG_*`), `f32 sim_time, f32 frame_age_ms`
 //!   (publish → viewer receive), `f32 device[3], f32 proxy[3], f32 tool_radius, f32 force[3]`),
-//!   then per body 8 × 4 bytes (`u32 model, u32 state, u32 switches, u32 resets,
-//!   f32 kinetic_energy, f32 max_speed, f32 step_ms, u32 0`), then `f32 position[3 × N]`,
+//!   then per body 10 × 4 bytes (`u32 model, u32 state, u32 switches, u32 resets,
+//!   f32 kinetic_energy, f32 max_speed, f32 step_ms, f32 period_ms, f32 real_time_factor,
+//!   u32 0`), then `f32 position[3 × N]`,
 //!   `f32 temperature[N]`, `u8 flags[N]` (`NODE_FLAG_*`) padded to 4 bytes, over the `N` drawn
 //!   vertices: a render vertex's position and temperature are blended from its four nodes by
 //!   its weights here, its flags are its heaviest node's.
@@ -43,7 +44,7 @@ pub const KIND_FRAME: u32 = 2;
 /// Bytes of a frame message's header.
 pub const FRAME_HEADER_BYTES: usize = 64;
 /// Bytes per body in a frame message.
-pub const FRAME_BODY_BYTES: usize = 32;
+pub const FRAME_BODY_BYTES: usize = 40;
 /// `tool_flags` bit: a tool state is present.
 pub const TOOL_PRESENT: u32 = 1 << 31;
 
@@ -152,7 +153,13 @@ pub fn frame_binary(f: &Frame, topology: Option<&Topology>, tool: Option<&ToolSt
         }
         f32s(
             &mut out,
-            &[b.kinetic_energy, b.max_speed, b.step_ns as f32 * 1e-6],
+            &[
+                b.kinetic_energy,
+                b.max_speed,
+                b.step_ns as f32 * 1e-6,
+                b.period_us as f32 * 1e-3,
+                b.real_time_factor,
+            ],
         );
         out.extend_from_slice(&0u32.to_le_bytes());
     }

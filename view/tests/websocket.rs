@@ -117,6 +117,23 @@ fn websocket_streams_frames_forwards_control_and_survives_a_daemon_restart() {
     assert_eq!(u32_at(&frame, 8), 4);
     let expected = FRAME_HEADER_BYTES + 4 * FRAME_BODY_BYTES + nodes * 16 + nodes.div_ceil(4) * 4;
     assert_eq!(frame.len(), expected);
+    // Every body carries the period of its next step (its model's: the cage's 20 ms, or the
+    // precise model's 1 ms or, on a machine too slow for it, longer) and a real-time factor in
+    // [0, 2).
+    for k in 0..4 {
+        let rec = FRAME_HEADER_BYTES + k * FRAME_BODY_BYTES;
+        let f = |o: usize| f32::from_le_bytes(frame[rec + o..rec + o + 4].try_into().unwrap());
+        assert!(
+            f(28) > 0.0 && f(28) <= 100.0,
+            "body {k}: period {} ms",
+            f(28)
+        );
+        assert!(
+            (0.0..2.0).contains(&f(32)),
+            "body {k}: real-time factor {}",
+            f(32)
+        );
+    }
     let pos0 = FRAME_HEADER_BYTES + 4 * FRAME_BODY_BYTES;
     let temps = &frame[pos0 + 12 * nodes..pos0 + 16 * nodes];
     let t0 = f32::from_le_bytes(temps[..4].try_into().unwrap());

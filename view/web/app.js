@@ -143,10 +143,11 @@ function onFrame(ab) {
     radius: f32(48), force: v3(52), bodies: [],
   };
   let o = 64;
-  for (let i = 0; i < nb; i++, o += 32) {
+  for (let i = 0; i < nb; i++, o += 40) {
     f.bodies.push({ model: dv.getUint32(o, true), state: dv.getUint32(o + 4, true),
       switches: dv.getUint32(o + 8, true), resets: dv.getUint32(o + 12, true),
-      ke: f32(o + 16), maxSpeed: f32(o + 20), stepMs: f32(o + 24) });
+      ke: f32(o + 16), maxSpeed: f32(o + 20), stepMs: f32(o + 24), periodMs: f32(o + 28),
+      realTime: f32(o + 32) });
   }
   f.pos = new Float32Array(ab.slice(o, o + 12 * n)); o += 12 * n;
   f.temp = new Float32Array(ab.slice(o, o + 4 * n)); o += 4 * n;
@@ -169,14 +170,18 @@ function fitCamera(p) {
 }
 function updateBodies() {
   if (!topo || !frame) return;
-  const rows = ['<tr><th>body</th><th>model</th><th>state</th><th>switches</th><th>max speed</th></tr>'];
+  const rows = ['<tr><th>body</th><th>model</th><th>state</th><th>switches</th><th>max speed</th>' +
+    '<th title="the period of its next step; longer than configured where a step costs more">period</th>' +
+    '<th title="simulated over wall time in the last second">real time</th></tr>'];
   topo.bodies.forEach((b, i) => {
     const s = frame.bodies[i] || {};
     const c = b.color.map((v) => Math.round(v * 255)).join(",");
     rows.push(`<tr><td><span class="swatch" style="background:rgb(${c})"></span>${b.name}` +
       `${b.importance === "important" ? "*" : ""}</td><td>${MODELS[s.model] || "?"}</td>` +
       `<td>${STATES[s.state] || "?"}</td><td>${s.switches ?? ""}</td>` +
-      `<td>${s.maxSpeed !== undefined ? (s.maxSpeed * 1000).toFixed(1) + " mm/s" : ""}</td></tr>`);
+      `<td>${s.maxSpeed !== undefined ? (s.maxSpeed * 1000).toFixed(1) + " mm/s" : ""}</td>` +
+      `<td>${s.periodMs ? +s.periodMs.toFixed(2) + " ms" : ""}</td>` +
+      `<td>${s.realTime ? "×" + s.realTime.toFixed(2) : ""}</td></tr>`);
   });
   $("bodies").innerHTML = rows.join("");
 }

@@ -366,7 +366,14 @@ impl GodObject {
         let len = d.length();
         let mut best: Option<(f64, DVec3)> = None;
         for &t in &self.candidates {
-            if let Some((s, normal)) = sweep(p, d, self.radius, set.corners_v(t as usize)) {
+            let corners = set.corners_v(t as usize);
+            // Faces are one-sided: a proxy whose centre is behind a face's plane (it went
+            // through the tissue while the surface lagged the hand) passes out through it.
+            let [a, b, c] = corners;
+            if (p - a).dot((b - a).cross(c - a)) < 0.0 {
+                continue;
+            }
+            if let Some((s, normal)) = sweep(p, d, self.radius, corners) {
                 // Sliding along a plane already in contact is not an impact.
                 if d.dot(normal) > -1e-9 * len {
                     continue;

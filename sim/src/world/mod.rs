@@ -9,6 +9,7 @@
 //! the wall clock while benchmarks and tests step as fast as they like, deterministically.
 //! [`World::step_body`] steps one body alone, for tests of a single model.
 
+pub mod pace;
 mod round;
 
 pub use round::{BodyRound, Round, RoundReport, RoundTool, MAX_HEAT_CATCH_UP};
@@ -167,13 +168,30 @@ impl World {
     /// # Errors
     /// [`crate::fem::FemError::InvalidParameter`] for a period that is not finite and positive.
     pub fn set_fem_dt(&mut self, i: usize, dt: f64) -> Result<bool, crate::fem::FemError> {
-        let b = &mut self.bodies[i];
-        let fem = match (&mut b.model, b.lop.as_mut().map(|l| l.parked_mut())) {
-            (Model::Fem(f), _) | (_, Some(Model::Fem(f))) => f,
-            _ => return Ok(false),
+        let Some(fem) = self.fem_mut(i) else {
+            return Ok(false);
         };
         fem.set_dt(dt)?;
         Ok(true)
+    }
+
+    /// Body `i`'s FEM model, running now or parked behind its levels-of-precision controller;
+    /// `None` if it has none.
+    pub fn fem(&self, i: usize) -> Option<&crate::fem::Fem> {
+        let b = &self.bodies[i];
+        match (&b.model, b.lop.as_ref().map(|l| l.parked())) {
+            (Model::Fem(f), _) | (_, Some(Model::Fem(f))) => Some(f),
+            _ => None,
+        }
+    }
+
+    /// [`World::fem`], for changes between rounds (its refactor policy, its threads).
+    pub fn fem_mut(&mut self, i: usize) -> Option<&mut crate::fem::Fem> {
+        let b = &mut self.bodies[i];
+        match (&mut b.model, b.lop.as_mut().map(|l| l.parked_mut())) {
+            (Model::Fem(f), _) | (_, Some(Model::Fem(f))) => Some(f),
+            _ => None,
+        }
     }
 
     /// Threads the FEM bodies' steps run on ([`World::set_threads`]; 1 without a pool).
