@@ -122,6 +122,8 @@ pub struct DeformLoop {
     step_periods: Vec<f64>,
     /// Per body: whether it ran FEM in the last round.
     ran_fem: Vec<bool>,
+    /// Per body: whether it was reported falling behind even at its longest period.
+    warned_behind: Vec<bool>,
 }
 
 impl DeformLoop {
@@ -208,6 +210,7 @@ impl DeformLoop {
             meters: vec![RealTimeMeter::new(REAL_TIME_WINDOW); world.bodies.len()],
             step_periods: vec![0.0; world.bodies.len()],
             ran_fem: vec![false; world.bodies.len()],
+            warned_behind: vec![false; world.bodies.len()],
             node_offsets: topology.node_offsets(),
             scene,
             world,
@@ -363,9 +366,11 @@ impl DeformLoop {
             if !running_fem || r.steps == 0 {
                 continue;
             }
+            // One observation per step taken (a round catching up takes several).
             let cost = r.step_ns as f64 * 1e-9 / f64::from(r.steps);
             let before = pace.period();
-            if let Some(period) = pace.observe(cost) {
+            let changed = (0..r.steps).fold(None, |c, _| pace.observe(cost).or(c));
+            if let Some(period) = changed {
                 tracing::info!(
                     "{}: a step costs {:.2} ms here; period {} -> {} ms",
                     self.world.bodies[i].name,
@@ -376,6 +381,19 @@ impl DeformLoop {
                 if let Err(e) = self.world.set_fem_dt(i, period) {
                     tracing::warn!("{}: period not changed: {e}", self.world.bodies[i].name);
                 }
+            }
+            if let (Some(cost), false) = (pace.behind(), self.warned_behind[i]) {
+                self.warned_behind[i] = true;
+                tracing::warn!(
+                    "{}: a touched step costs {:.1} ms on this machine, more than the longest \
+                     period ({} ms): it falls behind the wall clock while touched (it needs \
+                     about {:.0} ms). Mesh it coarser (lopd mesh tetrahedralize --tets N) or \
+                     raise [deform] max_period_ms",
+                    self.world.bodies[i].name,
+                    cost * 1e3,
+                    pace.period() * 1e3,
+                    (cost / FIT * 1e3).ceil()
+                );
             }
         }
     }

@@ -8,7 +8,7 @@
 //! 50, 100, up to a longest period:
 //!
 //! - **Longer** when the step cannot keep up on its own: the median of a window of [`WINDOW`]
-//!   steps costs more than [`STAY`] of the period, or [`FAST_STEPS`] steps in a row each cost
+//!   steps (fewer at long periods: half a second's worth) costs more than [`STAY`] of the period, or [`FAST_STEPS`] steps in a row each cost
 //!   more than [`FAST_FACTOR`] periods (the tissue is losing time fast). It goes to the shortest
 //!   period on which that cost is at most [`FIT`] of it.
 //! - **Shorter** only when the median of a full window fits in [`DOWN`] of the shorter period.
@@ -29,8 +29,12 @@
 //! is made off the critical path under the background refactor policy), and the step stays
 //! continuous across the change: positions and velocities carry over as they are.
 
-/// Steps whose median cost judges a period: at 1 ms, 128 ms of evidence.
+/// Steps whose median cost judges a period: at 1 ms, 128 ms of evidence. At longer periods
+/// fewer, so that a window spans at most [`WINDOW_SPAN`] of simulated time (a touch lasts a few
+/// seconds), but never fewer than [`FAST_STEPS`] × 2.
 pub const WINDOW: usize = 128;
+/// Simulated time a window spans at most, s.
+pub const WINDOW_SPAN: f64 = 0.5;
 /// Consecutive steps each costing more than [`FAST_FACTOR`] periods that move it up at once.
 pub const FAST_STEPS: usize = 8;
 /// See [`FAST_STEPS`].
@@ -55,13 +59,17 @@ pub struct Pace {
     index: usize,
     costs: [f64; WINDOW],
     len: usize,
-    /// Steps in a row costing more than the period.
+    /// Steps in a row costing more than [`FAST_FACTOR`] periods, and the cheapest of them.
     over: usize,
+    over_cheapest: f64,
     /// Steps still to be ignored after a restart.
     skip: usize,
     changes: u64,
     /// The cost the last change was judged by, s.
     judged: f64,
+    /// The median step of the last full window at the longest period, when it was too dear
+    /// even for that, s.
+    behind: Option<f64>,
 }
 
 impl Pace {
@@ -79,9 +87,11 @@ impl Pace {
             costs: [0.0; WINDOW],
             len: 0,
             over: 0,
+            over_cheapest: f64::INFINITY,
             skip: 0,
             changes: 0,
             judged: 0.0,
+            behind: None,
         }
     }
 
@@ -90,6 +100,7 @@ impl Pace {
     pub fn restart(&mut self) {
         self.len = 0;
         self.over = 0;
+        self.over_cheapest = f64::INFINITY;
         self.skip = SETTLE_STEPS;
     }
 
@@ -107,6 +118,12 @@ impl Pace {
     /// cheapest of the steps that moved it up at once), s.
     pub fn judged_cost(&self) -> f64 {
         self.judged
+    }
+
+    /// At the longest period, the median step of the last full window if it costs more than
+    /// [`STAY`] of that period: the body falls behind the wall clock whatever the pace does.
+    pub fn behind(&self) -> Option<f64> {
+        self.behind
     }
 
     /// Changes of period so far.
@@ -140,31 +157,34 @@ impl Pace {
         let cost = if cost.is_finite() { cost.max(0.0) } else { 0.0 };
         let period = self.period();
         let longest = self.periods[self.periods.len() - 1];
-        self.over = if cost > FAST_FACTOR * period {
-            self.over + 1
+        if cost > FAST_FACTOR * period {
+            self.over += 1;
+            self.over_cheapest = self.over_cheapest.min(cost);
         } else {
-            0
-        };
-        if self.len < WINDOW {
+            self.over = 0;
+            self.over_cheapest = f64::INFINITY;
+        }
+        let window = ((WINDOW_SPAN / period).ceil() as usize).clamp(2 * FAST_STEPS, WINDOW);
+        if self.len < window {
             self.costs[self.len] = cost;
             self.len += 1;
         }
         let last = period == longest;
         if self.over >= FAST_STEPS && !last {
             // Losing time fast: judge by the cheapest of those steps, at least one rung up.
-            let recent = &self.costs[self.len - FAST_STEPS..self.len];
-            let cheapest = recent.iter().copied().fold(f64::INFINITY, f64::min);
+            let cheapest = self.over_cheapest;
             let next = self.periods[self.index + 1];
             let to = self.fitting(cheapest, FIT).map_or(longest, |p| p.max(next));
             self.judged = cheapest;
             return self.change(to);
         }
-        if self.len < WINDOW {
+        if self.len < window {
             return None;
         }
-        let median = median(&mut self.costs);
+        let median = median(&mut self.costs[..window]);
         self.len = 0;
         self.judged = median;
+        self.behind = (last && median > STAY * period).then_some(median);
         if median > STAY * period && !last {
             let to = self.fitting(median, FIT).unwrap_or(longest);
             return self.change(to);
@@ -192,12 +212,13 @@ impl Pace {
             .unwrap_or(self.periods.len() - 1);
         self.len = 0;
         self.over = 0;
+        self.over_cheapest = f64::INFINITY;
     }
 }
 
-/// The median of a full window by nearest rank (the 64th of 128 smallest); reorders it.
-fn median(costs: &mut [f64; WINDOW]) -> f64 {
-    let (_, q, _) = costs.select_nth_unstable_by(WINDOW / 2 - 1, f64::total_cmp);
+/// The median of a window by nearest rank (the 64th of 128 smallest); reorders it.
+fn median(costs: &mut [f64]) -> f64 {
+    let (_, q, _) = costs.select_nth_unstable_by(costs.len().div_ceil(2) - 1, f64::total_cmp);
     *q
 }
 
@@ -289,6 +310,15 @@ mod tests {
         assert!(feed(&mut p, 2.5 * MS, 10 * WINDOW).is_empty());
     }
 
+    /// A run of dear steps that spans the end of a window (found by the soak: the run was
+    /// looked up in the window, which had just been emptied).
+    #[test]
+    fn a_dear_run_across_a_window_end_moves_up() {
+        let mut p = Pace::new(MS, 10.0 * MS);
+        assert!(feed(&mut p, 0.5 * MS, WINDOW - 4).is_empty());
+        assert_eq!(feed(&mut p, 2.5 * MS, FAST_STEPS), [4.0 * MS]);
+    }
+
     #[test]
     fn a_step_just_over_its_period_moves_up_after_a_window() {
         let mut p = Pace::new(MS, 10.0 * MS);
@@ -306,7 +336,7 @@ mod tests {
         assert_eq!(feed(&mut p, 1.2 * MS, WINDOW), [4.0 * MS]);
         assert!(feed(&mut p, 1.2 * MS, 10 * WINDOW).is_empty());
         // 0.35 ms: back to the configured period.
-        assert_eq!(feed(&mut p, 0.35 * MS, WINDOW), [MS]);
+        assert_eq!(feed(&mut p, 0.35 * MS, 2 * WINDOW), [MS]);
     }
 
     #[test]
@@ -339,9 +369,17 @@ mod tests {
     fn a_step_beyond_the_longest_period_stays_at_it() {
         let mut p = Pace::new(MS, 10.0 * MS);
         assert_eq!(p.fitting(9.0 * MS, FIT), None);
-        assert_eq!(feed(&mut p, 30.0 * MS, 100), [10.0 * MS]);
+        assert_eq!(feed(&mut p, 30.0 * MS, FAST_STEPS), [10.0 * MS]);
+        // A full window there (50 steps: half a second at 10 ms) tells it falls behind anyway.
+        assert_eq!(p.behind(), None);
+        assert!(feed(&mut p, 30.0 * MS, 49).is_empty());
+        assert_eq!(p.behind(), None);
+        assert!(feed(&mut p, 30.0 * MS, 1).is_empty());
+        assert_eq!(p.behind(), Some(30.0 * MS));
         assert_eq!(p.period(), 10.0 * MS);
         assert_eq!(p.changes(), 1);
+        feed(&mut p, 5.0 * MS, 50);
+        assert_eq!(p.behind(), None);
         // Not a number is not a cost.
         assert_eq!(p.observe(f64::NAN), None);
     }
