@@ -384,16 +384,7 @@ impl DeformLoop {
             }
             if let (Some(cost), false) = (pace.behind(), self.warned_behind[i]) {
                 self.warned_behind[i] = true;
-                tracing::warn!(
-                    "{}: a touched step costs {:.1} ms on this machine, more than the longest \
-                     period ({} ms): it falls behind the wall clock while touched (it needs \
-                     about {:.0} ms). Mesh it coarser (lopd mesh tetrahedralize --tets N) or \
-                     raise [deform] max_period_ms",
-                    self.world.bodies[i].name,
-                    cost * 1e3,
-                    pace.period() * 1e3,
-                    (cost / FIT * 1e3).ceil()
-                );
+                warn_behind(&self.world.bodies[i].name, cost, pace.period());
             }
         }
     }
@@ -527,11 +518,7 @@ fn pace_bodies(world: &mut World, max_period_ms: u32, threads: usize) -> Vec<Opt
             let cost = estimate_step(fem, gravity);
             let period = pace.start_at(cost);
             if cost > STAY * longest {
-                tracing::warn!(
-                    "{name}: a step costs about {:.1} ms on this machine; even at the longest                      period ({max_period_ms} ms) it cannot keep real time when touched (it                      needs about {:.0} ms). Mesh it coarser (lopd mesh tetrahedralize --tets N)                      or raise [deform] max_period_ms",
-                    cost * 1e3,
-                    (cost / FIT * 1e3).ceil()
-                );
+                warn_behind(&name, cost, longest);
             }
             if period != base {
                 tracing::info!(
@@ -547,6 +534,20 @@ fn pace_bodies(world: &mut World, max_period_ms: u32, threads: usize) -> Vec<Opt
             Some(pace)
         })
         .collect()
+}
+
+/// Warns that body `name`, whose touched step costs `cost` (s), falls behind the wall clock even
+/// at the longest period `longest` (s), and what to do about it: at load from the estimate, live
+/// from the steps in contact.
+fn warn_behind(name: &str, cost: f64, longest: f64) {
+    tracing::warn!(
+        "{name}: a step costs about {:.1} ms on this machine, more than the longest period \
+         ({} ms): it falls behind the wall clock while touched (it needs about {:.0} ms). Mesh \
+         it coarser (lopd mesh tetrahedralize --tets N) or raise [deform] max_period_ms",
+        cost * 1e3,
+        longest * 1e3,
+        (cost / FIT * 1e3).ceil()
+    );
 }
 
 /// The median wall time of a step of `fem` from rest under `gravity`, s; `fem` is back at rest

@@ -175,17 +175,8 @@ impl World {
         Ok(true)
     }
 
-    /// Body `i`'s FEM model, running now or parked behind its levels-of-precision controller;
-    /// `None` if it has none.
-    pub fn fem(&self, i: usize) -> Option<&crate::fem::Fem> {
-        let b = &self.bodies[i];
-        match (&b.model, b.lop.as_ref().map(|l| l.parked())) {
-            (Model::Fem(f), _) | (_, Some(Model::Fem(f))) => Some(f),
-            _ => None,
-        }
-    }
-
-    /// [`World::fem`], for changes between rounds (its refactor policy, its threads).
+    /// Body `i`'s FEM model, running now or parked behind its levels-of-precision controller,
+    /// for changes between rounds (its refactor policy, its period); `None` if it has none.
     pub fn fem_mut(&mut self, i: usize) -> Option<&mut crate::fem::Fem> {
         let b = &mut self.bodies[i];
         match (&mut b.model, b.lop.as_mut().map(|l| l.parked_mut())) {
