@@ -15,9 +15,13 @@
 //! 3. the force is written to the device;
 //! 4. the world runs its round to `t + T` with this tick's tool ([`OfflineSession::advance`]).
 //!
-//! So a frame is one tick old when the hand feels it, and the local model extrapolates over
-//! that tick: the live loop's frame age is 0.5–1.4 ms (`lop-bench latency`). Everything that
-//! depends on the wall clock live (the deformation's lag, scheduling) is absent here.
+//! So a frame is one tick old when the hand feels it if the touched body steps every tick (the
+//! live loop's frame age is then 0.5–1.4 ms, `lop-bench latency`). A body that steps at a
+//! longer period `P` (its FEM `dt`, as the deformation process chooses it live for an organ
+//! whose step costs more than a tick) changes its surface every `P`, and the frame the hand
+//! feels ages from one tick to `P` between steps: the local model extrapolates over that age,
+//! as live. Everything else that depends on the wall clock live (the step's own duration,
+//! scheduling) is absent here.
 
 use anyhow::{Context, Result};
 use lop_config::{DaemonConfig, Scene};
@@ -95,8 +99,9 @@ pub fn run(opts: ClosedLoopOptions) -> Result<ClosedLoopRun> {
             velocity_mm_s: sample.velocity_mm_s,
             grab: sample.pressed(BUTTON_GRAB),
         };
-        // The frame the hand feels is the last round's, one tick old.
-        let mut surfaces = session.surfaces(period);
+        // The frame the hand feels is the touched body's last step: one tick old when it
+        // steps every tick, up to its step period old when it steps slower.
+        let mut surfaces = session.surfaces(t, period);
         let tick = pipeline.tick(Some(reading), true, &mut surfaces, || {
             clock += 1;
             clock

@@ -57,6 +57,8 @@ pub struct OfflineSession {
     /// The coupling the world's last round ran with: its contact report and local model
     /// belong to it.
     stepped_with: Coupling,
+    /// Per body: the simulated time the round of its last step advanced to (`-inf`: none yet).
+    last_step_until: Vec<f64>,
 }
 
 impl OfflineSession {
@@ -66,6 +68,7 @@ impl OfflineSession {
         let probe = WorldProbe::new(&world, laws.tool.radius);
         OfflineSession {
             stepped_with: probe.coupling(),
+            last_step_until: vec![f64::NEG_INFINITY; world.bodies.len()],
             world,
             probe,
             rounds: Rounds::offline(laws),
@@ -115,11 +118,20 @@ impl OfflineSession {
         self.probe.tick(&self.world, device, grab)
     }
 
-    /// Step 1 through a haptic pipeline: the world as the surfaces it renders against, with
-    /// the local model of the patch the last round balanced, `elapsed` seconds after that
-    /// round. Pass the pipeline's god-object state to [`follow`](Self::follow) afterwards.
-    pub fn surfaces(&mut self, elapsed: f64) -> WorldSurfaces<'_> {
+    /// Step 1 through a haptic pipeline at the tick of simulated time `now`, the ticks
+    /// `period` apart: the world as the surfaces it renders against, with the local model of
+    /// the patch the touched body's last step balanced. Pass the pipeline's god-object state
+    /// to [`follow`](Self::follow) afterwards.
+    ///
+    /// The local model extrapolates over the frame's age as the live loop sees it: the last
+    /// step took the tool of the tick one `period` before its round's end, so the model is
+    /// `now − end + period` old: one tick when the body steps every tick, up to its step period
+    /// when it steps slower (a touched organ whose rate follows its cost).
+    pub fn surfaces(&mut self, now: f64, period: f64) -> WorldSurfaces<'_> {
         let local = self.world.contact_local(self.stepped_with);
+        let elapsed = local
+            .and_then(|(b, _)| self.last_step_until.get(b))
+            .map_or(period, |&end| (now - end + period).max(period));
         self.probe.contact_surfaces(&self.world, local, elapsed)
     }
 
@@ -148,6 +160,15 @@ impl OfflineSession {
         self.rounds
             .advance(&mut self.world, until, tool.as_ref(), skip, false, clock);
         self.stepped_with = coupling;
+        for (end, b) in self
+            .last_step_until
+            .iter_mut()
+            .zip(&self.world.last_round().bodies)
+        {
+            if b.steps > 0 {
+                *end = until;
+            }
+        }
     }
 
     /// The force the touched body's last step balanced on the tissue, N (0 out of contact).
