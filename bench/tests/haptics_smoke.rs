@@ -99,7 +99,7 @@ fn haptics_quick_reports_every_mesh_and_target() {
     // Part 3, stability (quick: the default hand on the nominal and the stiffest tissue, at the
     // device's maximum and four times it, the passivity controller off and on): every run
     // present with finite figures, and the three targets pass — the default scene's press
-    // settles and generates no energy at the device's stiffness limit.
+    // settles and generates no energy at the device's stiffness limit, nor at any frame period.
     let stability = &report["stability"];
     let runs = stability["runs"].as_array().unwrap();
     assert_eq!(runs.len(), 8, "{stability}");
@@ -108,8 +108,18 @@ fn haptics_quick_reports_every_mesh_and_target() {
         assert!(r["hand_min_j"].as_f64().unwrap().is_finite(), "{r}");
         assert!(r["contact_ticks"].as_u64().unwrap() > 100, "{r}");
     }
+    // Part 3b: the liver stepping every 1 and 10 ms, controller off and on: the held force
+    // the same (the tissue's static answer to the press) and nothing generated.
+    let periods = stability["periods"].as_array().unwrap();
+    assert_eq!(periods.len(), 4, "{stability}");
+    let held_1ms = periods[0]["held_n"].as_f64().unwrap();
+    for r in periods {
+        let held = r["held_n"].as_f64().unwrap();
+        assert!((held - held_1ms).abs() < 0.05 * held_1ms, "{r}");
+        assert!(r["contact_changes"].as_u64().unwrap() >= 2, "{r}");
+    }
     let targets = stability["targets"].as_array().unwrap();
-    assert_eq!(targets.len(), 3, "{stability}");
+    assert_eq!(targets.len(), 4, "{stability}");
     for t in targets {
         assert_eq!(t["pass"].as_bool(), Some(true), "{t}");
     }

@@ -15,6 +15,13 @@
 //!   and friction), and the hard case for stability, a light grip on a stylus with neither;
 //! - the passivity controller off and on (on is the shipped default).
 //!
+//! A second sweep crosses the **frame period**: the liver stepping every 1, 2, 5 and 10 ms (the
+//! periods the deformation process picks live for an organ whose step costs more than a tick),
+//! the hand feeling each frame as it ages from one tick to the period and the local model
+//! extrapolating over that age, at the nominal tissue and the device's maximum stiffness, both
+//! hands, the controller off and on. Besides the map's figures it counts the contact changes
+//! over the cycle and the largest force step from one tick to the next in contact.
+//!
 //! Each run reports the held force; the **oscillation** after contact onset (the force's
 //! deviation from its 21 ms quadratic trend, [`oscillation`]: its largest, and how long after
 //! onset until it stays within 2 % of the held force); the **energy at the device port** (the
@@ -102,6 +109,8 @@ fn device_max_n_per_mm() -> f64 {
 #[derive(Debug, Clone, Serialize)]
 pub struct StabilityRun {
     pub young_pa: f64,
+    /// The liver's step period, ms: how far apart the frames the hand feels are.
+    pub period_ms: f64,
     /// The tool spring in the scene, N/m, and as felt at the stylus, N/mm.
     pub tool_n_per_m: f64,
     pub stylus_n_per_mm: f64,
@@ -140,6 +149,10 @@ pub struct StabilityRun {
     /// Ticks rendered through the local model, of those in contact.
     pub local_ticks: usize,
     pub contact_ticks: usize,
+    /// Times contact was made or lost over the cycle (2 for one clean press).
+    pub contact_changes: usize,
+    /// Largest change of the force from one tick to the next, both in contact, N.
+    pub max_step_n: f64,
 }
 
 /// The press script (see the module docs).
@@ -169,8 +182,8 @@ fn press_script() -> Result<MockScript> {
     MockScript::parse(&text, Path::new("stability-press.toml")).map_err(|e| anyhow::anyhow!("{e}"))
 }
 
-/// The scene with the liver's modulus and the tool's stiffness set.
-fn scene_with(base: &Scene, young: f64, tool: f64) -> Result<Scene> {
+/// The scene with the liver's modulus, step period (s) and the tool's stiffness set.
+fn scene_with(base: &Scene, young: f64, tool: f64, period: f64) -> Result<Scene> {
     let mut scene = base.clone();
     scene.tool.stiffness = tool;
     let body = scene
@@ -181,6 +194,7 @@ fn scene_with(base: &Scene, young: f64, tool: f64) -> Result<Scene> {
     body.tool_stiffness = Some(tool);
     if let Some(fem) = &mut body.fem {
         fem.young = young;
+        fem.dt = period;
     }
     Ok(scene)
 }
@@ -230,8 +244,9 @@ fn run_case(
     young: f64,
     tool: f64,
     passivity: bool,
+    period: f64,
 ) -> Result<(StabilityRun, Vec<TickRecord>)> {
-    let scene = scene_with(base, young, tool)?;
+    let scene = scene_with(base, young, tool, period)?;
     let scale = scene.workspace.scale;
     let stylus_n_per_mm = tool * 1e-3 * scale;
     let beyond_device = stylus_n_per_mm > device_max_n_per_mm() * (1.0 + 1e-9);
@@ -307,8 +322,18 @@ fn run_case(
     let energy = port_energy(&ticks);
     let k_scene = r.stiffness.first().copied().unwrap_or(tool).max(1e-12);
     let penetration_mm = ticks.iter().map(|t| norm(t.force)).fold(0.0, f64::max) / k_scene * 1e3;
+    let contact_changes = ticks
+        .windows(2)
+        .filter(|w| w[0].contact != w[1].contact)
+        .count();
+    let max_step_n = ticks
+        .windows(2)
+        .filter(|w| w[0].contact && w[1].contact)
+        .map(|w| norm([0, 1, 2].map(|k| w[1].force[k] - w[0].force[k])))
+        .fold(0.0, f64::max);
     let run = StabilityRun {
         young_pa: young,
+        period_ms: period * 1e3,
         tool_n_per_m: tool,
         stylus_n_per_mm,
         beyond_device,
@@ -330,6 +355,8 @@ fn run_case(
         passivity_ticks: r.passivity_ticks,
         local_ticks: ticks.iter().filter(|t| t.local).count(),
         contact_ticks: ticks.iter().filter(|t| t.contact).count(),
+        contact_changes,
+        max_step_n,
     };
     Ok((run, ticks))
 }
@@ -357,6 +384,8 @@ pub struct ControllerEffect {
 #[derive(Debug, Serialize)]
 pub struct StabilityReport {
     pub runs: Vec<StabilityRun>,
+    /// The frame-period sweep.
+    pub periods: Vec<StabilityRun>,
     pub controller: Vec<ControllerEffect>,
     pub targets: Vec<StabilityTarget>,
     pub seconds: f64,
@@ -386,6 +415,12 @@ pub fn run_map(quick: bool, out: &Path) -> Result<StabilityReport> {
         .and_then(|b| b.fem.as_ref())
         .map(|f| f.young)
         .with_context(|| format!("{SCENE}: no FEM {BODY}"))?;
+    let nominal_period = base
+        .bodies
+        .iter()
+        .find(|b| b.name == BODY)
+        .and_then(|b| b.fem.as_ref())
+        .map_or(1e-3, |f| f.dt);
     let script = press_script()?;
     let max_scene = device_max_n_per_mm() / (1e-3 * base.workspace.scale);
     let (grips, youngs, factors): (&[Grip], Vec<f64>, &[f64]) = if quick {
@@ -426,7 +461,8 @@ pub fn run_map(quick: bool, out: &Path) -> Result<StabilityReport> {
             for &factor in factors {
                 let tool = factor * max_scene;
                 for passivity in [false, true] {
-                    let (r, ticks) = run_case(&base, &script, grip, young, tool, passivity)?;
+                    let (r, ticks) =
+                        run_case(&base, &script, grip, young, tool, passivity, nominal_period)?;
                     println!(
                         "{:<24} {:>7.1} {:>12} {:>3} {:>8.3} {:>8.1} {:>9} {:>11.3} {:>11.3} {:>8.2} {:>6}",
                         grip.name(),
@@ -465,6 +501,7 @@ pub fn run_map(quick: bool, out: &Path) -> Result<StabilityReport> {
         }
     }
     std::fs::write(out.join("stability.csv"), csv)?;
+    let periods = period_sweep(&base, &script, grips, nominal_young, max_scene, quick)?;
 
     // The controller where the coupling generated energy without it.
     let mut controller = Vec::new();
@@ -530,6 +567,20 @@ pub fn run_map(quick: bool, out: &Path) -> Result<StabilityReport> {
             limit: ENERGY_TOLERANCE,
             pass: worst_in_range <= ENERGY_TOLERANCE,
         },
+        {
+            let on: Vec<&StabilityRun> = periods.iter().filter(|r| r.passivity).collect();
+            let worst = on.iter().map(|r| generated(r)).fold(0.0, f64::max);
+            StabilityTarget {
+                name: format!(
+                    "frame periods {}: {} runs, controller on: most energy generated (J)",
+                    period_list(&periods),
+                    on.len()
+                ),
+                value: worst,
+                limit: ENERGY_TOLERANCE,
+                pass: worst <= ENERGY_TOLERANCE,
+            }
+        },
     ];
     println!(
         "\n(device uJ: the energy the hand got back beyond what it put in, at the device port; \
@@ -563,10 +614,84 @@ pub fn run_map(quick: bool, out: &Path) -> Result<StabilityReport> {
     plot(out, &runs, &nominal_trace, grips, &youngs)?;
     Ok(StabilityReport {
         runs,
+        periods,
         controller,
         targets,
         seconds: clock.elapsed().as_secs_f64(),
     })
+}
+
+/// The frame periods of the sweep, ms (the quick run: the shortest and the longest).
+fn sweep_periods(quick: bool) -> &'static [f64] {
+    if quick {
+        &[1.0, 10.0]
+    } else {
+        &[1.0, 2.0, 5.0, 10.0]
+    }
+}
+
+/// "1, 2, 5, 10 ms": the periods a sweep ran.
+fn period_list(runs: &[StabilityRun]) -> String {
+    let mut ms: Vec<f64> = runs.iter().map(|r| r.period_ms).collect();
+    ms.sort_by(f64::total_cmp);
+    ms.dedup();
+    let list: Vec<String> = ms.iter().map(|p| format!("{p}")).collect();
+    format!("{} ms", list.join(", "))
+}
+
+/// The frame-period sweep (module docs): nominal tissue, the device's maximum stiffness.
+fn period_sweep(
+    base: &Scene,
+    script: &MockScript,
+    grips: &[Grip],
+    young: f64,
+    tool: f64,
+    quick: bool,
+) -> Result<Vec<StabilityRun>> {
+    println!(
+        "\nPart 3b: the same press with the liver stepping every 1 to 10 ms (frames that far \
+         apart, the local model extrapolating over their age), {:.1} kPa, {:.3} N/mm",
+        young * 1e-3,
+        tool * 1e-3 * base.workspace.scale
+    );
+    println!(
+        "{:<24} {:>9} {:>3} {:>8} {:>8} {:>9} {:>11} {:>11} {:>8} {:>10}",
+        "hand",
+        "period ms",
+        "PC",
+        "held N",
+        "osc %",
+        "osc ms",
+        "device uJ",
+        "env uJ",
+        "contacts",
+        "max step N"
+    );
+    let mut runs = Vec::new();
+    for &grip in grips {
+        for &period_ms in sweep_periods(quick) {
+            for passivity in [false, true] {
+                let (r, _) =
+                    run_case(base, script, grip, young, tool, passivity, period_ms * 1e-3)?;
+                println!(
+                    "{:<24} {:>9} {:>3} {:>8.3} {:>8.1} {:>9} {:>11.3} {:>11.3} {:>8} {:>10.4}",
+                    grip.name(),
+                    period_ms,
+                    if passivity { "on" } else { "off" },
+                    r.held_n,
+                    100.0 * r.oscillation_max,
+                    r.oscillation_settle_ms
+                        .map_or("never".to_string(), |s| format!("{s:.0}")),
+                    generated(&r) * 1e6,
+                    ((-r.energy_min_j).max(0.0) + 0.0) * 1e6,
+                    r.contact_changes,
+                    r.max_step_n,
+                );
+                runs.push(r);
+            }
+        }
+    }
+    Ok(runs)
 }
 
 /// `stability.svg`: the oscillation's settling time and the energy generated at the device
