@@ -158,21 +158,6 @@ fn the_local_model_keeps_the_force_continuous_across_frames() {
     );
 }
 
-/// The light grip of `lop-bench haptics` part 3 (arm 100 N/m and 1 N·s/m, fingers 500 N/m and
-/// 0.3 N·s/m, a stylus without damping or friction): nothing but the rendered force decides
-/// whether the stylus rings.
-fn light_grip() -> lop_drivers::hand::HandParameters {
-    lop_drivers::hand::HandParameters {
-        hand_stiffness: 100.0,
-        hand_damping: 1.0,
-        grip_stiffness: 500.0,
-        grip_damping: 0.3,
-        stylus_damping: 0.0,
-        stylus_friction: 0.0,
-        ..Default::default()
-    }
-}
-
 #[test]
 fn a_light_grip_is_passive_and_holds_the_same_force_at_every_frame_period() {
     // The touched liver stepping at the periods the deformation process chooses live for a
@@ -187,7 +172,7 @@ fn a_light_grip_is_passive_and_holds_the_same_force_at_every_frame_period() {
         let r = run(ClosedLoopOptions {
             scene,
             script: script.clone(),
-            hand: Some(light_grip()),
+            hand: Some(lop_drivers::hand::HandParameters::light_grip()),
             limits: MockDevice::omni_limits(),
             config: DaemonConfig::default(),
             seconds: 3.0,

@@ -216,15 +216,7 @@ impl Grip {
     fn parameters(self) -> HandParameters {
         match self {
             Grip::Firm => HandParameters::default(),
-            Grip::Light => HandParameters {
-                hand_stiffness: 100.0,
-                hand_damping: 1.0,
-                grip_stiffness: 500.0,
-                grip_damping: 0.3,
-                stylus_damping: 0.0,
-                stylus_friction: 0.0,
-                ..HandParameters::default()
-            },
+            Grip::Light => HandParameters::light_grip(),
         }
     }
 

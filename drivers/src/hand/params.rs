@@ -71,6 +71,23 @@ impl Default for HandParameters {
     }
 }
 
+impl HandParameters {
+    /// The hard case for stability: a light grip (arm 100 N/m and 1 N·s/m, fingers 500 N/m and
+    /// 0.3 N·s/m) on a stylus without damping or friction, so nothing but the rendered force
+    /// decides whether the stylus rings. The other parameters are the defaults.
+    pub fn light_grip() -> HandParameters {
+        HandParameters {
+            hand_stiffness: 100.0,
+            hand_damping: 1.0,
+            grip_stiffness: 500.0,
+            grip_damping: 0.3,
+            stylus_damping: 0.0,
+            stylus_friction: 0.0,
+            ..HandParameters::default()
+        }
+    }
+}
+
 /// A parameter that is out of range: its key (as in the `[hand]` table), its value, and why.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("`{key}` = {value}: {reason}")]
