@@ -17,6 +17,7 @@
 
 pub mod ftetwild;
 pub mod gmsh;
+pub mod peel;
 pub mod shape;
 pub mod tetgen;
 
