@@ -26,8 +26,10 @@ command -v cyclictest >/dev/null 2>&1 || need+=(rt-tests)
 command -v python3 >/dev/null 2>&1 || need+=(python3)
 command -v chromium >/dev/null 2>&1 || need+=(chromium)
 # Debian's package installs for /usr/bin/python3, which the tests fall back to.
+# (`-s`: without the user's site, where a NumPy 2 that pip installs below for other packages
+# would break Debian's meshio; the tests fall back the same way.)
 python3 -c 'import meshio' >/dev/null 2>&1 || /usr/bin/python3 -c 'import meshio' >/dev/null 2>&1 \
-  || need+=(python3-meshio)
+  || /usr/bin/python3 -s -c 'import meshio' >/dev/null 2>&1 || need+=(python3-meshio)
 
 if [ ${#need[@]} -gt 0 ]; then
   if ! command -v apt-get >/dev/null 2>&1; then

@@ -282,17 +282,26 @@ pub fn gmsh(dim: &str, geo: &Path, format: &str, extra: &[&str], out: &Path) {
     );
 }
 
-/// A Python interpreter that can import `module`: `python3` on the PATH, else
-/// `/usr/bin/python3` (a pyenv shim may hide the system one, or the reverse). Panics naming
-/// `package` and `scripts/setup.sh` when neither can: these tests fail, they do not skip.
-pub fn python_with(module: &str, package: &str) -> &'static str {
-    for python in ["python3", "/usr/bin/python3"] {
+/// A Python interpreter that can import `module`, as a program and its leading arguments:
+/// `python3` on the PATH, else `/usr/bin/python3` (a pyenv shim may hide the system one, or the
+/// reverse), else `/usr/bin/python3 -s`: Debian's own packages without the user's site, where a
+/// NumPy 2 that pip installed for other packages breaks Debian's meshio (built for Debian's
+/// NumPy 1). Panics naming `package` and `scripts/setup.sh` when none can: these tests fail,
+/// they do not skip.
+pub fn python_with(module: &str, package: &str) -> (&'static str, &'static [&'static str]) {
+    const CANDIDATES: [(&str, &[&str]); 3] = [
+        ("python3", &[]),
+        ("/usr/bin/python3", &[]),
+        ("/usr/bin/python3", &["-s"]),
+    ];
+    for (python, args) in CANDIDATES {
         let ok = Command::new(python)
+            .args(args)
             .args(["-c", &format!("import {module}")])
             .output()
             .is_ok_and(|o| o.status.success());
         if ok {
-            return python;
+            return (python, args);
         }
     }
     panic!(
@@ -308,7 +317,9 @@ pub fn run_writer(script: &str, module: &str, package: &str, dir: &Path) -> Stri
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data")
         .join(script);
-    let out = Command::new(python_with(module, package))
+    let (python, args) = python_with(module, package);
+    let out = Command::new(python)
+        .args(args)
         .arg(&path)
         .arg(dir)
         .output()
