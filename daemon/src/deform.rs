@@ -103,6 +103,8 @@ pub struct DeformLoop {
     names: ServiceNames,
     topo_pub: iceoryx2::port::publisher::Publisher<ipc::Service, [u32], TopologyHeader>,
     frame_pub: iceoryx2::port::publisher::Publisher<ipc::Service, [NodeSample], FrameHeader>,
+    /// Notified after each frame: the haptic process's frame thread sleeps on it.
+    frame_ready: Option<iceoryx2::port::notifier::Notifier<ipc::Service>>,
     tool_input: Option<ToolInput>,
     control: crate::control::ControlServer,
     last_connection_update: u64,
@@ -174,6 +176,17 @@ impl DeformLoop {
             .max_loaned_samples(2)
             .create()
             .context("frame publisher")?;
+        // Without it the haptic process still polls for frames, a millisecond apart.
+        let frame_ready = match services::frame_ready_service(&node, &names)
+            .map_err(anyhow::Error::from)
+            .and_then(|s| Ok(s.notifier_builder().create()?))
+        {
+            Ok(n) => Some(n),
+            Err(e) => {
+                tracing::warn!("frame-ready event unavailable ({e:#}): the haptic loop polls");
+                None
+            }
+        };
 
         tracing::info!(
             "scene {:?}: {} bodies, {} nodes, {} surface triangles; topology {:#x}",
@@ -220,6 +233,7 @@ impl DeformLoop {
             names,
             topo_pub,
             frame_pub,
+            frame_ready,
             tool_input,
             control,
             last_connection_update: now,
@@ -479,6 +493,9 @@ impl DeformLoop {
         sample.user_header_mut().publish_ns = rt::now_ns();
         if let Err(e) = sample.send() {
             tracing::warn!("frame not sent: {e:?}");
+        }
+        if let Some(n) = &self.frame_ready {
+            let _ = n.notify();
         }
         self.sequence += 1;
     }

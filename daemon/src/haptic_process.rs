@@ -251,6 +251,12 @@ impl HapticProcessBuilder {
                 }
             }
             Pacing::DeviceClock => {
+                // The vendor's servo thread runs the tick at the vendor's priority: the frame
+                // thread must not take its core, so it runs unpinned at the default policy.
+                let settings = HapticSettings {
+                    frames: haptic::FramePlacement::default(),
+                    ..settings
+                };
                 let task = servo::ServoTask::new(
                     &names,
                     settings,

@@ -15,6 +15,9 @@ use lop_drivers::HapticDevice;
 use lop_ipc::*;
 use lop_scene as scene;
 
+/// Longest wait for a published frame to reach the loop (through its frame thread).
+const WAIT: std::time::Duration = std::time::Duration::from_secs(5);
+
 fn norm(f: [f64; 3]) -> f64 {
     (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
 }
@@ -54,6 +57,7 @@ fn a_broken_or_missing_local_model_and_a_stopped_deformation_give_a_finite_rampe
         out.state
     };
     deform.publish_frame(seq);
+    assert!(hl.await_frame(seq, WAIT));
     let mut waited = 0;
     while !hl.contact_ready() && waited < 10_000 {
         std::thread::sleep(std::time::Duration::from_millis(1));
@@ -68,6 +72,7 @@ fn a_broken_or_missing_local_model_and_a_stopped_deformation_give_a_finite_rampe
         if ticks % 10 == 0 {
             seq += 1;
             deform.publish_frame(seq);
+            assert!(hl.await_frame(seq, WAIT));
         }
         last = tick(&mut hl, &mut device, 0);
         ticks += 1;
@@ -79,6 +84,7 @@ fn a_broken_or_missing_local_model_and_a_stopped_deformation_give_a_finite_rampe
     broken.stiffness[1][1] = f64::NAN;
     seq += 1;
     deform.publish_frame_local(seq, Some((body, proxy, broken)));
+    assert!(hl.await_frame(seq, WAIT));
     for _ in 0..5 {
         last = tick(&mut hl, &mut device, 0);
         assert_eq!(
@@ -92,6 +98,7 @@ fn a_broken_or_missing_local_model_and_a_stopped_deformation_give_a_finite_rampe
     // A good one: used.
     seq += 1;
     deform.publish_frame_local(seq, Some(model_of(&last)));
+    assert!(hl.await_frame(seq, WAIT));
     last = tick(&mut hl, &mut device, 0);
     assert_ne!(
         last.flags & TOOL_FLAG_LOCAL_MODEL,
@@ -104,6 +111,7 @@ fn a_broken_or_missing_local_model_and_a_stopped_deformation_give_a_finite_rampe
     // A frame without one: the force law again.
     seq += 1;
     deform.publish_frame(seq);
+    assert!(hl.await_frame(seq, WAIT));
     last = tick(&mut hl, &mut device, 0);
     assert_eq!(last.flags & TOOL_FLAG_LOCAL_MODEL, 0);
     assert!(norm(last.force) > 0.0);
@@ -127,10 +135,12 @@ fn a_broken_or_missing_local_model_and_a_stopped_deformation_give_a_finite_rampe
     // It comes back (a restarted process counts its frames from 0): the force ramps back in,
     // finite, from zero.
     deform.publish_frame(0);
+    assert!(hl.await_frame(0, WAIT));
     let mut forces = Vec::new();
     for i in 0..(3 * ramp) {
         if i % 2 == 0 {
             deform.publish_frame(1 + i as u64);
+            assert!(hl.await_frame(1 + i as u64, WAIT));
         }
         last = tick(&mut hl, &mut device, 0);
         forces.push(norm(last.force));

@@ -18,6 +18,9 @@ use lop_test_support::alloc::{self, allocations, counted, Counting};
 #[global_allocator]
 static A: Counting = Counting::armed_threads();
 
+/// Longest wait for a published frame to reach the loop.
+const WAIT: std::time::Duration = std::time::Duration::from_secs(5);
+
 #[test]
 fn haptic_tick_allocates_nothing_over_10k_ticks() {
     let prefix = format!("rtalloc-{}", std::process::id());
@@ -42,6 +45,7 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
     // is built on its own thread, so tick until it has arrived (in `lopd` that takes the first
     // few milliseconds after a topology; this loop runs far faster than real time).
     publish_frame(0);
+    assert!(hl.await_frame(0, WAIT), "frame 0 never arrived");
     for _ in 0..100 {
         let now = clock::monotonic_ns();
         hl.tick(&mut device, now, now);
@@ -71,6 +75,13 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
                 .filter(|s| i % 20 == 0 && s.flags & TOOL_FLAG_CONTACT != 0 && s.contact_body >= 0)
                 .map(|s| common::local_model_of(&s));
             deform.publish_frame_local(i / 10 + 1, local);
+            // Frames reach the loop through its frame thread: wait for this one, so every
+            // tick below renders the frame this loop meant it to (outside the count).
+            assert!(
+                hl.await_frame(i / 10 + 1, WAIT),
+                "frame {} never arrived",
+                i / 10 + 1
+            );
         }
         let now = clock::monotonic_ns();
         let out = counted(|| hl.tick(&mut device, now, now));

@@ -55,6 +55,8 @@ pub struct ServiceNames {
     pub topology: String,
     /// `PREFIX/scene/frame`.
     pub frame: String,
+    /// `PREFIX/scene/frame/ready`: an event the deformation process notifies after each frame.
+    pub frame_ready: String,
     /// `PREFIX/telemetry/haptic`.
     pub haptic_telemetry: String,
 }
@@ -77,17 +79,19 @@ impl ServiceNames {
             tool_latest: format!("{prefix}/tool/latest"),
             topology: format!("{prefix}/scene/topology"),
             frame: format!("{prefix}/scene/frame"),
+            frame_ready: format!("{prefix}/scene/frame/ready"),
             haptic_telemetry: format!("{prefix}/telemetry/haptic"),
         })
     }
 
     /// Every service name, for listing and clean-up checks.
-    pub fn all(&self) -> [&str; 5] {
+    pub fn all(&self) -> [&str; 6] {
         [
             &self.tool,
             &self.tool_latest,
             &self.topology,
             &self.frame,
+            &self.frame_ready,
             &self.haptic_telemetry,
         ]
     }
@@ -311,6 +315,29 @@ pubsub!(
     1,
     2
 );
+
+/// The frame-ready event service.
+pub type FrameReadyService = iceoryx2::service::port_factory::event::PortFactory<ipc::Service>;
+
+/// Listeners the frame-ready event allows: the haptic process's frame thread, with room for a
+/// restarted one and two clients.
+pub const FRAME_READY_LISTENERS: usize = 4;
+
+/// Opens or creates `PREFIX/scene/frame/ready`: the deformation process notifies it right after
+/// publishing each frame, so a reader can sleep until a frame is there instead of polling.
+/// Both sides open-or-create with the same settings, whichever starts first.
+pub fn frame_ready_service(
+    node: &Node<ipc::Service>,
+    names: &ServiceNames,
+) -> Result<FrameReadyService, IpcError> {
+    let name = &names.frame_ready;
+    node.service_builder(&service_name(name)?)
+        .event()
+        .max_listeners(FRAME_READY_LISTENERS)
+        .max_notifiers(2)
+        .open_or_create()
+        .map_err(ice("open or create event service", name))
+}
 
 /// The blackboard holding the newest tool state, for the daemon's processes only.
 pub type ToolBoard = iceoryx2::service::port_factory::blackboard::PortFactory<ipc::Service, u32>;

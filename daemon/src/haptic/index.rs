@@ -15,8 +15,6 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
-use iceoryx2::prelude::*;
-use iceoryx2::sample::Sample;
 use lop_ipc::services::{self, Role};
 use lop_ipc::*;
 use lop_sim::haptic::{ContactSurfaces, GodObject, LocalModel, SurfaceSet};
@@ -25,8 +23,8 @@ use lop_sim::haptic::{ContactSurfaces, GodObject, LocalModel, SurfaceSet};
 /// this close to its bounds, m: well beyond what the tool covers between frames.
 const REACH: f64 = 0.02;
 
-/// A frame as the loop holds it (a loan of shared memory).
-pub(crate) type FrameSample = Sample<ipc::Service, [NodeSample], FrameHeader>;
+/// A frame as the loop holds it: copied out of shared memory by the frame thread.
+pub(crate) type FrameSample = super::FrameCopy;
 
 /// A value that changes whenever body `bf`'s positions may have changed between two frames:
 /// its last step's wall time (to the nanosecond), kinetic energy, top speed, bounds and model

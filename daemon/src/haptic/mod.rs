@@ -17,8 +17,10 @@
 //! The surfaces' index (adjacency, hierarchies, the god-object's buffers) is sized by the
 //! topology, so it is built off the RT thread: a helper thread subscribes to the topology,
 //! builds the index for each new one and hands it over through a lock-free ring; the RT thread
-//! swaps it in and hands the old one back to be freed there. A new frame only refreshes the
-//! positions (copied from shared memory, no allocation).
+//! swaps it in and hands the old one back to be freed there. Frames come the same way, from a
+//! thread that receives them from shared memory (so the RT thread never maps a publisher's
+//! segment) and copies each into a reused buffer ([`frames`]). A new frame only refreshes the
+//! positions (no allocation).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -35,11 +37,14 @@ use lop_sim::haptic::{DeviceReading, HapticPipeline, PipelineSettings};
 
 use crate::rt;
 
+mod frames;
 mod index;
 mod telemetry;
 
+use frames::FrameFeed;
+pub use frames::{FrameCopy, FramePlacement};
 pub use index::{frame_local, IndexSlot};
-use index::{ContactIndex, FrameSample, IndexFeed, LiveSurfaces};
+use index::{ContactIndex, IndexFeed, LiveSurfaces};
 use telemetry::{telemetry, COMPUTE, FRAME_AGE, FRAME_AGE_CONTACT, JITTER};
 pub use telemetry::{TelemetryRx, TelemetryTx, TelemetryWindow};
 
@@ -55,6 +60,8 @@ pub struct HapticSettings {
     pub stale_ns: u64,
     /// Busy-wait before each deadline, ns.
     pub spin_ns: u64,
+    /// Where the thread that receives the frames runs ([`frames`]).
+    pub frames: FramePlacement,
 }
 
 impl HapticSettings {
@@ -65,6 +72,11 @@ impl HapticSettings {
             pipeline: lop_scene::pipeline_settings(config, scene, &limits),
             stale_ns: (h.stale_frame_ms * 1e6) as u64,
             spin_ns: (h.spin_us * 1e3) as u64,
+            // The loop's core, one priority below it: it runs while the loop sleeps.
+            frames: FramePlacement {
+                core: h.core.or_else(rt::last_core),
+                priority: h.rt_priority.saturating_sub(1),
+            },
         }
     }
 
@@ -80,13 +92,13 @@ pub struct HapticLoop {
     /// The tick itself: validate, surface, god-object, force, passivity, safety.
     pipeline: HapticPipeline,
     _node: Node<ipc::Service>,
-    frames: services::FrameSubscriber,
+    frame_feed: FrameFeed,
     index_feed: IndexFeed,
     index: IndexSlot<ContactIndex>,
     _board: ToolBoard,
     _writer: iceoryx2::port::writer::Writer<ipc::Service, u32>,
     tool_entry: EntryHandleMut<ipc::Service, u32, ToolState>,
-    frame: Option<FrameSample>,
+    frame: IndexSlot<FrameCopy>,
     tool_ring: rtrb::Producer<ToolState>,
     telemetry: TelemetryTx,
     tick: u64,
@@ -120,12 +132,7 @@ impl HapticLoop {
     ) -> Result<HapticLoop> {
         let node = services::node("lopd-haptic-rt")?;
         services::cleanup_dead_nodes(&node);
-        let frame_service = services::frame_service(&node, names, Role::Owner)?;
-        let frames = frame_service
-            .subscriber_builder()
-            .buffer_size(2)
-            .create()
-            .context("frame subscriber")?;
+        let frame_feed = FrameFeed::start(names, settings.frames)?;
         let index_feed = IndexFeed::start(names, settings.pipeline.tool.radius)?;
         let board = services::tool_board_owner(&node, names)?;
         let writer = board
@@ -140,13 +147,13 @@ impl HapticLoop {
             pipeline: HapticPipeline::new(settings.pipeline.clone()),
             settings,
             _node: node,
-            frames,
+            frame_feed,
             index_feed,
             index: IndexSlot::default(),
             _board: board,
             _writer: writer,
             tool_entry,
-            frame: None,
+            frame: IndexSlot::default(),
             tool_ring,
             telemetry,
             tick: 0,
@@ -177,6 +184,28 @@ impl HapticLoop {
     /// loop renders no contact).
     pub fn contact_ready(&self) -> bool {
         self.index.is_ready()
+    }
+
+    /// Waits, sleeping, until the frame thread has handed over the frame of `sequence`, and
+    /// takes it; false after `timeout`. For tests that tick faster than real time and publish
+    /// the frames themselves: the live loop takes whatever frame has arrived at each tick.
+    pub fn await_frame(&mut self, sequence: u64, timeout: Duration) -> bool {
+        let start = std::time::Instant::now();
+        loop {
+            self.frame
+                .take_newest(&mut self.frame_feed.rx, &mut self.frame_feed.back);
+            if self
+                .frame
+                .current()
+                .is_some_and(|f| f.user_header().sequence == sequence)
+            {
+                return true;
+            }
+            if start.elapsed() > timeout {
+                return false;
+            }
+            std::thread::sleep(Duration::from_micros(100));
+        }
     }
 
     /// Ticks run so far.
@@ -219,14 +248,13 @@ impl HapticLoop {
             }
         };
 
-        // 2. Take the newest contact index and frame. Receiving never allocates; a retired
-        // index goes back to its thread to be freed.
+        // 2. Take the newest contact index and frame from their threads; a retired one goes
+        // back to its thread (to be freed, or filled again).
         self.index
             .take_newest(&mut self.index_feed.rx, &mut self.index_feed.back);
-        while let Ok(Some(s)) = self.frames.receive() {
-            self.frame = Some(s);
-        }
-        let frame_age = match &self.frame {
+        self.frame
+            .take_newest(&mut self.frame_feed.rx, &mut self.frame_feed.back);
+        let frame_age = match self.frame.current() {
             Some(f) => wake_ns.saturating_sub(f.user_header().publish_ns),
             None => u64::MAX,
         };
@@ -247,7 +275,7 @@ impl HapticLoop {
         let topology_id = self.index.current().map_or(0, |ix| ix.topology_id);
         let mut surfaces = LiveSurfaces {
             index: self.index.current(),
-            frame: self.frame.as_ref(),
+            frame: self.frame.current().map(|f| &*f),
             local_model: self.settings.pipeline.local_model,
             wake_ns,
         };

@@ -34,6 +34,7 @@ pub struct DeformSide {
     _node: Node<ipc::Service>,
     topo_pub: TopologyPublisher,
     frame_pub: FramePublisher,
+    frame_ready: iceoryx2::port::notifier::Notifier<ipc::Service>,
     topology: TopologyHeader,
     indices: Vec<u32>,
     /// Per body: bounds of the rest nodes.
@@ -55,6 +56,11 @@ impl DeformSide {
             .unwrap()
             .publisher_builder()
             .initial_max_slice_len(loaded.topology.node_count)
+            .create()
+            .unwrap();
+        let frame_ready = services::frame_ready_service(&node, names)
+            .unwrap()
+            .notifier_builder()
             .create()
             .unwrap();
         let mut topology =
@@ -84,6 +90,7 @@ impl DeformSide {
             _node: node,
             topo_pub,
             frame_pub,
+            frame_ready,
             topology,
             indices: loaded.topology.indices.clone(),
             bounds,
@@ -139,5 +146,6 @@ impl DeformSide {
             bf.aabb_max = *hi;
         }
         s.send().unwrap();
+        self.frame_ready.notify().unwrap();
     }
 }
