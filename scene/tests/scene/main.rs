@@ -1,0 +1,6 @@
+//! lop-scene's tests, one module per former test file, linked into one test binary
+//! (`cargo test -p lop-scene --test scene`): one build and link of the dependencies instead of
+//! one per file.
+
+mod fix_selectors;
+mod render_surface;
