@@ -6,7 +6,7 @@
 //! solution does; and that the simulated hand's press on the default scene settles and
 //! generates no energy at the device's stiffness limit. No wall-clock bound.
 
-mod common;
+use crate::common;
 
 use std::time::Duration;
 

@@ -3,7 +3,7 @@
 //! runs really touched tissue (the walk ran), and the CSV and SVG exist. No wall-clock bound on any
 //! figure (speed goes in `docs/benchmarks.md`, not in tests).
 
-mod common;
+use crate::common;
 
 use std::time::Duration;
 

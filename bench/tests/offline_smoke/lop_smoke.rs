@@ -5,7 +5,7 @@
 //! it lists exists. No wall-clock bound on any figure (speed goes in `docs/benchmarks.md`, not
 //! in tests).
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 use std::time::Duration;

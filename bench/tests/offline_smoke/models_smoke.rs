@@ -2,7 +2,7 @@
 //! median, the scaling series and the chapter-3 study ran, and every CSV/SVG file it lists
 //! exists. No wall-clock bound on any figure (speed goes in `docs/benchmarks.md`, not in tests).
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 use std::time::Duration;

@@ -1,7 +1,7 @@
 //! Smoke test of `lop-bench timings --quick`: both timings run and print every row. No bound on
 //! any number (they are timings of a debug build on a shared machine).
 
-mod common;
+use crate::common;
 
 use std::time::Duration;
 

@@ -1,6 +1,6 @@
 //! Daemon config, workspace map, name resolution and path handling.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

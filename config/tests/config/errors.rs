@@ -1,6 +1,6 @@
 //! Every bad input gives an error naming the file, the key path and the offending value.
 
-mod common;
+use crate::common;
 
 use common::{good_with, line_of, scene_path, GOOD};
 use lop_config::{parse_scene, ConfigError, Integrator, NodeMass};

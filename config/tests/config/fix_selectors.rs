@@ -2,7 +2,7 @@
 //! key of another kind or an unknown kind is refused naming the key path and the value; the
 //! command-line form (`lopd mesh info --select`) takes the same syntax.
 
-mod common;
+use crate::common;
 
 use common::{scene_path, GOOD};
 use lop_config::{parse_scene, parse_selector, selector_toml, NodeSelector};

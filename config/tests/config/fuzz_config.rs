@@ -21,12 +21,12 @@
 use std::path::{Path, PathBuf};
 
 use lop_config::{load_daemon_config, load_scene, parse_daemon_config, parse_scene, ConfigError};
-use lop_test_support::alloc::{largest_on_this_thread, Counting};
+use lop_test_support::alloc::largest_on_this_thread;
 use lop_test_support::fixtures::workspace_root;
 use lop_test_support::fuzz::{self, Rng, Seed};
 
-#[global_allocator]
-static A: Counting = Counting::armed_threads();
+// The counting allocator (`Counting::armed_threads`) is installed once for this
+// test binary, in `main.rs`.
 
 /// Mutations per seed.
 const ROUNDS: usize = 40;

@@ -213,7 +213,7 @@ fn organs_scene_file_is_unchanged() {
 
 /// The ```toml blocks of the crate documentation (the user documentation of the file formats).
 fn doc_toml_blocks() -> Vec<String> {
-    let lib = include_str!("../src/lib.rs");
+    let lib = include_str!("../../src/lib.rs");
     let mut blocks = Vec::new();
     let mut current: Option<String> = None;
     for line in lib.lines().filter_map(|l| l.strip_prefix("//!")) {

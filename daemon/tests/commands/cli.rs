@@ -2,7 +2,7 @@
 //! meshes, bad scenes and unsupported devices give exit code 2 and a message naming the file,
 //! key or value — never a panic.
 
-mod lopd_cli;
+use crate::lopd_cli;
 
 use std::path::{Path, PathBuf};
 

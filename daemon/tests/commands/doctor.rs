@@ -3,8 +3,7 @@
 //! or device (CI) gets a FAIL with the fix, not a crash. With the stand-in libHD the device
 //! check passes and reports the device's limits.
 
-#[path = "../../drivers/standin-hd/testing.rs"]
-mod standin;
+use crate::standin;
 
 use std::process::Command;
 

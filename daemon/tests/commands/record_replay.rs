@@ -8,7 +8,7 @@
 //!   never overwritten.
 //! - A damaged recording is bad input (exit 2) naming the file and the byte.
 
-mod lopd_cli;
+use crate::lopd_cli;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -11,7 +11,7 @@
 //! The surfaces are small (320 triangles, 600–900 tetrahedra) to keep CI short. The tests
 //! need gmsh and pytetwild and fail, not skip, without them: run `scripts/setup.sh`.
 
-mod lopd_cli;
+use crate::lopd_cli;
 
 use std::path::{Path, PathBuf};
 

@@ -5,7 +5,7 @@
 //! model cannot be used, ramps to exactly zero within the ramp when the frames stop, and ramps
 //! back in when they return.
 
-mod common;
+use crate::common;
 
 use common::{local_model_of as model_of, DeformSide};
 use lop_config::{load_scene, resolve_scene, resolve_script, DaemonConfig};

@@ -24,12 +24,12 @@ use std::path::{Path, PathBuf};
 use lop_drivers::mock::{MockScript, ScriptError};
 use lop_drivers::replay::{Recording, RecordingError, ReplayDevice};
 use lop_drivers::HapticDevice;
-use lop_test_support::alloc::{largest_on_this_thread, Counting};
+use lop_test_support::alloc::largest_on_this_thread;
 use lop_test_support::fixtures::{temp_dir, workspace_root};
 use lop_test_support::fuzz::{self, Rng, Seed};
 
-#[global_allocator]
-static A: Counting = Counting::armed_threads();
+// The counting allocator (`Counting::armed_threads`) is installed once for this
+// test binary, in `main.rs`.
 
 /// Mutations per script seed (about 750 loads, two seconds in the dev profile).
 const ROUNDS: usize = 24;

@@ -9,10 +9,10 @@ use std::path::Path;
 
 use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::HapticDevice;
-use lop_test_support::alloc::{self, Counting, Counts};
+use lop_test_support::alloc::{self, Counts};
 
-#[global_allocator]
-static A: Counting = Counting::armed_threads();
+// The counting allocator (`Counting::armed_threads`) is installed once for this
+// test binary, in `main.rs`.
 
 /// Runs `f` with this thread's allocations counted; returns (allocations, bytes).
 fn measure(f: impl FnOnce()) -> (u64, u64) {

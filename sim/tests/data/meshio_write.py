@@ -1,5 +1,5 @@
 """Writes one tetrahedral mesh and its boundary surface in every format meshio offers that lop
-reads, for sim/tests/mesh_meshio.rs: lop must read each file back to the counts, volume and
+reads, for sim/tests/mesh/mesh_meshio.rs: lop must read each file back to the counts, volume and
 area computed here with numpy (independently of lop).
 
 usage: python3 meshio_write.py <out dir>

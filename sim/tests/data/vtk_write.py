@@ -1,5 +1,5 @@
 """Writes one triangle surface with VTK's own writers, in every layout lop reads, for
-sim/tests/mesh_vtk_writers.rs: lop must read each file back to the counts and the area that
+sim/tests/mesh/mesh_vtk_writers.rs: lop must read each file back to the counts and the area that
 VTK itself computes (vtkMassProperties).
 
 usage: python3 vtk_write.py <out dir>

@@ -32,11 +32,11 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use lop_sim::mesh::{read_mesh, read_surface, MeshReadError, SurfaceMesh, TetMesh};
-use lop_test_support::alloc::{largest_on_this_thread, Counting};
+use lop_test_support::alloc::largest_on_this_thread;
 use lop_test_support::fuzz::{self, Rng, Seed};
 
-#[global_allocator]
-static A: Counting = Counting::armed_threads();
+// The counting allocator (`Counting::armed_threads`) is installed once for this
+// test binary, in `main.rs`.
 
 /// Mutations per seed (about 6,000 reads in all, about a second in the dev profile).
 const ROUNDS: usize = 100;

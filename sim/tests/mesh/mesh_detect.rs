@@ -1,7 +1,7 @@
 //! `read_mesh` recognises Gmsh and VTK files by their first line, whatever their extension,
 //! and names the file and its first line when it recognises nothing.
 
-mod mesh_text;
+use crate::mesh_text;
 
 use lop_sim::mesh::{read_mesh, MeshReadError};
 use mesh_text::*;

@@ -2,7 +2,7 @@
 //! error variant, and the message names the file, the line and the offending value. Gmsh and
 //! VTK inputs: `mesh_errors_gmsh_vtk.rs`; mutated files of every format: `mesh_fuzz.rs`.
 
-mod mesh_text;
+use crate::mesh_text;
 
 use std::fs;
 

@@ -1,7 +1,7 @@
 //! Mesh module, Gmsh and VTK readers: every kind of malformed input gives its own error
 //! variant, and the message names the file, the line and the offending value.
 
-mod mesh_text;
+use crate::mesh_text;
 
 use lop_sim::mesh::{read_mesh, MeshReadError};
 use mesh_text::*;
@@ -258,7 +258,7 @@ fn vtk_errors() {
     let (_, err) = read_vtk_text("vtk-tri", replace_line(VTK, 16, "3 7 3 5"));
     says(&err, &["m.vtk"]);
 
-    let (_, err) = read_vtk_text("vtk-poly", VTK.replace("UNSTRUCTURED_GRID", "POLYDATA"));
+    let (_, err) = read_vtk_text("vtk-polydata", VTK.replace("UNSTRUCTURED_GRID", "POLYDATA"));
     assert!(matches!(err, MeshReadError::UnsupportedFormat { .. }));
 
     // BINARY with ASCII data: the binary reader takes the text as big-endian doubles and

@@ -1,8 +1,8 @@
 //! Mesh readers: mutated files of every format (TetGen, Gmsh 1, 2.2 and 4.1, legacy VTK ASCII
 //! and binary, VTK XML in each encoding; STL, OBJ, PLY and VTK surfaces) never panic a reader.
 
-mod mesh_text;
-mod vtk_build;
+use crate::mesh_text;
+use crate::vtk_build;
 
 use std::fs;
 

@@ -2,7 +2,7 @@
 //! and 4.1 from one geometry read to the same mesh, and malformed format-1 files give errors
 //! that name the file, the line and the value.
 
-mod mesh_text;
+use crate::mesh_text;
 
 use std::collections::BTreeSet;
 

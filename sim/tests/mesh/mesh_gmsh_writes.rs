@@ -5,7 +5,7 @@
 //!
 //! Fails (does not skip) when gmsh is missing: run `scripts/setup.sh`.
 
-mod mesh_text;
+use crate::mesh_text;
 
 use std::collections::BTreeSet;
 

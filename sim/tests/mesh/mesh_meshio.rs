@@ -13,7 +13,7 @@
 //!
 //! The tests fail (they do not skip) when meshio is missing: run `scripts/setup.sh`.
 
-mod mesh_text;
+use crate::mesh_text;
 
 use std::path::Path;
 

@@ -2,7 +2,7 @@
 //! written here in every variant, format recognition by content, and malformed files whose
 //! errors name the file, the line or byte offset, and the value.
 
-mod mesh_text;
+use crate::mesh_text;
 
 use std::collections::HashMap;
 

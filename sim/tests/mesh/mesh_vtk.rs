@@ -3,8 +3,8 @@
 //! headers encoded apart from or with the data; legacy and XML POLYDATA surfaces. Each reads
 //! to the mesh it encodes; broken ones are refused with the file and the line or byte offset.
 
-mod mesh_text;
-mod vtk_build;
+use crate::mesh_text;
+use crate::vtk_build;
 
 use lop_sim::mesh::{read_mesh, read_surface, read_vtk_xml, MeshReadError};
 use mesh_text::*;

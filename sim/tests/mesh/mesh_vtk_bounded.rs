@@ -3,16 +3,16 @@
 //! for the claim. A global allocator records the largest single allocation while each such
 //! file is read: it must stay far below what the claim would need (the files are tiny).
 
-mod mesh_text;
-mod vtk_build;
+use crate::mesh_text;
+use crate::vtk_build;
 
 use lop_sim::mesh::{read_mesh, read_surface};
-use lop_test_support::alloc::{largest_on_this_thread, Counting};
+use lop_test_support::alloc::largest_on_this_thread;
 use mesh_text::*;
 use vtk_build::*;
 
-#[global_allocator]
-static A: Counting = Counting::armed_threads();
+// The counting allocator (`Counting::armed_threads`) is installed once for this
+// test binary, in `main.rs`.
 
 const TRILLION: &str = "1000000000000";
 

@@ -14,7 +14,7 @@
 //! The tests fail (they do not skip) when the `vtk` package is missing: run
 //! `scripts/setup.sh` (it installs PyPI `vtk`).
 
-mod mesh_text;
+use crate::mesh_text;
 
 use std::path::Path;
 

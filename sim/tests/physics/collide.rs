@@ -13,19 +13,19 @@
 
 use std::path::PathBuf;
 
-mod common;
+use crate::common;
 
 use common::shipped_mesh as shipped;
 use lop_sim::collide::{CollisionBody, CollisionParams, Collisions, Penetration};
 use lop_sim::mesh::TetMesh;
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
-use lop_test_support::alloc::{self, Counting};
+use lop_test_support::alloc;
 use lop_test_support::vec3::sub;
 
 // Counts the allocations of the current thread while tracking is on (other tests' threads
 // cannot disturb the count), as in `msd_alloc.rs`.
-#[global_allocator]
-static A: Counting = Counting::armed_threads();
+// The counting allocator (`Counting::armed_threads`) is installed once for this
+// test binary, in `main.rs`.
 
 /// A box `[lo, hi]` split into `n³` cells of six tetrahedra each (Kuhn subdivision along the
 /// cell diagonal, conforming across cells). Node `(i, j, k)` has index `(k (n+1) + j)(n+1) + i`

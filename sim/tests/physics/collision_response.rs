@@ -7,7 +7,7 @@
 //! collision both bend and the surfaces stay within a fraction of a millimetre, and the second
 //! cylinder's top moves away by millimetres.
 
-mod common;
+use crate::common;
 
 use common::{cylinder, cylinder_fem_params};
 use lop_sim::collide::{CollisionParams, Collisions};
@@ -17,10 +17,10 @@ use lop_sim::mesh::TetMesh;
 use lop_sim::model::{Model, ModelKind};
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 use lop_sim::world::World;
-use lop_test_support::alloc::{self, Counting};
+use lop_test_support::alloc;
 
-#[global_allocator]
-static A: Counting = Counting::armed_threads();
+// The counting allocator (`Counting::armed_threads`) is installed once for this
+// test binary, in `main.rs`.
 
 /// Centre distance of the two cylinders, m: a 2 mm gap.
 const SPACING: f64 = 0.062;

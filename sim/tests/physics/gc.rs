@@ -14,6 +14,7 @@ use lop_test_support::rng::Rng;
 use lop_test_support::vec3::{add, cross, dist, dot, norm, scale, sub};
 
 /// Cage validation and the binding's refusals.
+#[path = "../gc_validation/mod.rs"]
 mod gc_validation;
 
 // ---------------------------------------------------------------------------------------------

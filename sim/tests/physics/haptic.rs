@@ -5,13 +5,13 @@
 use lop_sim::contact::{closest_on_surface, ForceLaw};
 use lop_sim::haptic::{hand_force, sweep_sphere_triangle, GodObject, SurfaceSet};
 use lop_sim::mesh::read_mesh;
-use lop_test_support::alloc::{self, Counting};
+use lop_test_support::alloc;
 use lop_test_support::fixtures::mesh_path;
 use lop_test_support::rng::Rng;
 use lop_test_support::vec3::norm;
 
-#[global_allocator]
-static A: Counting = Counting::armed_threads();
+// The counting allocator (`Counting::armed_threads`) is installed once for this
+// test binary, in `main.rs`.
 
 /// Closed box surface `[lo, hi]`, `n` segments per edge on every face, outward wound.
 fn box_surface(lo: [f64; 3], hi: [f64; 3], n: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {

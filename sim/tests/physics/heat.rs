@@ -7,17 +7,17 @@
 //! and the x-modes of a bar are exact discrete eigenvectors. The shipped beam and liver are
 //! unstructured TetGen meshes.
 
-mod common;
+use crate::common;
 
 use common::shipped_mesh as shipped;
 use lop_sim::fem::box_mesh;
 use lop_sim::heat::{HeatBody, HeatError, HeatParameters, HeatWorld, Link};
 use lop_sim::mesh::TetMesh;
-use lop_test_support::alloc::{self, Counting};
+use lop_test_support::alloc;
 use lop_test_support::rng::Rng;
 
-#[global_allocator]
-static A: Counting = Counting::armed_threads();
+// The counting allocator (`Counting::armed_threads`) is installed once for this
+// test binary, in `main.rs`.
 
 fn insulated(dt: f64) -> HeatParameters {
     HeatParameters {

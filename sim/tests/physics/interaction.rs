@@ -1,7 +1,7 @@
 //! The tool on simulated tissue through the god-object: the tissue receives the force the hand
 //! feels (action and reaction), and picking drags the grabbed tissue and lets it go.
 
-mod common;
+use crate::common;
 
 use common::{cylinder, cylinder_fem_params};
 use lop_sim::contact::{ForceLaw, ToolSphere};

@@ -1,7 +1,7 @@
 //! Levels of precision: the cage model's accuracy against its precise model, and the
 //! controller's transitions under a scripted poke, without a pop.
 
-mod common;
+use crate::common;
 
 use common::{cylinder, cylinder_fem_params};
 use lop_sim::contact::{ForceLaw, ToolSphere};

@@ -1,7 +1,7 @@
 //! A cage step allocates nothing after warm-up: gravity, nodal loads and the tool (a body
 //! pinned to its cage), with either cage dynamics; nor does a controller that does not switch.
 
-mod common;
+use crate::common;
 
 use common::{cylinder, cylinder_fem_params};
 use lop_sim::contact::{ForceLaw, ToolSphere};
@@ -12,10 +12,10 @@ use lop_sim::lop::{
 use lop_sim::model::{ContactSpring, Model, ModelKind, ToolContact};
 use lop_sim::patch::{PatchPoint, ToolPatch};
 use lop_sim::world::World;
-use lop_test_support::alloc::{self, Counting};
+use lop_test_support::alloc;
 
-#[global_allocator]
-static A: Counting = Counting::armed_threads();
+// The counting allocator (`Counting::armed_threads`) is installed once for this
+// test binary, in `main.rs`.
 
 fn precise(mesh: &lop_sim::mesh::TetMesh) -> Model {
     Model::Fem(Fem::new(mesh, cylinder_fem_params()).unwrap())

@@ -10,12 +10,12 @@ use lop_sim::model::ToolContact;
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
 use lop_sim::patch::{PatchPoint, ToolPatch};
 
-use lop_test_support::alloc::{self, Counting};
+use lop_test_support::alloc;
 use lop_test_support::fixtures::mesh_path;
 use lop_test_support::vec3::{norm, scale, sub};
 
-#[global_allocator]
-static A: Counting = Counting::armed_threads();
+// The counting allocator (`Counting::armed_threads`) is installed once for this
+// test binary, in `main.rs`.
 
 #[test]
 fn step_is_allocation_free_after_the_first_step() {

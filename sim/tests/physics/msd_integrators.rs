@@ -12,7 +12,7 @@
 //! On the shipped cylinder every integrator must reach the same static equilibrium, carry the
 //! tool's load to the supports, and step deterministically.
 
-mod common;
+use crate::common;
 
 use common::{cylinder, shipped_mesh, support_reaction};
 use lop_sim::contact::{closest_on_surface, ForceLaw, ToolSphere};

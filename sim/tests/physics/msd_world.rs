@@ -8,7 +8,7 @@
 //! - fixed nodes never move; stepping is deterministic bit for bit;
 //! - a blow-up is detected, the body reset, and nothing non-finite remains.
 
-mod common;
+use crate::common;
 
 use common::{cylinder, support_reaction};
 use lop_sim::contact::{closest_on_surface, ForceLaw, ToolSphere};

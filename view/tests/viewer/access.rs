@@ -3,7 +3,7 @@
 //! or with a wrong one, are refused (read-only, logged) and never reach the daemon, while the
 //! printed token works; on a non-loopback bind control is off unless a token was given.
 
-mod common;
+use crate::common;
 
 use std::net::TcpStream;
 use std::time::{Duration, Instant};

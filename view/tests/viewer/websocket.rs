@@ -3,7 +3,7 @@
 //! errors; when the daemon is stopped and started again, the same WebSocket delivers the new
 //! topology (the viewer re-attaches by itself).
 
-mod common;
+use crate::common;
 
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
