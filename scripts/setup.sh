@@ -5,10 +5,10 @@
 #   gmsh      meshes the graded test blocks of `lop-bench haptics` (bench/src/haptics/block.rs)
 #   rt-tests  cyclictest, the machine's own wake-up latency floor in `lop-bench latency`
 #   python3-meshio  writes the VTK, STL, OBJ and PLY files that the mesh readers are tested on
-#             (sim/tests/mesh_meshio.rs); an independent writer, with numpy
+#             (sim/tests/mesh/mesh_meshio.rs); an independent writer, with numpy
 #   chromium  headless browser for the web viewer's screenshot test (view/tests/browser.rs)
 #   vtk       PyPI package: VTK's own writers make the legacy and XML surfaces that the
-#             surface readers are tested on (sim/tests/mesh_vtk_writers.rs)
+#             surface readers are tested on (sim/tests/mesh/mesh_vtk_writers.rs)
 #   pytetwild PyPI package (fTetWild), with pyvista which it imports: the robust mesher of
 #             `lopd mesh tetrahedralize` for surfaces with defects (daemon/src/tetrahedralize)
 #   iceoryx2  the Python binding, at exactly the daemon's iceoryx2 version, for the renderer

@@ -4,7 +4,7 @@
 //!
 //! A request is plain bytes in shared memory, so any bit pattern can arrive. The seeds are one
 //! valid request of every op (by body name and by index, every live key), built here rather
-//! than committed: the request is a `repr(C)` struct whose layout `ipc/tests/c_header.rs`
+//! than committed: the request is a `repr(C)` struct whose layout `ipc/tests/contract/c_header.rs`
 //! guards, so the bytes are what this test writes. Each seed is serialised field by field
 //! (little-endian), mutated as bytes by `lop_test_support::fuzz` (truncations, flips, extreme
 //! words such as NaN, ±inf and `u32::MAX`, invalid UTF-8 in the name and key) and read back

@@ -39,7 +39,7 @@
 //!   `K = −∂f/∂x` the spring Jacobian; see "Implicit Euler: matrix and solver" below.
 //!
 //! The limits in the table are for a single undamped spring; [`Integrator::order`] and
-//! [`Integrator::stability_limit`] return them, and `sim/tests/msd_integrators.rs` checks them:
+//! [`Integrator::stability_limit`] return them, and `sim/tests/physics/msd_integrators.rs` checks them:
 //! the observed convergence order, energy behaviour, and the blow-up just above each limit.
 //!
 //! # Sub-stepping ([`SubstepPolicy`])
