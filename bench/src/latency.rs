@@ -35,7 +35,7 @@
 //! under `SCHED_FIFO`, pinned and with locked memory: without those privileges the jitter is
 //! that of a normal thread.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
@@ -171,6 +171,42 @@ enum CtPlan {
 
 /// Runs the benchmark, prints the table and writes the JSON.
 pub fn run(a: LatencyArgs) -> Result<()> {
+    let (report, stopped) = measure_scene(&a)?;
+    let period_us = (1e6 / report.target_rate_hz).round().max(1.0) as u64;
+    print!("{}", render(&report, period_us));
+    if let Some(path) = &a.json {
+        let text = serde_json::to_string_pretty(&report)?;
+        std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+        println!("JSON written to {}", path.display());
+    }
+    // The figures stand, but a daemon that did not stop cleanly is a failure worth an exit code.
+    stopped
+}
+
+impl LatencyArgs {
+    /// A run of `scene` for `seconds` with the mock device and no cyclictest (how other
+    /// benchmarks measure a scene of their own), with an optional daemon configuration.
+    pub fn quiet(
+        scene: &Path,
+        seconds: f64,
+        lopd: Option<PathBuf>,
+        config: Option<PathBuf>,
+    ) -> LatencyArgs {
+        LatencyArgs {
+            seconds,
+            scene: scene.display().to_string(),
+            json: None,
+            lopd,
+            config,
+            no_cyclictest: true,
+            poll_us: 150,
+        }
+    }
+}
+
+/// One measured run of the pipeline, printed nowhere: the report, and whether the daemon then
+/// stopped cleanly (the figures stand either way).
+pub fn measure_scene(a: &LatencyArgs) -> Result<(LatencyReport, Result<()>)> {
     if !(a.seconds.is_finite() && a.seconds >= 0.5 && a.seconds <= 86_400.0) {
         bail!("--seconds {}: must be between 0.5 and 86400", a.seconds);
     }
@@ -216,7 +252,7 @@ pub fn run(a: LatencyArgs) -> Result<()> {
             .collect(),
         log: None,
     })?;
-    let measured = measure(&mut lopd, &a, period_us, &ct_plan);
+    let measured = measure(&mut lopd, a, period_us, &ct_plan);
     // Stop the pipeline whatever happened (the guard would also do it on drop).
     let stopped = lopd.stop();
     let m = measured?;
@@ -352,14 +388,7 @@ pub fn run(a: LatencyArgs) -> Result<()> {
         rows,
         cyclictest: ct_report,
     };
-    print!("{}", render(&report, period_us));
-    if let Some(path) = &a.json {
-        let text = serde_json::to_string_pretty(&report)?;
-        std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
-        println!("JSON written to {}", path.display());
-    }
-    // The figures stand, but a daemon that did not stop cleanly is a failure worth an exit code.
-    stopped.map(|_| ())
+    Ok((report, stopped.map(|_| ())))
 }
 
 /// What the measuring loop collected.

@@ -13,6 +13,7 @@ mod interaction;
 mod latency;
 mod lop;
 mod models;
+mod organs;
 #[cfg(feature = "parry")]
 mod parry;
 mod pipeline;
@@ -37,6 +38,10 @@ enum Command {
     /// Deformation models: time per step on the shipped meshes, scaling with mesh size, and the
     /// thesis' chapter-3 integrator study (CSV + SVG plots).
     Models(models::ModelsArgs),
+    /// The organs a lab brings, live: the shipped liver and organs meshed from built surfaces
+    /// at 2k-20k tetrahedra, at 1 and 2 threads: period, real-time factor, frame interval and
+    /// age in contact, device → tissue (table, SVG, JSON).
+    Organs(organs::OrgansArgs),
     /// Levels of precision, the thesis' §6.3–6.4: time per iteration per body with and without
     /// the GC cage, the cage's speed-up over FEM, and its approximation error (CSV + SVG plots).
     Lop(lop::LopArgs),
@@ -64,6 +69,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Latency(a) => latency::run(a),
         Command::Models(a) => models::run(a),
+        Command::Organs(a) => organs::run(a),
         Command::Lop(a) => lop::run(a),
         Command::Interaction(a) => interaction::run(a),
         Command::Haptics(a) => haptics::run(a),

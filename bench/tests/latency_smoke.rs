@@ -96,3 +96,73 @@ fn latency_two_seconds_reports_every_row() {
     assert!(v["frames_received"].as_u64().unwrap_or(0) > 0, "{text}");
     assert_eq!(v["cyclictest"]["status"], "disabled", "{text}");
 }
+
+/// `lop-bench organs` on one small organ of its own making: the surface built, meshed to about
+/// the size asked, made into a scene whose poke the mock device plays, run live for 3 s (the
+/// poke reaches the surface about 1.3 s after start, inside the window), one JSON row with the
+/// touched body's figures. The targets are the bench's to judge, not this test's.
+#[test]
+fn organs_meshes_a_built_surface_and_measures_it_live() {
+    let lopd = lopd_beside_bench();
+    assert!(
+        lopd.is_file(),
+        "{} does not exist: run `cargo test --workspace`",
+        lopd.display()
+    );
+    let dir = std::env::temp_dir().join(format!("lopbench-organs-smoke-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let json = dir.join("organs.json");
+    std::fs::create_dir_all(&dir).unwrap();
+    let stdout = common::run_bench(
+        &[
+            "organs".as_ref(),
+            "--no-shipped".as_ref(),
+            "--surfaces".as_ref(),
+            "ellipsoid".as_ref(),
+            "--sizes".as_ref(),
+            "800".as_ref(),
+            "--threads".as_ref(),
+            "1".as_ref(),
+            "--seconds".as_ref(),
+            "3".as_ref(),
+            "--dir".as_ref(),
+            dir.as_os_str(),
+            "--json".as_ref(),
+            json.as_os_str(),
+            "--lopd".as_ref(),
+            lopd.as_os_str(),
+        ],
+        Duration::from_secs(180),
+    );
+    assert!(stdout.contains("ellipsoid-800"), "{stdout}");
+    assert!(dir.join("organs.svg").is_file(), "{stdout}");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).expect("JSON written")).unwrap();
+    let rows = v.as_array().expect("an array of rows");
+    assert_eq!(rows.len(), 1, "{v:#}");
+    let r = &rows[0];
+    assert_eq!(r["name"], "ellipsoid-800", "{r:#}");
+    assert_eq!(r["threads"], 1, "{r:#}");
+    // The mesher's own target: within ±20 % of the count asked.
+    let tets = r["tets"].as_u64().expect("tets");
+    assert!(
+        (640..=960).contains(&tets),
+        "{tets} tetrahedra for 800 asked: {r:#}"
+    );
+    assert!(
+        r["frames_in_contact"].as_u64().unwrap() > 0,
+        "never pressed: {r:#}"
+    );
+    let period = r["period_ms"].as_f64().expect("a period in contact");
+    assert!([1.0, 2.0, 4.0, 5.0, 10.0].contains(&period), "{r:#}");
+    for key in [
+        "frame_interval_p99_us",
+        "frame_age_contact_p99_us",
+        "step_p50_us",
+    ] {
+        let x = r[key].as_f64().unwrap_or(f64::NAN);
+        assert!(x.is_finite() && x > 0.0, "{key}: {r:#}");
+    }
+    assert!(r["held_force_error"].is_null() && r["device_port_energy_j"].is_null());
+    let _ = std::fs::remove_dir_all(&dir);
+}
