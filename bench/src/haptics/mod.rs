@@ -34,7 +34,7 @@ mod hertz;
 mod liver;
 mod press;
 mod reference;
-mod stability;
+pub(crate) mod stability;
 mod transparency;
 
 use std::path::PathBuf;
