@@ -39,7 +39,7 @@ use lop_drivers::hand::HandParameters;
 use lop_drivers::mock::{MockDevice, MockScript};
 use lop_scene::closed_loop::{self, ClosedLoopOptions};
 
-use crate::haptics::stability::ENERGY_TOLERANCE;
+use crate::haptics::stability::{contact_changes, mean_force, ENERGY_TOLERANCE};
 use crate::latency::{self, LatencyArgs, LatencyReport};
 use crate::pipeline;
 use crate::plot::{self, Panel, Series};
@@ -399,13 +399,7 @@ fn offline(scene_path: &Path, period: f64) -> Result<Offline> {
         seconds: HOLD_END_S + 0.1,
     })?;
     let ticks = &run.ticks;
-    let norm = |f: [f64; 3]| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
-    let held: Vec<f64> = ticks
-        .iter()
-        .filter(|t| t.t >= HOLD_END_S - HELD_WINDOW_S && t.t < HOLD_END_S)
-        .map(|t| norm(t.force))
-        .collect();
-    let held_n = held.iter().sum::<f64>() / held.len().max(1) as f64;
+    let held_n = mean_force(ticks, HOLD_END_S - HELD_WINDOW_S, HOLD_END_S);
     if held_n.is_nan() || held_n <= 0.0 {
         bail!(
             "{}: the simulated hand felt no force at the end of the hold (no contact?)",
@@ -417,10 +411,7 @@ fn offline(scene_path: &Path, period: f64) -> Result<Offline> {
         // As `lop-bench haptics` judges it: the work the hand's grip did on the stylus never
         // below zero (the stylus's own damping and friction and a passive environment).
         generated_j: (-closed_loop::port_energy(ticks).device_min).max(0.0) + 0.0,
-        contact_changes: ticks
-            .windows(2)
-            .filter(|w| w[0].contact != w[1].contact)
-            .count(),
+        contact_changes: contact_changes(ticks),
     })
 }
 
@@ -454,8 +445,9 @@ fn render(rows: &[OrganRow]) -> String {
         ("device→tissue p50/p99 ms", Align::Right),
         ("tick p99 µs", Align::Right),
         ("offline held N (1 ms)", Align::Right),
-        ("held vs 1 ms", Align::Right),
-        ("port energy out µJ", Align::Right),
+        ("offline held vs 1 ms", Align::Right),
+        ("offline port energy out µJ", Align::Right),
+        ("offline contact changes", Align::Right),
         ("targets", Align::Left),
     ];
     let cells: Vec<Vec<String>> = rows
@@ -500,7 +492,9 @@ fn render(rows: &[OrganRow]) -> String {
                 r.held_force_error
                     .map_or("-".into(), |e| format!("{:+.1} %", 100.0 * e)),
                 r.device_port_energy_j
-                    .map_or("-".into(), |e| format!("{:.2}", e * 1e6)),
+                    .map_or("-".into(), |e| format!("{:.3}", e * 1e6)),
+                r.offline_contact_changes
+                    .map_or("-".into(), |n| n.to_string()),
                 [
                     ("RT", rt_ok),
                     ("interval", interval_ok),

@@ -258,12 +258,7 @@ fn run_case(
     })?;
     let ticks = r.ticks;
     let norm = |f: [f64; 3]| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
-    let held: Vec<f64> = ticks
-        .iter()
-        .filter(|t| t.t >= T_HOLD_END - HELD_WINDOW && t.t < T_HOLD_END)
-        .map(|t| norm(t.force))
-        .collect();
-    let held_n = held.iter().sum::<f64>() / held.len().max(1) as f64;
+    let held_n = mean_force(&ticks, T_HOLD_END - HELD_WINDOW, T_HOLD_END);
     let onset = ticks.iter().position(|t| t.contact && t.t > 0.2);
     let onset_s = onset.map_or(f64::NAN, |i| ticks[i].t);
     let in_hold = |t: &TickRecord| t.t >= onset_s && t.t < T_HOLD_END;
@@ -314,10 +309,7 @@ fn run_case(
     let energy = port_energy(&ticks);
     let k_scene = r.stiffness.first().copied().unwrap_or(tool).max(1e-12);
     let penetration_mm = ticks.iter().map(|t| norm(t.force)).fold(0.0, f64::max) / k_scene * 1e3;
-    let contact_changes = ticks
-        .windows(2)
-        .filter(|w| w[0].contact != w[1].contact)
-        .count();
+    let contact_changes = contact_changes(&ticks);
     let max_step_n = ticks
         .windows(2)
         .filter(|w| w[0].contact && w[1].contact)
@@ -351,6 +343,24 @@ fn run_case(
         max_step_n,
     };
     Ok((run, ticks))
+}
+
+/// The mean magnitude of the force over the ticks in `[from, to)` s, N (0 without ticks).
+pub(crate) fn mean_force(ticks: &[TickRecord], from: f64, to: f64) -> f64 {
+    let held: Vec<f64> = ticks
+        .iter()
+        .filter(|t| t.t >= from && t.t < to)
+        .map(|t| t.force.iter().map(|f| f * f).sum::<f64>().sqrt())
+        .collect();
+    held.iter().sum::<f64>() / held.len().max(1) as f64
+}
+
+/// Times contact was made or lost over `ticks`.
+pub(crate) fn contact_changes(ticks: &[TickRecord]) -> usize {
+    ticks
+        .windows(2)
+        .filter(|w| w[0].contact != w[1].contact)
+        .count()
 }
 
 /// A pass/fail target.
