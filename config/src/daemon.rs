@@ -92,7 +92,19 @@ pub struct DeformConfig {
     /// clock (`lop_sim::world::pace`), and the haptic loop renders the local model between the
     /// frames. A period at or below the body's own keeps the body at its own.
     pub max_period_ms: u32,
+    /// `SCHED_FIFO` priority of the deformation thread (`[deform] rt_priority`), below the
+    /// haptic loop's and its frame thread's; 0: the normal scheduler. Where the process may not
+    /// take it (no `CAP_SYS_NICE` or rtprio limit) it runs normally, with a warning. Default
+    /// [`DEFAULT_DEFORM_RT_PRIORITY`] (at most the haptic priority − 2): a rig's renderer and
+    /// anything else at the normal scheduler then no longer delay the tissue (two busy
+    /// processes beside `lopd run` made the default poke peak at 1.19 N against 0.71 N quiet;
+    /// `docs/benchmarks.md`, pipeline latency).
+    pub rt_priority: u8,
 }
+
+/// `[deform] rt_priority` when missing (lowered to the haptic priority − 2 when that is
+/// lower, 0 when it is under 1).
+pub const DEFAULT_DEFORM_RT_PRIORITY: u8 = 40;
 
 /// `[deform] max_period_ms` when missing: 10 ms, the longest frame interval at which the local
 /// model keeps the coupling smooth on the organs measured (`docs/benchmarks.md`, pipeline
@@ -105,8 +117,15 @@ impl Default for DeformConfig {
             core: None,
             threads: default_deform_threads(),
             max_period_ms: DEFAULT_MAX_PERIOD_MS,
+            rt_priority: default_deform_priority(HapticConfig::default().rt_priority),
         }
     }
+}
+
+/// `[deform] rt_priority` when missing, for a haptic loop at `haptic` (its frame thread runs at
+/// `haptic − 1`).
+pub fn default_deform_priority(haptic: u8) -> u8 {
+    DEFAULT_DEFORM_RT_PRIORITY.min(haptic.saturating_sub(2))
 }
 
 /// The machine's cores (logical CPUs available to this process).
@@ -224,6 +243,23 @@ pub fn parse_daemon_config(text: &str, path: &Path) -> Result<DaemonConfig, Conf
             "the longest step period must be between 1 and 100 ms",
         ));
     }
+    let deform_priority = match raw.deform.rt_priority {
+        None => default_deform_priority(rt_priority),
+        Some(0) => 0,
+        Some(p) if p + 1 < u32::from(rt_priority) => p as u8,
+        Some(p) => {
+            return Err(c.invalid(
+                &KeyPath::top("deform").key("rt_priority"),
+                p,
+                format!(
+                    "the deformation thread's SCHED_FIFO priority must be below the haptic \
+                     loop's frame thread ([haptic] rt_priority {rt_priority} - 1 = {}), or 0 for \
+                     the normal scheduler",
+                    rt_priority - 1
+                ),
+            ))
+        }
+    };
     Ok(DaemonConfig {
         haptic: HapticConfig {
             core: h.core.or(dh.core),
@@ -241,6 +277,7 @@ pub fn parse_daemon_config(text: &str, path: &Path) -> Result<DaemonConfig, Conf
             core: raw.deform.core,
             threads,
             max_period_ms,
+            rt_priority: deform_priority,
         },
         status_interval_ms,
         device: device_config(raw.device, path),

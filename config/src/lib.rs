@@ -315,6 +315,8 @@
 //! | `haptic.passivity_max_damping` | float | `5` | most damping the passivity controller at the device port adds, N·s/m (0..=40; 0: off) |
 //! | `deform.core` | integer | not pinned | CPU the deformation thread is pinned to |
 //! | `deform.threads` | integer | `0`: every core but one, at least 1 | threads the touched body's FEM step runs on (results are bit for bit the same for any count); more than the machine's cores is refused |
+//! | `deform.max_period_ms` | integer | `10` | longest period a touched body may step at where its step costs more than its own period, 1..=100 ms |
+//! | `deform.rt_priority` | integer | `40` (at most `haptic.rt_priority` − 2) | `SCHED_FIFO` priority of the deformation thread, below the haptic loop's frame thread (`haptic.rt_priority` − 1); `0`: the normal scheduler. Not permitted: runs normally, with a warning |
 //! | `device.hd_library` | path | search `libHD.so` | OpenHaptics library for `--device openhaptics` (relative to the config file; `LOP_HD_LIBRARY` wins) |
 //!
 //! ```toml

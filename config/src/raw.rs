@@ -225,6 +225,7 @@ pub(crate) struct RawDeform {
     pub core: Option<usize>,
     pub threads: Option<usize>,
     pub max_period_ms: Option<u32>,
+    pub rt_priority: Option<u32>,
 }
 
 /// `[device]` of the daemon config (issue 7: the OpenHaptics library).

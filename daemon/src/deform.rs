@@ -587,6 +587,39 @@ fn estimate_step(fem: &mut lop_sim::fem::Fem, gravity: [f64; 3]) -> f64 {
 /// Runs the deformation process until a stop signal or the duration.
 pub fn run(opts: DeformOptions) -> Result<()> {
     let mut task = DeformLoop::new(&opts)?;
+    // The loop's scheduling (`[deform] rt_priority`), taken once the scene is loaded so that
+    // loading never holds a core at real-time priority. Threads the step starts later (a
+    // second FEM thread, the background factor) inherit it.
+    let fifo = match opts.config.deform.rt_priority {
+        0 => {
+            tracing::info!("deformation thread at the normal scheduler ([deform] rt_priority = 0)");
+            false
+        }
+        p => match rt::set_fifo(p) {
+            Ok(()) => {
+                tracing::info!("deformation thread at SCHED_FIFO {p}");
+                true
+            }
+            Err(e) => {
+                tracing::warn!(
+                    "deformation thread at the normal scheduler, so other busy processes can \
+                     delay the tissue: {e}"
+                );
+                false
+            }
+        },
+    };
+    // At real-time priority, and unless `[deform] core` pins it, the thread keeps off the
+    // haptic loop's core: there it would count against that core's real-time budget (the
+    // kernel throttles every real-time thread of a core that spends more than 95 % of a
+    // second on them). At the normal scheduler it may use that core's idle time.
+    if fifo && opts.config.deform.core.is_none() {
+        if let Some(core) = opts.config.haptic.core.or_else(rt::last_core) {
+            if let Err(e) = rt::avoid_core(core) {
+                tracing::info!("deformation thread may share the haptic core: {e}");
+            }
+        }
+    }
     let end = opts.duration.map(|d| task.start_ns() + rt::ns(d));
     while !signals::stop_requested() && end.is_none_or(|e| rt::now_ns() < e) {
         task.tick();

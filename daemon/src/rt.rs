@@ -33,6 +33,38 @@ pub fn pin_to_core(core: usize) -> Result<(), String> {
     }
 }
 
+/// Keeps the calling thread (and the threads it starts later) off `core`: its affinity becomes
+/// every core it may run on but that one. Refused when that would leave none.
+pub fn avoid_core(core: usize) -> Result<(), String> {
+    // SAFETY: `cpu_set_t` is plain data, zeroed is the empty set; the calls get its true size.
+    unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        let size = std::mem::size_of::<libc::cpu_set_t>();
+        if libc::sched_getaffinity(0, size, &mut set) != 0 {
+            return Err(format!(
+                "sched_getaffinity: {}",
+                std::io::Error::last_os_error()
+            ));
+        }
+        if core >= libc::CPU_SETSIZE as usize || !libc::CPU_ISSET(core, &set) {
+            return Ok(());
+        }
+        libc::CPU_CLR(core, &mut set);
+        if libc::CPU_COUNT(&set) == 0 {
+            return Err(format!(
+                "core {core} is the only core this process may run on"
+            ));
+        }
+        if libc::sched_setaffinity(0, size, &set) != 0 {
+            return Err(format!(
+                "sched_setaffinity: {}",
+                std::io::Error::last_os_error()
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Index of the last core this process may run on: the default for the RT thread, so core 0
 /// keeps interrupts and housekeeping.
 pub fn last_core() -> Option<usize> {

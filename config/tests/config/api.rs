@@ -36,6 +36,52 @@ fn empty_daemon_config_is_the_default() {
     assert_eq!(cfg.deform.core, None);
     assert_eq!(cfg.deform.threads, lop_config::default_deform_threads());
     assert_eq!(cfg.deform.max_period_ms, 10);
+    assert_eq!(cfg.deform.rt_priority, 40);
+}
+
+/// `[deform] rt_priority`: 0 (the normal scheduler) or a `SCHED_FIFO` priority below the
+/// haptic loop's frame thread (`[haptic] rt_priority` − 1); the default 40 is lowered under a
+/// low haptic priority, never refused.
+#[test]
+fn the_deformation_priority_stays_below_the_haptic_loop() {
+    let parse = |text: &str| parse_daemon_config(text, Path::new("lopd.toml"));
+    assert_eq!(
+        parse("[deform]\nrt_priority = 0\n")
+            .unwrap()
+            .deform
+            .rt_priority,
+        0
+    );
+    assert_eq!(
+        parse("[deform]\nrt_priority = 78\n")
+            .unwrap()
+            .deform
+            .rt_priority,
+        78
+    );
+    let low = parse("[haptic]\nrt_priority = 10\n").unwrap();
+    assert_eq!(low.deform.rt_priority, 8);
+    assert_eq!(
+        parse("[haptic]\nrt_priority = 2\n")
+            .unwrap()
+            .deform
+            .rt_priority,
+        0
+    );
+    for (text, bad) in [
+        ("[deform]\nrt_priority = 79\n", "79"),
+        ("[deform]\nrt_priority = 300\n", "300"),
+        (
+            "[haptic]\nrt_priority = 30\n[deform]\nrt_priority = 40\n",
+            "40",
+        ),
+    ] {
+        daemon_err(
+            text,
+            &["deform.rt_priority", bad, "below the haptic", "rt_priority"],
+        );
+    }
+    assert!(parse("[deform]\nrt_priority = -1\n").is_err());
 }
 
 /// `[deform] max_period_ms`: 1 to 100 ms; outside, refused with the key and the value.
