@@ -155,7 +155,7 @@ pub fn run(a: OrgansArgs) -> Result<()> {
     if !(a.seconds.is_finite() && a.seconds >= 0.5 && a.seconds <= 86_400.0) {
         bail!("--seconds {}: must be between 0.5 and 86400", a.seconds);
     }
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let cores = lop_config::machine_cores();
     if let Some(&t) = a.threads.iter().find(|&&t| t == 0 || t > cores) {
         bail!("--threads {t}: must be between 1 and this machine's {cores} cores");
     }

@@ -614,7 +614,7 @@ pub fn run(opts: DeformOptions) -> Result<()> {
     // kernel throttles every real-time thread of a core that spends more than 95 % of a
     // second on them). At the normal scheduler it may use that core's idle time.
     if fifo && opts.config.deform.core.is_none() {
-        if let Some(core) = opts.config.haptic.core.or_else(rt::last_core) {
+        if let Some(core) = rt::haptic_core(&opts.config.haptic) {
             if let Err(e) = rt::avoid_core(core) {
                 tracing::info!("deformation thread may share the haptic core: {e}");
             }

@@ -166,7 +166,7 @@ impl HapticProcessBuilder {
         let max_ticks =
             duration.map(|d| (d.as_secs_f64() * settings.pipeline.rate_hz).round() as u64);
         let rt_request = RtRequest {
-            core: config.haptic.core.or_else(rt::last_core),
+            core: rt::haptic_core(&config.haptic),
             priority: config.haptic.rt_priority,
         };
         let pacing = device.as_ref_dyn().pacing();

@@ -65,6 +65,12 @@ pub fn avoid_core(core: usize) -> Result<(), String> {
     Ok(())
 }
 
+/// The haptic loop's core: `[haptic] core`, else [`last_core`]. The loop, its frame thread and
+/// the deformation thread (which keeps off it) all place themselves by this one rule.
+pub fn haptic_core(haptic: &lop_config::HapticConfig) -> Option<usize> {
+    haptic.core.or_else(last_core)
+}
+
 /// Index of the last core this process may run on: the default for the RT thread, so core 0
 /// keeps interrupts and housekeeping.
 pub fn last_core() -> Option<usize> {

@@ -74,7 +74,7 @@ impl HapticSettings {
             spin_ns: (h.spin_us * 1e3) as u64,
             // The loop's core, one priority below it: it runs while the loop sleeps.
             frames: FramePlacement {
-                core: h.core.or_else(rt::last_core),
+                core: rt::haptic_core(h),
                 priority: h.rt_priority.saturating_sub(1),
             },
         }
