@@ -285,7 +285,22 @@ impl Lopd {
     /// SIGTERM (SIGKILL after 5 s) and wait. A clean exit removes the log (unless it was
     /// placed); otherwise the error names it.
     pub fn stop(mut self) -> Result<ExitStatus> {
-        match self.guard.stop() {
+        let status = self.guard.stop();
+        self.judge(status)
+    }
+
+    /// Waits up to `limit` for `lopd run` to end by itself (its `--duration`), then as
+    /// [`stop`](Self::stop).
+    pub fn wait(mut self, limit: Duration) -> Result<ExitStatus> {
+        let status = match self.guard.wait_for(limit) {
+            Some(s) => Some(s),
+            None => self.guard.stop(),
+        };
+        self.judge(status)
+    }
+
+    fn judge(self, status: Option<ExitStatus>) -> Result<ExitStatus> {
+        match status {
             Some(s) if s.success() => {
                 if !self.keep_log {
                     let _ = std::fs::remove_file(&self.log);

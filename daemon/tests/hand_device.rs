@@ -68,8 +68,10 @@ fn run_with_the_hand_feels_the_default_poke() {
         .lines()
         .skip(1)
         .map(|l| {
+            // t, fx, fy, fz, grip_work_j: the force's three columns.
             l.split(',')
                 .skip(1)
+                .take(3)
                 .map(|v| v.parse::<f64>().unwrap().powi(2))
                 .sum::<f64>()
                 .sqrt()
@@ -80,5 +82,23 @@ fn run_with_the_hand_feels_the_default_poke() {
     // The poke pushes 12 mm into the liver from 1.3 s; the hand yields, so the force stays
     // under the mock's rigid push (about 0.7 N) but is clearly there.
     assert!(peak > 0.1 && peak < 3.3, "peak {peak} N");
+    // The grip's work: the hand pushed the stylus into the tissue, so it put energy in, and a
+    // passive coupling never gives back more than it received.
+    assert!(
+        text.starts_with("t,fx,fy,fz,grip_work_j\n"),
+        "{}",
+        &text[..40]
+    );
+    let work: Vec<f64> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.rsplit(',').next().unwrap().parse().unwrap())
+        .collect();
+    let (low, end) = (
+        work.iter().copied().fold(0.0, f64::min),
+        work[work.len() - 1],
+    );
+    assert!(end > 1e-4, "grip work at the end {end} J");
+    assert!(low > -1e-6, "grip work fell to {low} J");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -9,7 +9,7 @@ use crate::device::{
     DeviceError, DeviceLimits, DeviceOpenError, DeviceSample, HapticDevice, Pacing,
 };
 use crate::mock::{
-    write_force_csv, ForceRecord, ForceRing, MockScript, FORCE_LIMIT_TOLERANCE,
+    write_force_csv_with, ForceRecord, ForceRing, MockScript, Ring, FORCE_LIMIT_TOLERANCE,
     FORCE_RECORD_CAPACITY,
 };
 
@@ -93,6 +93,9 @@ pub struct HandDevice {
     /// The force being rendered, N (zero after a refusal and after `stop`).
     force_n: [f64; 3],
     record: ForceRing,
+    /// The grip's work on the stylus at each recorded force, J (beside `record`, entry for
+    /// entry).
+    grip_record: Ring<f64>,
     rejected_forces: u64,
 }
 
@@ -130,6 +133,7 @@ impl HandDevice {
             last_read_t: 0.0,
             force_n: [0.0; 3],
             record: ForceRing::with_capacity(FORCE_RECORD_CAPACITY),
+            grip_record: Ring::with_capacity(FORCE_RECORD_CAPACITY),
             rejected_forces: 0,
         }
     }
@@ -180,9 +184,16 @@ impl HandDevice {
         self.rejected_forces
     }
 
-    /// Writes the force record as CSV, as the mock does.
+    /// Writes the force record as CSV, as the mock does, with one more column: `grip_work_j`,
+    /// the [`grip_work`](Self::grip_work) when each force was written, so that the energy at
+    /// the device port of a live run can be read from the file (it falls below zero only
+    /// where the coupling generated energy).
     pub fn write_force_csv(&self, path: &Path) -> io::Result<()> {
-        write_force_csv(self.force_record(), path)
+        write_force_csv_with(
+            self.force_record(),
+            Some(("grip_work_j", &self.grip_record)),
+            path,
+        )
     }
 
     fn check_running(&self) -> Result<(), DeviceError> {
@@ -359,6 +370,7 @@ impl HapticDevice for HandDevice {
         };
         self.force_n = if verdict.is_ok() { force_n } else { [0.0; 3] };
         self.record.push(self.t, self.force_n);
+        self.grip_record.push_entry(self.state.grip_work);
         verdict
     }
 
@@ -367,6 +379,7 @@ impl HapticDevice for HandDevice {
         if self.phase == Phase::Running {
             self.force_n = [0.0; 3];
             self.record.push(self.t, [0.0; 3]);
+            self.grip_record.push_entry(self.state.grip_work);
         }
         self.phase = Phase::Stopped;
     }

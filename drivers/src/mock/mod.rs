@@ -16,7 +16,7 @@ mod script;
 
 pub use device::MockDevice;
 pub(crate) use device::FORCE_LIMIT_TOLERANCE;
-pub(crate) use record::{write_force_csv, ForceRing};
+pub(crate) use record::{write_force_csv_with, ForceRing, Ring};
 pub use record::{ForceEntry, ForceRecord, ForceRecordIter, FORCE_RECORD_CAPACITY};
 pub use script::{
     resolve_script, FaultWindow, Interpolation, MockScript, SampleFault, SampleFaultWindow,

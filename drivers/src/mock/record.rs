@@ -12,11 +12,14 @@ pub const FORCE_RECORD_CAPACITY: usize = 120_000;
 /// One recorded force: run time of the read before it (seconds), force (N, device frame).
 pub type ForceEntry = (f64, [f64; 3]);
 
-/// Owner of the ring storage (inside the mock device).
+/// The force ring: the mock's and the hand's record of rendered forces.
+pub(crate) type ForceRing = Ring<ForceEntry>;
+
+/// Owner of a ring's storage (inside a device).
 #[derive(Debug)]
-pub(crate) struct ForceRing {
+pub(crate) struct Ring<T> {
     /// Allocated once in `with_capacity`; a boxed slice so it cannot grow.
-    entries: Box<[ForceEntry]>,
+    entries: Box<[T]>,
     /// Index the next push writes; when the ring is full it is also the oldest entry.
     next: usize,
     /// Entries held, `<= entries.len()`.
@@ -25,11 +28,11 @@ pub(crate) struct ForceRing {
     total: u64,
 }
 
-impl ForceRing {
+impl<T: Copy + Default> Ring<T> {
     /// A ring holding the last `capacity` entries (at least 1).
     pub(crate) fn with_capacity(capacity: usize) -> Self {
         Self {
-            entries: vec![(0.0, [0.0; 3]); capacity.max(1)].into_boxed_slice(),
+            entries: vec![T::default(); capacity.max(1)].into_boxed_slice(),
             next: 0,
             len: 0,
             total: 0,
@@ -37,21 +40,33 @@ impl ForceRing {
     }
 
     /// Appends an entry, overwriting the oldest when full. Allocation-free.
-    pub(crate) fn push(&mut self, t: f64, force_n: [f64; 3]) {
+    pub(crate) fn push_entry(&mut self, entry: T) {
         let capacity = self.entries.len();
-        self.entries[self.next] = (t, force_n);
+        self.entries[self.next] = entry;
         self.next = (self.next + 1) % capacity;
         self.len = (self.len + 1).min(capacity);
         self.total += 1;
     }
 
-    /// A read-only view in time order.
-    pub(crate) fn view(&self) -> ForceRecord<'_> {
-        let (older, newer) = if self.len < self.entries.len() {
+    /// The held entries in time order: the older part, then the newer.
+    pub(crate) fn parts(&self) -> (&[T], &[T]) {
+        if self.len < self.entries.len() {
             (&self.entries[..self.len], &self.entries[..0])
         } else {
             (&self.entries[self.next..], &self.entries[..self.next])
-        };
+        }
+    }
+}
+
+impl ForceRing {
+    /// Appends a force rendered at `t`. Allocation-free.
+    pub(crate) fn push(&mut self, t: f64, force_n: [f64; 3]) {
+        self.push_entry((t, force_n));
+    }
+
+    /// A read-only view in time order.
+    pub(crate) fn view(&self) -> ForceRecord<'_> {
+        let (older, newer) = self.parts();
         ForceRecord {
             older,
             newer,
@@ -121,10 +136,34 @@ impl<'a> IntoIterator for ForceRecord<'a> {
 /// Writes `record` as CSV: a `t,fx,fy,fz` header, then one row per entry, oldest first, in
 /// seconds and newtons.
 pub(crate) fn write_force_csv(record: ForceRecord<'_>, path: &Path) -> io::Result<()> {
+    write_force_csv_with(record, None, path)
+}
+
+/// [`write_force_csv`] with one more column, `name`, whose values (one per entry, oldest
+/// first) come from `extra`.
+pub(crate) fn write_force_csv_with(
+    record: ForceRecord<'_>,
+    extra: Option<(&str, &Ring<f64>)>,
+    path: &Path,
+) -> io::Result<()> {
     let mut out = BufWriter::new(std::fs::File::create(path)?);
-    writeln!(out, "t,fx,fy,fz")?;
+    match extra {
+        None => writeln!(out, "t,fx,fy,fz")?,
+        Some((name, _)) => writeln!(out, "t,fx,fy,fz,{name}")?,
+    }
+    let values = extra.map(|(_, ring)| {
+        let (older, newer) = ring.parts();
+        older.iter().chain(newer).copied()
+    });
+    let mut values = values.into_iter().flatten();
     for (t, [fx, fy, fz]) in record {
-        writeln!(out, "{t},{fx},{fy},{fz}")?;
+        match extra {
+            None => writeln!(out, "{t},{fx},{fy},{fz}")?,
+            Some(_) => {
+                let v = values.next().unwrap_or(f64::NAN);
+                writeln!(out, "{t},{fx},{fy},{fz},{v}")?
+            }
+        }
     }
     out.flush()
 }
