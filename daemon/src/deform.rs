@@ -120,8 +120,6 @@ pub struct DeformLoop {
     paces: Vec<Option<Pace>>,
     /// Per body: simulated over wall time.
     meters: Vec<RealTimeMeter>,
-    /// Per body: the period of its next step when the round began, s.
-    step_periods: Vec<f64>,
     /// Per body: whether it ran FEM in the last round.
     ran_fem: Vec<bool>,
     /// Per body: whether it was reported falling behind even at its longest period.
@@ -221,7 +219,6 @@ impl DeformLoop {
             step_ns: vec![0u32; world.bodies.len()],
             paces,
             meters: vec![RealTimeMeter::new(REAL_TIME_WINDOW); world.bodies.len()],
-            step_periods: vec![0.0; world.bodies.len()],
             ran_fem: vec![false; world.bodies.len()],
             warned_behind: vec![false; world.bodies.len()],
             node_offsets: topology.node_offsets(),
@@ -303,10 +300,6 @@ impl DeformLoop {
         // Control requests (PREFIX/control) are served here, between rounds; paused: no
         // stepping, frames keep coming with frozen positions.
         let paused = self.control.poll(&mut self.world, sim_now);
-        // The period of each body's next step: what its steps this round advanced it by.
-        for (m, b) in self.step_periods.iter_mut().zip(&self.world.bodies) {
-            *m = b.model.dt();
-        }
         self.rounds.advance(
             &mut self.world,
             sim_now,
@@ -323,7 +316,9 @@ impl DeformLoop {
             if paused {
                 self.meters[i].restart(sim_now);
             } else {
-                self.meters[i].record(sim_now, f64::from(r.steps) * self.step_periods[i]);
+                // The simulated time its clock moved, a hand-over's join included and
+                // dropped lag not (`BodyRound::advanced`).
+                self.meters[i].record(sim_now, r.advanced);
             }
             if let Some(cause) = r.blow_up {
                 tracing::warn!(

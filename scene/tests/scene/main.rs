@@ -3,4 +3,5 @@
 //! one per file.
 
 mod fix_selectors;
+mod live_rounds;
 mod render_surface;

@@ -105,6 +105,9 @@ pub struct BodyRound {
     pub blow_up: Option<BlowUp>,
     /// Still due after [`Round::max_catch_up`] steps: its clock was moved to the round's end.
     pub lagged: bool,
+    /// Simulated time its clock moved this round, s: its steps, plus a hand-over's join (see
+    /// [`World::round`]); never time dropped as lag. A real-time meter's measure.
+    pub advanced: f64,
 }
 
 /// What the last round did, stage by stage.
@@ -167,6 +170,7 @@ impl World {
             for i in (0..n).filter(|&i| !skipped(i)) {
                 let tool = round.tool.and_then(|t| t.sphere(i));
                 let mut r = BodyRound::default();
+                let (time_before, dt_before) = (self.bodies[i].time, self.bodies[i].model.dt());
                 while self.body_due(i, round.until) && r.steps < round.max_catch_up {
                     let t0 = clock();
                     if let Err(cause) = self.step_body_coupled(i, tool.as_ref(), coupling) {
@@ -176,10 +180,21 @@ impl World {
                     r.step_ns += r.last_step_ns;
                     r.steps += 1;
                 }
+                let stepped_to = self.bodies[i].time;
                 if round.drop_lag && self.body_due(i, round.until) {
+                    // A hand-over to a finer model (the cage at 20 ms to the FEM at 1 ms)
+                    // happens when the coarse step is due, and the fine model starts from the
+                    // coarse model's last state, up to one coarse period behind the wall clock:
+                    // joining the clock then is the coarse model's hold, not lag. Any other
+                    // time still due is dropped as lag.
+                    r.lagged = self.bodies[i].model.dt() >= dt_before;
                     self.bodies[i].time = round.until;
-                    r.lagged = true;
                 }
+                r.advanced = if r.lagged {
+                    stepped_to - time_before
+                } else {
+                    self.bodies[i].time - time_before
+                };
                 self.report.bodies[i] = r;
             }
         }
