@@ -265,7 +265,9 @@ impl DeformLoop {
         self.deadline += self.period;
         let now = rt::sleep_until(self.deadline, 0);
         if now > self.deadline + self.period {
-            self.deadline = now; // fell behind: do not burst
+            // Fell behind: do not burst. The next deadline stays on the grid of whole periods
+            // from the start, which the bodies' clocks keep to (`World::round`).
+            self.deadline += (now - self.deadline) / self.period * self.period;
         }
 
         // Late subscribers get the topology from the history when the publisher notices them.
@@ -316,9 +318,8 @@ impl DeformLoop {
             if paused {
                 self.meters[i].restart(sim_now);
             } else {
-                // The simulated time its clock moved, a hand-over's join included and
-                // dropped lag not (`BodyRound::advanced`).
-                self.meters[i].record(sim_now, r.advanced);
+                // The simulated time it dropped as lag (`BodyRound::dropped`).
+                self.meters[i].record(sim_now, r.dropped);
             }
             if let Some(cause) = r.blow_up {
                 tracing::warn!(

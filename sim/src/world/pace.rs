@@ -222,14 +222,18 @@ fn median(costs: &mut [f64]) -> f64 {
     *q
 }
 
-/// The real-time factor of a body: simulated time stepped over wall time, per window of wall
-/// time. Time a body drops when it cannot catch up counts as not stepped, so a body that keeps
-/// real time reads 1 and one that falls behind reads below.
+/// The real-time factor of a body: simulated time kept over wall time, per window of wall
+/// time. A body in a live round is stepped up to the wall clock or drops the time still due
+/// (lag, [`crate::world::BodyRound::dropped`]), so the window's factor is `1 − dropped /
+/// elapsed`: 1 for a body that keeps real time, below for one that falls behind. Counting the
+/// time dropped rather than the steps taken keeps the factor exact whatever the body's period:
+/// a body stepping every 20 ms would read 0.98 for a window that ended 19 ms after its last
+/// step.
 #[derive(Debug, Clone, Copy)]
 pub struct RealTimeMeter {
     window: f64,
     start: Option<f64>,
-    stepped: f64,
+    dropped: f64,
     factor: Option<f64>,
 }
 
@@ -239,31 +243,31 @@ impl RealTimeMeter {
         RealTimeMeter {
             window,
             start: None,
-            stepped: 0.0,
+            dropped: 0.0,
             factor: None,
         }
     }
 
-    /// Records `stepped` s of simulated time taken since the previous record, at wall time
+    /// Records `dropped` s of simulated time lost since the previous record, at wall time
     /// `now` (s). Ends the window once it is `window` long. The first record only starts the
     /// window.
-    pub fn record(&mut self, now: f64, stepped: f64) {
+    pub fn record(&mut self, now: f64, dropped: f64) {
         let Some(start) = self.start else {
             self.start = Some(now);
             return;
         };
-        self.stepped += stepped;
+        self.dropped += dropped;
         if now - start >= self.window {
-            self.factor = Some(self.stepped / (now - start));
+            self.factor = Some((1.0 - self.dropped / (now - start)).max(0.0));
             self.start = Some(now);
-            self.stepped = 0.0;
+            self.dropped = 0.0;
         }
     }
 
     /// Restarts the window at `now` (after a pause: held time is not lost time).
     pub fn restart(&mut self, now: f64) {
         self.start = Some(now);
-        self.stepped = 0.0;
+        self.dropped = 0.0;
     }
 
     /// The factor of the last full window; `None` before one has ended.
@@ -388,15 +392,20 @@ mod tests {
     fn the_meter_reads_simulated_over_wall_time() {
         let mut m = RealTimeMeter::new(1.0);
         assert_eq!(m.factor(), None);
-        // 1 ms steps every ms for a second: real time.
+        // Nothing dropped for a second: real time, whatever the steps.
         for k in 0..=1000 {
-            m.record(k as f64 * MS, MS);
+            m.record(k as f64 * MS, 0.0);
         }
         assert!((m.factor().unwrap() - 1.0).abs() < 1e-9);
-        // Then half the steps dropped.
+        // Then 1 ms dropped every other ms: half.
         for k in 1001..=2000 {
             m.record(k as f64 * MS, if k % 2 == 0 { MS } else { 0.0 });
         }
         assert!((m.factor().unwrap() - 0.5).abs() < 1e-9);
+        // A restart (a pause) forgets what the window had dropped.
+        m.record(2.5, 0.3);
+        m.restart(2.5);
+        m.record(3.6, 0.0);
+        assert!((m.factor().unwrap() - 1.0).abs() < 1e-9);
     }
 }

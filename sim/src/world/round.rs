@@ -105,9 +105,12 @@ pub struct BodyRound {
     pub blow_up: Option<BlowUp>,
     /// Still due after [`Round::max_catch_up`] steps: its clock was moved to the round's end.
     pub lagged: bool,
-    /// Simulated time its clock moved this round, s: its steps, plus a hand-over's join (see
-    /// [`World::round`]); never time dropped as lag. A real-time meter's measure.
-    pub advanced: f64,
+    /// Simulated time dropped as lag this round, s: how far its clock was moved past its
+    /// steps when it was still due after [`Round::max_catch_up`] of them (0 at a hand-over's
+    /// join, see [`World::round`]). In live rounds, where every body is stepped to the wall
+    /// clock or drops the rest, the time a body fell behind real time; a real-time meter's
+    /// measure.
+    pub dropped: f64,
 }
 
 /// What the last round did, stage by stage.
@@ -170,7 +173,7 @@ impl World {
             for i in (0..n).filter(|&i| !skipped(i)) {
                 let tool = round.tool.and_then(|t| t.sphere(i));
                 let mut r = BodyRound::default();
-                let (time_before, dt_before) = (self.bodies[i].time, self.bodies[i].model.dt());
+                let dt_before = self.bodies[i].model.dt();
                 while self.body_due(i, round.until) && r.steps < round.max_catch_up {
                     let t0 = clock();
                     if let Err(cause) = self.step_body_coupled(i, tool.as_ref(), coupling) {
@@ -187,14 +190,20 @@ impl World {
                     // coarse model's last state, up to one coarse period behind the wall clock:
                     // joining the clock then is the coarse model's hold, not lag. Any other
                     // time still due is dropped as lag.
-                    r.lagged = self.bodies[i].model.dt() >= dt_before;
-                    self.bodies[i].time = round.until;
+                    //
+                    // The clock moves to the last multiple of the body's period at or before
+                    // the round's end, not to the end itself: live rounds come on a grid of
+                    // whole periods (plus the wake-up latency), so a clock on the same grid
+                    // has one step due per round, where a clock a fraction of a period off it
+                    // would have none or two by the latency's whim (frames 2 ms apart at 1 ms).
+                    let dt = self.bodies[i].model.dt();
+                    r.lagged = dt >= dt_before;
+                    let grid = ((round.until + 1e-12) / dt).floor() * dt;
+                    self.bodies[i].time = grid.max(stepped_to);
                 }
-                r.advanced = if r.lagged {
-                    stepped_to - time_before
-                } else {
-                    self.bodies[i].time - time_before
-                };
+                if r.lagged {
+                    r.dropped = self.bodies[i].time - stepped_to;
+                }
                 self.report.bodies[i] = r;
             }
         }
