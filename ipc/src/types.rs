@@ -140,8 +140,9 @@ pub struct BodyFrame {
     /// The period of the body's next step, µs: its configured period, or a longer one the
     /// deformation process chose because a step costs more than that on this machine.
     pub period_us: u32,
-    /// Simulated time stepped over wall time in the last second (1: real time; below: the
-    /// body falls behind the wall clock); 0 before a second has passed.
+    /// Simulated time kept over wall time in the last second, `1 − dropped / elapsed` with
+    /// `dropped` the simulated time the body lost as lag (1: real time; below: the body falls
+    /// behind the wall clock); 0 before a second has passed.
     pub real_time_factor: f32,
 }
 
