@@ -168,10 +168,11 @@ fn organs_meshes_a_built_surface_and_measures_it_live() {
         .as_f64()
         .expect("the offline held force");
     assert!(held > 0.0 && held < 5.0, "{r:#}");
-    assert!(
-        r["device_port_energy_j"].as_f64().expect("the port energy") >= 0.0,
-        "{r:#}"
-    );
+    // No energy generated at the device port on a small organ that keeps up (0.000 µJ in
+    // every 2k row of the bench). 1 µJ against the ~1 mJ the hand puts in: a late frame's
+    // pop generates hundreds of µJ.
+    let energy = r["device_port_energy_j"].as_f64().expect("the port energy");
+    assert!((0.0..1e-6).contains(&energy), "{r:#}");
     // Live, the same hand through `lopd run` comes to rest on the same tissue: the held force
     // is a static equilibrium of the same mesh, whatever the frame age on the way (the
     // figures show 0.0–0.1 %; 10 % leaves room for a busy machine's late frames).
@@ -182,7 +183,7 @@ fn organs_meshes_a_built_surface_and_measures_it_live() {
     let live_energy = r["live_device_port_energy_j"]
         .as_f64()
         .expect("the live port energy");
-    assert!(live_energy.is_finite() && live_energy >= 0.0, "{r:#}");
+    assert!((0.0..1e-6).contains(&live_energy), "{r:#}");
     assert!(dir
         .join("ellipsoid-800-threads-1-light-grip-forces.csv")
         .is_file());

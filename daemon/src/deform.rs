@@ -327,7 +327,7 @@ impl DeformLoop {
                     self.world.bodies[i].name
                 );
             }
-            if r.lagged {
+            if r.lagged() {
                 self.lagged += 1;
                 if self.lagged.is_power_of_two() {
                     tracing::warn!(

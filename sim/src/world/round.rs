@@ -103,14 +103,20 @@ pub struct BodyRound {
     pub step_ns: u64,
     /// The last blow-up (the body was reset to rest), if any.
     pub blow_up: Option<BlowUp>,
-    /// Still due after [`Round::max_catch_up`] steps: its clock was moved to the round's end.
-    pub lagged: bool,
     /// Simulated time dropped as lag this round, s: how far its clock was moved past its
     /// steps when it was still due after [`Round::max_catch_up`] of them (0 at a hand-over's
     /// join, see [`World::round`]). In live rounds, where every body is stepped to the wall
     /// clock or drops the rest, the time a body fell behind real time; a real-time meter's
     /// measure.
     pub dropped: f64,
+}
+
+impl BodyRound {
+    /// Still due after [`Round::max_catch_up`] steps, and not at a hand-over: time was
+    /// dropped as lag.
+    pub fn lagged(&self) -> bool {
+        self.dropped > 0.0
+    }
 }
 
 /// What the last round did, stage by stage.
@@ -197,12 +203,11 @@ impl World {
                     // has one step due per round, where a clock a fraction of a period off it
                     // would have none or two by the latency's whim (frames 2 ms apart at 1 ms).
                     let dt = self.bodies[i].model.dt();
-                    r.lagged = dt >= dt_before;
                     let grid = ((round.until + 1e-12) / dt).floor() * dt;
                     self.bodies[i].time = grid.max(stepped_to);
-                }
-                if r.lagged {
-                    r.dropped = self.bodies[i].time - stepped_to;
+                    if dt >= dt_before {
+                        r.dropped = self.bodies[i].time - stepped_to;
+                    }
                 }
                 self.report.bodies[i] = r;
             }
