@@ -7,8 +7,8 @@ use super::params::validate;
 use super::rotation::{self, QUAT_IDENTITY};
 use super::system::{NodeOrdering, System, NONE};
 use super::{
-    CorotationalSolver, Factor, Fem, FemError, FemMode, FemParameters, RefactorPolicy, Scratch,
-    SolverCounters, INVERSE_SLOTS,
+    CorotationalSolver, Factor, Fem, FemError, FemMode, FemParameters, PatchCorrection,
+    RefactorPolicy, Scratch, SolverCounters, INVERSE_SLOTS,
 };
 use crate::mesh::TetMesh;
 use crate::parallel::WorkerPool;
@@ -133,6 +133,8 @@ impl Fem {
             pc_used: Vec::new(),
             pc_cols: Vec::new(),
             pc_clock: 0,
+            pc_force: Vec::with_capacity(3 * crate::patch::MAX_PATCH),
+            pc_correction: PatchCorrection::default(),
         });
         let mut fem = Fem {
             params,
@@ -262,6 +264,12 @@ impl Fem {
     #[doc(hidden)]
     pub fn set_corotational_solver(&mut self, solver: CorotationalSolver) {
         self.solver = solver;
+    }
+
+    /// Chooses how the contact patch's correction is applied: for tests and benchmarks.
+    #[doc(hidden)]
+    pub fn set_patch_correction(&mut self, how: PatchCorrection) {
+        self.s.pc_correction = how;
     }
 
     /// Runs the step's element loops (rotations and forces, the matrix-free products, the

@@ -204,6 +204,21 @@ pub enum CorotationalSolver {
     LaggedFactorPcg,
 }
 
+/// How the contact patch's correction `K̃⁻¹ C λ` is applied when the patch's nodes have their
+/// `K̃⁻¹` columns cached (`patch.rs`): by whichever streams fewer bytes, or one way always, to
+/// compare them.
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PatchCorrection {
+    /// The nodes' columns when they are fewer bytes than a solve pair, else a solve.
+    #[default]
+    Cheaper,
+    /// Always the sum of the nodes' cached columns.
+    Columns,
+    /// Always one solve with the factor.
+    Solve,
+}
+
 /// When a corotational body using the lagged factor refreshes it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum RefactorPolicy {
@@ -371,6 +386,10 @@ struct Scratch {
     pc_used: Vec<u64>,
     pc_cols: Vec<f64>,
     pc_clock: u64,
+    /// The patch's forces on its nodes (node, N), summed per node for the correction
+    /// (`patch::cached_correction`); room for every node of a full patch, reserved once.
+    pc_force: Vec<(u32, [f64; 3])>,
+    pc_correction: PatchCorrection,
 }
 
 /// Node blocks of `K̃⁻¹` columns kept by a linear body (see `Scratch::inv_cols`): a touched

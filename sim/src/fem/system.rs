@@ -399,6 +399,19 @@ impl System {
         }
     }
 
+    /// Bytes one solve pair streams from the current factor: its values twice, at the
+    /// precision the solve reads them in (0 without a factor). What a sum of cached `K̃⁻¹`
+    /// columns is weighed against (`patch.rs`).
+    pub fn solve_bytes(&self) -> usize {
+        let bytes = match self.matrix.current() {
+            None => return 0,
+            Some(Precision::Double) => 8,
+            Some(Precision::Single) if self.half_current => 2,
+            Some(Precision::Single) => 4,
+        };
+        2 * bytes * self.matrix.nnz().1
+    }
+
     /// Solves `A x = rhs` in place with the current factor (in its precision; the result is
     /// `f64` either way). Without a factor, leaves `rhs` unchanged.
     pub fn solve_in_place(&mut self, rhs: &mut [f64]) {
