@@ -66,6 +66,10 @@ struct BodySummary {
     resets: u32,
     /// Levels-of-precision transitions (0 for a pinned body).
     switches: u32,
+    /// A FEM body's system: stored entries of the matrix (one triangle) and of its Cholesky
+    /// factor, what a step's solves stream (null for other models).
+    matrix_entries: Option<usize>,
+    factor_entries: Option<usize>,
     static_solve: Option<String>,
 }
 
@@ -259,6 +263,13 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
             .fold(0.0, f64::max);
         let mut sorted = times[i].clone();
         sorted.sort_by(f64::total_cmp);
+        let fem = [Some(&b.model), b.lop.as_ref().map(|l| l.parked())]
+            .into_iter()
+            .flatten()
+            .find_map(|m| match m {
+                Model::Fem(f) => Some(f.solver_info()),
+                _ => None,
+            });
         bodies.push(BodySummary {
             name: b.name.clone(),
             model: format!("{:?}", b.model.kind()),
@@ -274,6 +285,8 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
             settled: b.model.max_speed() < SETTLED_SPEED,
             resets: b.resets,
             switches: b.lop.as_ref().map_or(0, |l| l.switches()),
+            matrix_entries: fem.map(|f| f.0),
+            factor_entries: fem.map(|f| f.1),
             static_solve: static_results[i].clone(),
         });
     }

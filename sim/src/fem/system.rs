@@ -434,12 +434,17 @@ impl System {
     }
 }
 
-/// Single-precision factors of at least this many values (4 MB) are solved with their
+/// Single-precision factors of at least this many values (1 MB) are solved with their
 /// half-precision copy (`packed.rs`). Smaller ones sit in a core's L2 cache, where the solve is
 /// not memory-bound and the half copy saves little, while its rounding costs the settled
-/// organ meshes their one-iteration steps (liver with the tool: 1.0 → 2.0 CG iterations per
-/// step, 0.34 → 0.42 ms). From the 10k-tetrahedra box (1.8M values) on it is faster.
-pub(crate) const HALF_MIN_VALUES: usize = 1 << 20;
+/// organ meshes their one-iteration steps (the shipped liver, 165k values, with the tool: 1.0
+/// → 2.0 CG iterations per step, 0.34 → 0.42 ms; the recipe's 2k-tetrahedra organs have
+/// 140–190k). The recipe's 5k organs (530–640k values, 2.1–2.5 MB in single precision: more
+/// than the 2 MB L2 of a core of the development machine) step faster with it: pressed by
+/// their poke at 1 ms, contact step p50 0.77 → 0.65 ms (kidney), 0.87 → 0.70 ms (ellipsoid),
+/// p99 1.4–1.9 → 1.1–1.6 ms (`lopd simulate`, four runs each alternating, 2026-11-29); with
+/// the earlier 4 MB threshold they used the single-precision factor.
+pub(crate) const HALF_MIN_VALUES: usize = 1 << 18;
 
 /// Floor of [`System::refactor_price`]: on small meshes a factorisation costs about ten
 /// iterations (it was the fixed price before the estimate).
