@@ -130,7 +130,8 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
     let mut csv = std::io::BufWriter::new(std::fs::File::create(&steps_csv)?);
     writeln!(
         csv,
-        "body,step,sim_time_s,model,step_us,kinetic_energy_j,max_speed_m_s,contact_force_n"
+        "body,step,sim_time_s,model,step_us,kinetic_energy_j,max_speed_m_s,contact_force_n,\
+         cg_iterations,factorizations"
     )?;
 
     if opts.static_solve {
@@ -204,9 +205,21 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
                 times[i].push(us);
                 steps_done[i] += 1;
                 let f = b.last_contact.force_on_tissue;
+                // An FEM step's CG iterations, and the factorisations its body has made so far
+                // (on the stepping thread or its factor thread): what makes a slow step slow.
+                let (iterations, factors) = match &b.model {
+                    Model::Fem(fem) => {
+                        let c = fem.solver_counters();
+                        (
+                            fem.last_iterations() as u64,
+                            c.factorizations + c.background_factorizations,
+                        )
+                    }
+                    _ => (0, 0),
+                };
                 writeln!(
                     csv,
-                    "{},{},{:.6},{:?},{:.3},{:.6e},{:.6e},{:.6e}",
+                    "{},{},{:.6},{:?},{:.3},{:.6e},{:.6e},{:.6e},{},{}",
                     b.name,
                     steps_done[i],
                     b.time,
@@ -214,7 +227,9 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
                     us,
                     b.model.kinetic_energy(),
                     b.model.max_speed(),
-                    (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
+                    (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt(),
+                    iterations,
+                    factors
                 )?;
                 if steps_done[i] >= opts.steps {
                     active[i] = false;

@@ -38,11 +38,22 @@ fn offline_run_writes_outputs_and_is_deterministic() {
     let fa = std::fs::read(a.join("final_positions.csv")).unwrap();
     let fb = std::fs::read(b.join("final_positions.csv")).unwrap();
     assert_eq!(fa, fb, "two identical runs differ");
-    let rows = std::fs::read_to_string(a.join("steps.csv"))
-        .unwrap()
+    let steps = std::fs::read_to_string(a.join("steps.csv")).unwrap();
+    assert_eq!(steps.lines().count(), 1 + 2 * 90);
+    // The FEM steps say what they cost: CG iterations (the corotational cylinder under
+    // gravity needs some) and the factorisations so far (at least the first one).
+    let header: Vec<&str> = steps.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (model, cg, factors) = (col("model"), col("cg_iterations"), col("factorizations"));
+    let fem: Vec<Vec<&str>> = steps
         .lines()
-        .count();
-    assert_eq!(rows, 1 + 2 * 90);
+        .skip(1)
+        .map(|l| l.split(',').collect::<Vec<_>>())
+        .filter(|r| r[model] == "Fem")
+        .collect();
+    assert!(!fem.is_empty(), "{steps}");
+    assert!(fem.iter().any(|r| r[cg] != "0"), "{steps}");
+    assert!(fem.iter().all(|r| r[factors] != "0"), "{steps}");
     for f in [
         "final_cylinder_a.vtk",
         "final_cylinder_b.vtk",
@@ -53,6 +64,14 @@ fn offline_run_writes_outputs_and_is_deterministic() {
     let summary = std::fs::read_to_string(a.join("summary.json")).unwrap();
     assert!(summary.contains("\"steps\": 90"), "{summary}");
     assert!(summary.contains("\"switches\": 1"), "{summary}");
+    // The FEM body's system and factor sizes (null for a body without an FEM model).
+    let v: serde_json::Value = serde_json::from_str(&summary).unwrap();
+    let a_body = &v["bodies"][0];
+    assert_eq!(a_body["name"], "cylinder_a", "{summary}");
+    assert!(
+        a_body["factor_entries"].as_u64().unwrap() > a_body["matrix_entries"].as_u64().unwrap(),
+        "{summary}"
+    );
     // Gravity sags the free cylinders' tops: some node moved.
     assert!(
         !summary.contains("\"max_displacement_m\": 0.0,"),
