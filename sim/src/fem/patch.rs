@@ -128,8 +128,9 @@ impl Fem {
     /// columns of their nodes, or by one solve with the factor when that streams fewer bytes
     /// (three columns per node against the factor's values twice: on the 20k-tetrahedra liver
     /// pressed by 2–6 points, 1–4 MB of columns against a 22 MB solve, 1.4 ms a step). Both
-    /// apply the same factor, so they agree to rounding; the choice depends on the patch's
-    /// size only, so runs stay deterministic. False if it is not finite.
+    /// apply the same factor ([`super::system::System::solve_patch_in_place`]), so they agree
+    /// to rounding; the choice depends on the patch's size only, so runs stay deterministic.
+    /// False if it is not finite.
     fn cached_correction(&mut self, patch: &ToolPatch<'_>) -> bool {
         let dof = &self.system.dof;
         let s = &mut *self.s;
@@ -175,7 +176,7 @@ impl Fem {
                 let d = dof[*node as usize] as usize;
                 out[d..d + 3].copy_from_slice(f);
             }
-            self.system.solve_in_place(out);
+            self.system.solve_patch_in_place(out);
         }
         out.iter().all(|d| d.is_finite())
     }
@@ -246,7 +247,7 @@ impl Fem {
             let col = &mut s.pc_cols[(3 * slot + c) * n..(3 * slot + c + 1) * n];
             col.fill(0.0);
             col[d + c] = 1.0;
-            self.system.solve_in_place(col);
+            self.system.solve_patch_in_place(col);
         }
         s.pc_node[slot] = node as u32;
         s.pc_used[slot] = clock;

@@ -385,7 +385,8 @@ impl System {
     }
 
     /// Solves for the `ncols` columns of `b` (column-major, `n_dof` rows) with the current
-    /// factor: one blocked solve with the double-precision factor, else one solve per column.
+    /// factor: one blocked solve with the double-precision factor, else one solve per column
+    /// ([`System::solve_patch_in_place`]: the patch's columns).
     pub fn solve_columns(&mut self, b: &mut [f64], ncols: usize) {
         if self.n_dof == 0 || ncols == 0 {
             return;
@@ -394,22 +395,53 @@ impl System {
             self.matrix.solve_columns(b, ncols);
         } else {
             for col in b.chunks_exact_mut(self.n_dof).take(ncols) {
-                self.solve_in_place(col);
+                self.solve_patch_in_place(col);
             }
         }
     }
 
-    /// Bytes one solve pair streams from the current factor: its values twice, at the
-    /// precision the solve reads them in (0 without a factor). What a sum of cached `K̃⁻¹`
-    /// columns is weighed against (`patch.rs`).
+    /// Bytes one solve pair of [`System::solve_patch_in_place`] streams from the current
+    /// factor: its values twice, at the precision that solve reads them in (0 without a
+    /// factor). What a sum of cached `K̃⁻¹` columns is weighed against (`patch.rs`).
     pub fn solve_bytes(&self) -> usize {
         let bytes = match self.matrix.current() {
             None => return 0,
             Some(Precision::Double) => 8,
-            Some(Precision::Single) if self.half_current => 2,
+            Some(Precision::Single) if self.half_for_patch() => 2,
             Some(Precision::Single) => 4,
         };
         2 * bytes * self.matrix.nnz().1
+    }
+
+    /// Whether the contact patch's solves use the half-precision copy: only from
+    /// [`HALF_PATCH_MIN_VALUES`].
+    fn half_for_patch(&self) -> bool {
+        self.half_current && self.matrix.nnz().1 >= HALF_PATCH_MIN_VALUES
+    }
+
+    /// [`System::solve_in_place`] for the contact patch's `K̃⁻¹` columns and correction,
+    /// whose accuracy sets how closely the patch's gaps close and so the force a held press
+    /// settles at: in the factor's own precision below [`HALF_PATCH_MIN_VALUES`], even where
+    /// CG's preconditioner uses the half-precision copy (CG converges to its tolerance
+    /// whatever the preconditioner's rounding; the patch does not iterate).
+    pub fn solve_patch_in_place(&mut self, rhs: &mut [f64]) {
+        if self.n_dof == 0 {
+            return;
+        }
+        match self.matrix.current() {
+            Some(Precision::Double) if self.packed_current => {
+                if let Some(packed) = &mut self.packed {
+                    packed.solve_in_place(rhs);
+                }
+            }
+            Some(Precision::Single) if self.half_for_patch() => {
+                if let Some(half) = &mut self.half {
+                    half.solve_in_place(rhs);
+                }
+            }
+            Some(_) => self.matrix.solve_in_place(rhs),
+            None => {}
+        }
     }
 
     /// Solves `A x = rhs` in place with the current factor (in its precision; the result is
@@ -435,7 +467,8 @@ impl System {
 }
 
 /// Single-precision factors of at least this many values (1 MB) are solved with their
-/// half-precision copy (`packed.rs`). Smaller ones sit in a core's L2 cache, where the solve is
+/// half-precision copy (`packed.rs`) in CG's preconditioner (the contact patch's solves from
+/// [`HALF_PATCH_MIN_VALUES`]). Smaller ones sit in a core's L2 cache, where the solve is
 /// not memory-bound and the half copy saves little, while its rounding costs the settled
 /// organ meshes their one-iteration steps (the shipped liver, 165k values, with the tool: 1.0
 /// → 2.0 CG iterations per step, 0.34 → 0.42 ms; the recipe's 2k-tetrahedra organs have
@@ -445,6 +478,15 @@ impl System {
 /// p99 1.4–1.9 → 1.1–1.6 ms (`lopd simulate`, four runs each alternating, 2026-11-29); with
 /// the earlier 4 MB threshold they used the single-precision factor.
 pub(crate) const HALF_MIN_VALUES: usize = 1 << 18;
+
+/// The contact patch's solves (its `K̃⁻¹` columns and correction) use the half-precision copy
+/// only from this many factor values (4 MB in single precision), as every solve did before the
+/// copy served smaller factors. Below, the patch keeps single precision: with the half copy a
+/// block's held press settled 2.6 % lower after a change of period (`fem_background.rs`),
+/// against 1.1 % in single precision. Above, the single-precision solve streams twice the bytes
+/// and the columns of the nodes a moving patch newly reaches dominate the long periods' steps:
+/// the 20k liver's contact step at 10 ms, p90 13.2 → 17.1 ms with single-precision columns.
+pub(crate) const HALF_PATCH_MIN_VALUES: usize = 1 << 20;
 
 /// Floor of [`System::refactor_price`]: on small meshes a factorisation costs about ten
 /// iterations (it was the fixed price before the estimate).
