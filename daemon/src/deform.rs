@@ -39,6 +39,14 @@ use lop_scene::{Rounds, TickTool};
 
 /// A tool state older than this is ignored (the haptic process is gone or restarting), ns.
 const TOOL_STALE_NS: u64 = 100_000_000;
+/// A tool state older than this makes the deformation process close the tool blackboard, ns.
+/// A haptic process killed while writing leaves the blackboard's entry marked as held (the
+/// iceoryx2 0.10 blackboard does not release a dead writer's entry handle), so a restarted one
+/// cannot write it while the service lives; the service goes once its last reader closes it,
+/// and the restarted haptic process then creates it again (`haptic::HapticLoop::new` waits for
+/// that). Longer than [`TOOL_STALE_NS`], so that a late tick never closes it, and shorter than
+/// the supervisor's first restart delay (0.2 s).
+const TOOL_DROP_NS: u64 = 150_000_000;
 /// Largest nodal speed under which a body counts as at rest, m/s.
 const REST_SPEED: f64 = 1e-3;
 /// Steps from asking for a new period's factor to stepping with it (the factor is made on the
@@ -286,9 +294,15 @@ impl DeformLoop {
         if let Some(t) = &self.tool_input {
             let state = *t.entry.get();
             tool_read = rt::now_ns();
-            if state.stamp_ns > 0 && tool_read.saturating_sub(state.stamp_ns) < TOOL_STALE_NS {
+            let age = tool_read.saturating_sub(state.stamp_ns);
+            if state.stamp_ns > 0 && age < TOOL_STALE_NS {
                 tool_stamp = state.stamp_ns;
                 tool_state = Some(state);
+            } else if state.stamp_ns > 0 && age > TOOL_DROP_NS {
+                // The haptic process is gone (or stopped): let go of its blackboard so that a
+                // restarted one can make it anew (`TOOL_DROP_NS`); opened again 0.5 s later.
+                self.tool_input = None;
+                self.last_tool_try = now;
             }
         }
         let tool = tool_state.map(|s| TickTool {

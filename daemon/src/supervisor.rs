@@ -4,7 +4,11 @@
 //! - A crashed deformation process is restarted with exponential back-off (0.2 s doubling to
 //!   5 s; reset after 10 s of healthy running) while the haptic loop keeps running: the loop sees
 //!   the frames go stale and ramps the force to zero, then picks up the new topology.
-//! - A crashed haptic process is restarted the same way (it wrote zero force on its way out).
+//! - A crashed haptic process is restarted the same way (it wrote zero force on its way out,
+//!   unless it was killed); the deformation process keeps running. A process killed while
+//!   writing the tool blackboard leaves its entry held, so the deformation process closes the
+//!   blackboard once the tool state is 150 ms old and the new haptic process makes it anew
+//!   (`deform::TOOL_DROP_NS`, `haptic::tool_board_writer`); its force starts from zero.
 //! - Ctrl-C / SIGTERM / `--duration`: SIGTERM to both children (each writes zero force / stops
 //!   stepping), SIGKILL after 3 s if one hangs, then dead-node clean-up and a check that no
 //!   service under the prefix is left.

@@ -9,6 +9,8 @@
 //!   are small and noisy);
 //! - a killed deformation process is restarted by the supervisor while haptic ticks continue
 //!   (counted the same way), and a new topology and frames follow;
+//! - a killed haptic process is restarted by the supervisor, the deformation process keeps
+//!   running, and the new loop ramps in from zero and renders the tissue again;
 //! - SIGINT (Ctrl-C) stops everything with exit code 0, the last force the device received is
 //!   zero, and no service under the prefix is left.
 
@@ -249,5 +251,126 @@ fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
         .collect();
     assert_eq!(f, [0.0, 0.0, 0.0], "last force written: {last}");
     assert!(daemon.log_text().contains("no service left"));
+    let _ = std::fs::remove_file(&force_log);
+}
+
+/// A haptic process killed (SIGKILL) while the tool presses the liver is restarted by the
+/// supervisor, and the restarted one renders the tissue again: the deformation process keeps
+/// running (same process), the new loop's force starts at zero and changes by at most the
+/// safety's step limit per tick (0.05 N, `[haptic] max_force_step_n`) until the shutdown's zero,
+/// and the mock's poke (played again from its start) presses the tissue and feels it. Before,
+/// the restarted process failed at start, every time: the dead one had left the tool
+/// blackboard's entry marked as held (`haptic::tool_board_writer`, `deform::TOOL_DROP_NS`).
+#[test]
+fn a_killed_haptic_process_is_restarted_and_renders_the_tissue_again() {
+    let prefix = unique_prefix("haptic-restart");
+    let force_log = std::env::temp_dir().join(format!("{prefix}-forces.csv"));
+    let force_log_s = force_log.display().to_string();
+    let mut daemon = Daemon::spawn(
+        &[
+            "run",
+            "--scene",
+            "abdomen",
+            "--device",
+            "mock",
+            "--prefix",
+            &prefix,
+            "--quiet",
+            "--force-log",
+            &force_log_s,
+        ],
+        &prefix,
+        Duration::from_secs(120),
+    );
+    let mut client = Attachment::open(&prefix, Duration::from_secs(30))
+        .unwrap_or_else(|e| panic!("attach: {e}\n{}", daemon.log_text()));
+    let mut tools: Vec<ToolState> = Vec::new();
+    // A tool state pressing the tissue with more than 0.2 N (the poke peaks at about 0.7 N).
+    let in_contact = |tools: &[ToolState]| {
+        tools.iter().any(|t| {
+            t.flags & TOOL_FLAG_CONTACT != 0
+                && (t.force[0].powi(2) + t.force[1].powi(2) + t.force[2].powi(2)).sqrt() > 0.2
+        })
+    };
+    // Wait for the poke to press the liver, then kill the haptic process mid-press.
+    let t0 = Instant::now();
+    while !in_contact(&tools) && t0.elapsed() < Duration::from_secs(20) {
+        client.tool_states(&mut tools);
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(in_contact(&tools), "no press\n{}", daemon.log_text());
+    let haptic = find_processes(&["haptic", "--prefix", &prefix]);
+    let deform = find_processes(&["deform", "--prefix", &prefix]);
+    assert_eq!(
+        (haptic.len(), deform.len()),
+        (1, 1),
+        "{haptic:?} {deform:?}"
+    );
+    // SAFETY: kill on a process this test started (through lopd run).
+    unsafe { libc::kill(haptic[0], libc::SIGKILL) };
+
+    // A new haptic process, whose poke presses the tissue again (tool states from before it
+    // runs are dropped: the ring still held the killed one's).
+    let t0 = Instant::now();
+    let mut restarted = Vec::new();
+    while t0.elapsed() < Duration::from_secs(20) {
+        client.tool_states(&mut tools);
+        if restarted.len() == 1 && restarted[0] != haptic[0] {
+            if in_contact(&tools) {
+                break;
+            }
+        } else {
+            restarted = find_processes(&["haptic", "--prefix", &prefix]);
+            tools.clear();
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(
+        restarted.len() == 1 && restarted[0] != haptic[0] && in_contact(&tools),
+        "the haptic process did not come back to render the tissue ({restarted:?})\n{}",
+        daemon.log_text()
+    );
+    assert_eq!(
+        find_processes(&["deform", "--prefix", &prefix]),
+        deform,
+        "the deformation process was restarted too"
+    );
+
+    drop(client);
+    daemon.signal(libc::SIGINT);
+    let status = daemon
+        .wait(Duration::from_secs(20))
+        .expect("lopd run did not stop");
+    let log = daemon.log_text();
+    assert!(status.success(), "exit {status}\n{log}");
+    assert!(
+        log.contains("haptic restarts 1, deform restarts 0"),
+        "{log}"
+    );
+    let left = lop_ipc::services::list_services(&prefix);
+    assert!(left.is_empty(), "services left behind: {left:?}");
+    // The restarted process's force log (it replaces the killed one's, which died unwritten).
+    let csv = std::fs::read_to_string(&force_log).expect("force log");
+    let norms: Vec<f64> = csv
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').skip(1).map(|v| v.parse().unwrap()).collect();
+            (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
+        })
+        .collect();
+    assert!(norms.len() > 500, "{} rows", norms.len());
+    assert_eq!(norms[0], 0.0, "the restarted loop's first force");
+    assert_eq!(*norms.last().unwrap(), 0.0, "the last force written");
+    // Up to the shutdown, which writes zero at once (the exit path's rule, not a ramp).
+    let end = norms.iter().rposition(|f| *f != 0.0).map_or(0, |k| k + 1);
+    let live = &norms[..end];
+    let largest = live
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .fold(0.0, f64::max);
+    assert!(largest <= 0.05 + 1e-9, "a step of {largest} N in one tick");
+    let peak = live.iter().copied().fold(0.0, f64::max);
+    assert!(peak > 0.2, "the restarted loop felt at most {peak} N");
     let _ = std::fs::remove_file(&force_log);
 }

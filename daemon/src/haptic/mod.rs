@@ -122,6 +122,68 @@ pub struct TickOutcome {
     pub fatal: Option<lop_drivers::DeviceError>,
 }
 
+/// How long a starting haptic process waits for the tool blackboard's entry to be free.
+const TOOL_BOARD_WAIT: Duration = Duration::from_secs(3);
+
+/// The tool blackboard (created, or opened if it exists), its writer and the entry of the
+/// newest tool state. A haptic process killed while writing leaves the entry marked as held:
+/// the iceoryx2 0.10 blackboard does not release a dead writer's entry handle, even once the
+/// dead node is cleaned up, so the entry cannot be had while the service lives. The service
+/// goes when its readers close it — the deformation process does once the tool state is older
+/// than 150 ms (`deform::TOOL_DROP_NS`) — so a restarted process lets go of it too and tries
+/// again, for up to [`TOOL_BOARD_WAIT`], before it gives up with the cause.
+fn tool_board_writer(
+    node: &Node<ipc::Service>,
+    names: &ServiceNames,
+) -> Result<(
+    ToolBoard,
+    iceoryx2::port::writer::Writer<ipc::Service, u32>,
+    EntryHandleMut<ipc::Service, u32, ToolState>,
+)> {
+    let start = std::time::Instant::now();
+    let mut waited = false;
+    loop {
+        services::cleanup_dead_nodes(node);
+        let board = services::tool_board_owner(node, names)?;
+        let writer = board
+            .writer_builder()
+            .create()
+            .context("tool blackboard writer (is another lopd haptic running with this prefix?)")?;
+        match writer.entry::<ToolState>(&services::TOOL_LATEST_KEY) {
+            Ok(entry) => {
+                if waited {
+                    tracing::info!(
+                        "tool blackboard made anew after {:.0} ms (the last haptic process \
+                         died holding its entry)",
+                        start.elapsed().as_secs_f64() * 1e3
+                    );
+                }
+                return Ok((board, writer, entry));
+            }
+            Err(e) if start.elapsed() < TOOL_BOARD_WAIT => {
+                if !waited {
+                    tracing::info!(
+                        "tool blackboard entry still held ({e:?}): a haptic process died \
+                         writing it; waiting for its readers to close it"
+                    );
+                }
+                waited = true;
+                drop(writer);
+                drop(board);
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            Err(e) => {
+                return Err(anyhow::anyhow!("{e:?}")).context(format!(
+                    "tool blackboard entry: still held {:.1} s after start (a haptic process \
+                     died writing it, and a reader of {} keeps the service open)",
+                    TOOL_BOARD_WAIT.as_secs_f64(),
+                    names.tool_latest
+                ));
+            }
+        }
+    }
+}
+
 impl HapticLoop {
     /// Creates the ports and buffers. Call on the thread that will run the ticks.
     pub fn new(
@@ -134,14 +196,7 @@ impl HapticLoop {
         services::cleanup_dead_nodes(&node);
         let frame_feed = FrameFeed::start(names, settings.frames)?;
         let index_feed = IndexFeed::start(names, settings.pipeline.tool.radius)?;
-        let board = services::tool_board_owner(&node, names)?;
-        let writer = board
-            .writer_builder()
-            .create()
-            .context("tool blackboard writer (is another lopd haptic running with this prefix?)")?;
-        let tool_entry = writer
-            .entry::<ToolState>(&services::TOOL_LATEST_KEY)
-            .context("tool blackboard entry")?;
+        let (board, writer, tool_entry) = tool_board_writer(&node, names)?;
         let rate = settings.pipeline.rate_hz.round() as u64;
         Ok(HapticLoop {
             pipeline: HapticPipeline::new(settings.pipeline.clone()),
