@@ -47,6 +47,12 @@ const TOOL_STALE_NS: u64 = 100_000_000;
 /// that). Longer than [`TOOL_STALE_NS`], so that a late tick never closes it, and shorter than
 /// the supervisor's first restart delay (0.2 s).
 const TOOL_DROP_NS: u64 = 150_000_000;
+/// After closing a stale tool blackboard, the deformation process opens it again this much
+/// later, ns: a haptic process stopped (SIGSTOP) and continued is coupled to the tissue again
+/// within it (with 0.5 s, the tissue relaxed away from the tool meanwhile and the force rose to
+/// the 3 N clamp after a 1 s stop, against 1.08 N while the blackboard stayed open). Reopening
+/// the dead process's blackboard between a restarted one's attempts holds it only for a tick.
+const TOOL_REOPEN_NS: u64 = 50_000_000;
 /// Largest nodal speed under which a body counts as at rest, m/s.
 const REST_SPEED: f64 = 1e-3;
 /// Steps from asking for a new period's factor to stepping with it (the factor is made on the
@@ -116,7 +122,8 @@ pub struct DeformLoop {
     tool_input: Option<ToolInput>,
     control: crate::control::ControlServer,
     last_connection_update: u64,
-    last_tool_try: u64,
+    /// When to try opening the tool blackboard next (while it is not open), ns.
+    tool_retry_at: u64,
     period: u64,
     start: u64,
     deadline: u64,
@@ -242,7 +249,7 @@ impl DeformLoop {
             tool_input,
             control,
             last_connection_update: now,
-            last_tool_try: now,
+            tool_retry_at: now + 500_000_000,
             period,
             start: now,
             deadline: now,
@@ -284,9 +291,9 @@ impl DeformLoop {
             self.last_connection_update = now;
         }
         // The newest tool state, if the haptic process is up.
-        if self.tool_input.is_none() && now - self.last_tool_try > 500_000_000 {
+        if self.tool_input.is_none() && now > self.tool_retry_at {
             self.tool_input = open_tool_input(&self.node, &self.names);
-            self.last_tool_try = now;
+            self.tool_retry_at = now + 500_000_000;
         }
         let mut tool_stamp = 0;
         let mut tool_read = 0;
@@ -300,9 +307,10 @@ impl DeformLoop {
                 tool_state = Some(state);
             } else if state.stamp_ns > 0 && age > TOOL_DROP_NS {
                 // The haptic process is gone (or stopped): let go of its blackboard so that a
-                // restarted one can make it anew (`TOOL_DROP_NS`); opened again 0.5 s later.
+                // restarted one can make it anew (`TOOL_DROP_NS`), and open it again soon: a
+                // stopped one that goes on presses the tissue again within that time.
                 self.tool_input = None;
-                self.last_tool_try = now;
+                self.tool_retry_at = now + TOOL_REOPEN_NS;
             }
         }
         let tool = tool_state.map(|s| TickTool {
