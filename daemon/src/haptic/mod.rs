@@ -96,8 +96,8 @@ pub struct HapticLoop {
     index_feed: IndexFeed,
     index: IndexSlot<ContactIndex>,
     _board: ToolBoard,
-    _writer: iceoryx2::port::writer::Writer<ipc::Service, u32>,
-    tool_entry: EntryHandleMut<ipc::Service, u32, ToolState>,
+    _writer: ToolWriter,
+    tool_entry: ToolEntry,
     frame: IndexSlot<FrameCopy>,
     tool_ring: rtrb::Producer<ToolState>,
     telemetry: TelemetryTx,
@@ -122,6 +122,10 @@ pub struct TickOutcome {
     pub fatal: Option<lop_drivers::DeviceError>,
 }
 
+/// The tool blackboard's writer and its entry of the newest tool state.
+type ToolWriter = iceoryx2::port::writer::Writer<ipc::Service, u32>;
+type ToolEntry = EntryHandleMut<ipc::Service, u32, ToolState>;
+
 /// How long a starting haptic process waits for the tool blackboard's entry to be free.
 const TOOL_BOARD_WAIT: Duration = Duration::from_secs(3);
 
@@ -135,11 +139,7 @@ const TOOL_BOARD_WAIT: Duration = Duration::from_secs(3);
 fn tool_board_writer(
     node: &Node<ipc::Service>,
     names: &ServiceNames,
-) -> Result<(
-    ToolBoard,
-    iceoryx2::port::writer::Writer<ipc::Service, u32>,
-    EntryHandleMut<ipc::Service, u32, ToolState>,
-)> {
+) -> Result<(ToolBoard, ToolWriter, ToolEntry)> {
     let start = std::time::Instant::now();
     let mut waited = false;
     loop {
