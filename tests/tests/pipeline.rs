@@ -9,8 +9,9 @@
 //!   are small and noisy);
 //! - a killed deformation process is restarted by the supervisor while haptic ticks continue
 //!   (counted the same way), and a new topology and frames follow;
-//! - a killed haptic process is restarted by the supervisor, the deformation process keeps
-//!   running, and the new loop ramps in from zero and renders the tissue again;
+//! - a haptic process stopped and continued starts its force over from zero; a killed one is
+//!   restarted by the supervisor, the deformation process keeps running, and the new loop
+//!   ramps in from zero and renders the tissue again;
 //! - SIGINT (Ctrl-C) stops everything with exit code 0, the last force the device received is
 //!   zero, and no service under the prefix is left.
 
@@ -254,7 +255,9 @@ fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
     let _ = std::fs::remove_file(&force_log);
 }
 
-/// A haptic process killed (SIGKILL) while the tool presses the liver is restarted by the
+/// A haptic process stopped (SIGSTOP) for 0.5 s mid-press starts its force over from zero
+/// when continued (`HapticLoop::tick`: a gap longer than the stale limit). Then killed
+/// (SIGKILL) while the tool presses the liver, it is restarted by the
 /// supervisor, and the restarted one renders the tissue again: the deformation process keeps
 /// running (same process), the new loop's force starts at zero and never jumps (at most twice
 /// the safety's step limit per tick, 0.05 N `[haptic] max_force_step_n` plus the stylus's
@@ -263,7 +266,7 @@ fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
 /// the restarted process failed at start, every time: the dead one had left the tool
 /// blackboard's entry marked as held (`haptic::tool_board_writer`, `deform::TOOL_DROP_NS`).
 #[test]
-fn a_killed_haptic_process_is_restarted_and_renders_the_tissue_again() {
+fn a_stopped_or_killed_haptic_process_starts_its_force_over_from_zero() {
     let prefix = unique_prefix("haptic-restart");
     let force_log = std::env::temp_dir().join(format!("{prefix}-forces.csv"));
     let force_log_s = force_log.display().to_string();
@@ -306,6 +309,52 @@ fn a_killed_haptic_process_is_restarted_and_renders_the_tissue_again() {
         (haptic.len(), deform.len()),
         (1, 1),
         "{haptic:?} {deform:?}"
+    );
+
+    // Stopped (SIGSTOP) for 0.5 s mid-press and continued, the loop starts over from zero: its
+    // first force after the gap is zero (its frame is stale then) or the ramp's first step (a
+    // tenth of the force asked, at most 0.3 N), under half the force before the stop. Without
+    // the restart it went on from the force before: 0.8-0.9 of it, the stale frame's ramp down.
+    let norm =
+        |t: &ToolState| (t.force[0].powi(2) + t.force[1].powi(2) + t.force[2].powi(2)).sqrt();
+    // Deep in the press first (the hold is at about 0.7 N).
+    let t0 = Instant::now();
+    while !tools.iter().any(|t| norm(t) > 0.5) && t0.elapsed() < Duration::from_secs(20) {
+        client.tool_states(&mut tools);
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    tools.clear();
+    // SAFETY: signals to a process this test started (through lopd run).
+    unsafe { libc::kill(haptic[0], libc::SIGSTOP) };
+    std::thread::sleep(Duration::from_millis(500));
+    // SAFETY: as above.
+    unsafe { libc::kill(haptic[0], libc::SIGCONT) };
+    let t0 = Instant::now();
+    let mut across = None;
+    while across.is_none() && t0.elapsed() < Duration::from_secs(5) {
+        client.tool_states(&mut tools);
+        across = tools
+            .windows(2)
+            .find(|w| w[1].stamp_ns.saturating_sub(w[0].stamp_ns) > 300_000_000)
+            .map(|w| (norm(&w[0]), norm(&w[1])));
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let (before, after) = across.expect("tool states across the stop");
+    assert!(
+        before > 0.4 && after <= 0.3 + 1e-9 && after < 0.5 * before,
+        "{before} N before the stop, {after} N on the first tick after it"
+    );
+    // The press again, then the kill.
+    tools.clear();
+    let t0 = Instant::now();
+    while !in_contact(&tools) && t0.elapsed() < Duration::from_secs(20) {
+        client.tool_states(&mut tools);
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(
+        in_contact(&tools),
+        "no press after the stop\n{}",
+        daemon.log_text()
     );
     // SAFETY: kill on a process this test started (through lopd run).
     unsafe { libc::kill(haptic[0], libc::SIGKILL) };

@@ -102,6 +102,8 @@ pub struct HapticLoop {
     tool_ring: rtrb::Producer<ToolState>,
     telemetry: TelemetryTx,
     tick: u64,
+    /// When the last tick woke, ns (0 before the first).
+    last_wake_ns: u64,
     overruns: u64,
     stale_ticks: u64,
     device_faults: u64,
@@ -212,6 +214,7 @@ impl HapticLoop {
             tool_ring,
             telemetry,
             tick: 0,
+            last_wake_ns: 0,
             overruns: 0,
             stale_ticks: 0,
             device_faults: 0,
@@ -281,6 +284,15 @@ impl HapticLoop {
         wake_ns: u64,
         deadline_ns: u64,
     ) -> TickOutcome {
+        // A loop that did not tick for longer than the stale limit (its process was stopped,
+        // or the machine held it) has not driven the device meanwhile: the force starts over
+        // from zero against the surface as it is now, rather than going on from the last one.
+        if self.last_wake_ns != 0
+            && wake_ns.saturating_sub(self.last_wake_ns) > self.settings.stale_ns
+        {
+            self.pipeline.restart_force();
+        }
+        self.last_wake_ns = wake_ns;
         let t = self.tick as f64 / self.settings.pipeline.rate_hz;
         let mut state = ToolState {
             contract_version: CONTRACT_VERSION,

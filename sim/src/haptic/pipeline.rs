@@ -238,6 +238,12 @@ impl HapticPipeline {
         self.stage_ns
     }
 
+    /// The device was not driven for a while: the force starts over from zero and ramps in
+    /// ([`ForceSafety::restart`]).
+    pub fn restart_force(&mut self) {
+        self.safety.restart();
+    }
+
     /// One tick (see the module docs). `reading` is the device's (`None`: it failed);
     /// `surface_fresh` tells whether the newest surface is within the stale limit; `clock`
     /// gives nanoseconds for the stage timings. Allocation-free.

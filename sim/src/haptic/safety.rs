@@ -152,6 +152,16 @@ impl ForceSafety {
         f
     }
 
+    /// Starts over from zero force: the device was not driven for a while (the loop was
+    /// stopped, or it is a new one), so the force it renders now is none, and the next ones ramp
+    /// in from zero as after unhealthy data (the first at most a `ramp_ticks`-th of the force
+    /// asked, the next by the step limit). Allocation-free.
+    pub fn restart(&mut self) {
+        self.level = 0;
+        self.last = [0.0; 3];
+        self.last_device = None;
+    }
+
     /// The last force returned.
     pub fn last(&self) -> [f64; 3] {
         self.last
@@ -231,6 +241,25 @@ mod tests {
             .collect();
         assert!((back[0] - 0.4).abs() < 1e-12, "{back:?}");
         assert!((back[4] - 2.0).abs() < 1e-12, "{back:?}");
+    }
+
+    #[test]
+    fn restart_ramps_in_from_zero_not_from_the_last_force() {
+        let mut s = ForceSafety::new(3.0, 10.0, 5);
+        for _ in 0..10 {
+            s.condition([0.0, 2.0, 0.0], true);
+        }
+        let mut going_on = s.clone();
+        // Without a restart the force goes on from 2 N (the step limit does not bind here).
+        assert_eq!(going_on.condition([0.0, 2.5, 0.0], true), [0.0, 2.5, 0.0]);
+        // After one, it starts over: a fifth of the force asked, then linearly to all of it.
+        s.restart();
+        let back: Vec<f64> = (0..6)
+            .map(|_| norm(s.condition([0.0, 2.5, 0.0], true)))
+            .collect();
+        assert!((back[0] - 0.5).abs() < 1e-12, "{back:?}");
+        assert!(back.windows(2).all(|w| w[1] > w[0] - 1e-12), "{back:?}");
+        assert!((back[4] - 2.5).abs() < 1e-12, "{back:?}");
     }
 
     #[test]
