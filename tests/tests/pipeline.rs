@@ -311,12 +311,12 @@ fn a_stopped_or_killed_haptic_process_starts_its_force_over_from_zero() {
         "{haptic:?} {deform:?}"
     );
 
-    // Stopped (SIGSTOP) for 0.5 s in the hold (over 0.6 N; it holds about 0.7 N) and
+    // Stopped (SIGSTOP) for 0.5 s in the press (over 0.4 N; it holds about 0.7 N) and
     // continued, the loop starts over from zero: its first force after the gap is zero (its
-    // frame is stale then) or the ramp's first step (a fifth of the force asked, `ramp_ms` 5
-    // ms: under 0.3 N for the 1.0-1.4 N the relaxed tissue asks), under 0.7 of the force before
-    // the stop. Without the restart it went on from the force before: 0.8 of it (the stale
-    // frame's ramp down), or all of it with a fresh frame.
+    // frame is stale then: every run so far) or the ramp's first step (a fifth of the force
+    // asked, `ramp_ms` 5 ms: under 0.3 N for the 1.0-1.4 N the relaxed tissue asks), under 0.7
+    // of the force before the stop. Without the restart it went on from the force before: 0.8
+    // of it (the stale frame's ramp down), or all of it with a fresh frame.
     let norm =
         |t: &ToolState| (t.force[0].powi(2) + t.force[1].powi(2) + t.force[2].powi(2)).sqrt();
     let t0 = Instant::now();
@@ -342,7 +342,7 @@ fn a_stopped_or_killed_haptic_process_starts_its_force_over_from_zero() {
     }
     let (before, after) = across.expect("tool states across the stop");
     assert!(
-        before > 0.55 && after < 0.7 * before,
+        before > 0.4 && (after == 0.0 || after < 0.7 * before),
         "{before} N before the stop, {after} N on the first tick after it"
     );
     // The press again, then the kill.
