@@ -64,16 +64,17 @@ fn max_displacement(a: &lop_client::Frame, b: &lop_client::Frame) -> f32 {
         .fold(0.0, f32::max)
 }
 
-#[test]
-fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
-    let prefix = unique_prefix("pipeline");
+/// `lopd run --scene SCENE --device mock --quiet --force-log F` under a fresh prefix tagged
+/// `tag`: the prefix, the force log's path and the daemon.
+fn run_mock(scene: &str, tag: &str) -> (String, std::path::PathBuf, Daemon) {
+    let prefix = unique_prefix(tag);
     let force_log = std::env::temp_dir().join(format!("{prefix}-forces.csv"));
     let force_log_s = force_log.display().to_string();
-    let mut daemon = Daemon::spawn(
+    let daemon = Daemon::spawn(
         &[
             "run",
             "--scene",
-            "organs",
+            scene,
             "--device",
             "mock",
             "--prefix",
@@ -85,6 +86,12 @@ fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
         &prefix,
         Duration::from_secs(120),
     );
+    (prefix, force_log, daemon)
+}
+
+#[test]
+fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
+    let (prefix, force_log, mut daemon) = run_mock("organs", "pipeline");
 
     // Attach and get the topology.
     let mut client = Attachment::open(&prefix, Duration::from_secs(30))
@@ -267,25 +274,7 @@ fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
 /// blackboard's entry marked as held (`haptic::tool_board_writer`, `deform::TOOL_DROP_NS`).
 #[test]
 fn a_stopped_or_killed_haptic_process_starts_its_force_over_from_zero() {
-    let prefix = unique_prefix("haptic-restart");
-    let force_log = std::env::temp_dir().join(format!("{prefix}-forces.csv"));
-    let force_log_s = force_log.display().to_string();
-    let mut daemon = Daemon::spawn(
-        &[
-            "run",
-            "--scene",
-            "abdomen",
-            "--device",
-            "mock",
-            "--prefix",
-            &prefix,
-            "--quiet",
-            "--force-log",
-            &force_log_s,
-        ],
-        &prefix,
-        Duration::from_secs(120),
-    );
+    let (prefix, force_log, mut daemon) = run_mock("abdomen", "haptic-restart");
     let mut client = Attachment::open(&prefix, Duration::from_secs(30))
         .unwrap_or_else(|e| panic!("attach: {e}\n{}", daemon.log_text()));
     let mut tools: Vec<ToolState> = Vec::new();

@@ -425,28 +425,20 @@ impl System {
     /// CG's preconditioner uses the half-precision copy (CG converges to its tolerance
     /// whatever the preconditioner's rounding; the patch does not iterate).
     pub fn solve_patch_in_place(&mut self, rhs: &mut [f64]) {
-        if self.n_dof == 0 {
-            return;
-        }
-        match self.matrix.current() {
-            Some(Precision::Double) if self.packed_current => {
-                if let Some(packed) = &mut self.packed {
-                    packed.solve_in_place(rhs);
-                }
-            }
-            Some(Precision::Single) if self.half_for_patch() => {
-                if let Some(half) = &mut self.half {
-                    half.solve_in_place(rhs);
-                }
-            }
-            Some(_) => self.matrix.solve_in_place(rhs),
-            None => {}
-        }
+        let half = self.half_for_patch();
+        self.solve_with(rhs, half);
     }
 
     /// Solves `A x = rhs` in place with the current factor (in its precision; the result is
     /// `f64` either way). Without a factor, leaves `rhs` unchanged.
     pub fn solve_in_place(&mut self, rhs: &mut [f64]) {
+        let half = self.half_current;
+        self.solve_with(rhs, half);
+    }
+
+    /// The solve behind both: the packed double-precision factor when it is current, the
+    /// half-precision copy of a single-precision one when `half`, else faer's factor.
+    fn solve_with(&mut self, rhs: &mut [f64], half: bool) {
         if self.n_dof == 0 {
             return;
         }
@@ -456,9 +448,9 @@ impl System {
                     packed.solve_in_place(rhs);
                 }
             }
-            Some(Precision::Single) if self.half_current => {
-                if let Some(half) = &mut self.half {
-                    half.solve_in_place(rhs);
+            Some(Precision::Single) if half => {
+                if let Some(h) = &mut self.half {
+                    h.solve_in_place(rhs);
                 }
             }
             _ => self.matrix.solve_in_place(rhs),
