@@ -373,7 +373,7 @@ pub struct ControlClient {
         ControlResponse,
         (),
     >,
-    _service: ControlService,
+    service: ControlService,
 }
 
 impl ControlClient {
@@ -406,7 +406,7 @@ impl ControlClient {
         Ok(ControlClient {
             service_name,
             client,
-            _service: service,
+            service,
         })
     }
 
@@ -416,7 +416,20 @@ impl ControlClient {
         req: &ControlRequest,
         timeout: std::time::Duration,
     ) -> Result<ControlResponse, ControlError> {
+        use iceoryx2::service::port_factory::PortFactory as _;
         let start = std::time::Instant::now();
+        // A request sent while the service exists but its server port does not yet (the daemon
+        // between creating the one and the other) reaches no server and is never answered:
+        // send once the server is there.
+        while self.service.dynamic_config().number_of_servers() == 0 {
+            if start.elapsed() >= timeout {
+                return Err(ControlError::NoAnswer {
+                    service: self.service_name.clone(),
+                    waited: timeout,
+                });
+            }
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
         let pending =
             self.client
                 .send_copy(*req)

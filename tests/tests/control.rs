@@ -215,3 +215,37 @@ fn lopd_ctl_controls_a_live_daemon_without_disturbing_the_haptic_loop() {
     );
     assert!(!log.contains("device error stopped"), "{log}");
 }
+
+/// A request sent while the daemon has created `PREFIX/control` but not yet its server port
+/// would reach no server and never be answered (lop-view opens its client the moment the
+/// service appears and sends at once). The client waits for the server before sending: here
+/// the server comes 300 ms after the service, and the request is answered.
+#[test]
+fn a_request_sent_before_the_server_exists_is_answered_once_it_does() {
+    let prefix = unique_prefix("control-early");
+    let names = ServiceNames::new(&prefix).unwrap();
+    let node = services::node("systest-control-early-owner").unwrap();
+    let service = control_service(&node, &names, services::Role::Owner).expect("service");
+    let client_names = names.clone();
+    let asker = std::thread::spawn(move || {
+        let node = services::node("systest-control-early-client").unwrap();
+        let client = ControlClient::open(&node, &client_names, Duration::from_secs(10))
+            .expect("the service exists");
+        client.request(
+            &ControlRequest::new(CONTROL_OP_GET, "liver"),
+            Duration::from_secs(10),
+        )
+    });
+    std::thread::sleep(Duration::from_millis(300));
+    let server = service.server_builder().create().expect("server");
+    let t0 = Instant::now();
+    while !asker.is_finished() && t0.elapsed() < Duration::from_secs(15) {
+        if let Ok(Some(req)) = server.receive() {
+            assert_eq!(req.payload().op, CONTROL_OP_GET);
+            let _ = req.send_copy(ControlResponse::with(CONTROL_STATUS_OK, "early"));
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let r = asker.join().unwrap().expect("answered");
+    assert_eq!(r.status, CONTROL_STATUS_OK);
+}
