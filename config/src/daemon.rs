@@ -49,7 +49,8 @@ pub struct HapticConfig {
     pub max_force_n: f64,
     /// Busy-wait before each deadline, µs (0..=1000). Default 50.
     pub spin_us: f64,
-    /// Largest force change per tick, N (except at contact onset). Default 0.05.
+    /// Largest force change per tick beyond what the stylus's motion explains, N (contact onset
+    /// included). Default 0.05.
     pub max_force_step_n: f64,
     /// Render between frames with the frame's local model of the contact patch (the force
     /// follows the hand tick by tick); false: against the frame's surface alone. Default true.

@@ -310,7 +310,7 @@
 //! | `haptic.ramp_ms` | float | `5` | ramp-down time to zero force, 0..=100 ms |
 //! | `haptic.max_force_n` | float | `3.0` | global force clamp, N (> 0) |
 //! | `haptic.spin_us` | float | `50` | busy-wait before each deadline, 0..=1000 µs |
-//! | `haptic.max_force_step_n` | float | `0.05` | largest force change per tick except at contact onset, N (> 0, <= `max_force_n`) |
+//! | `haptic.max_force_step_n` | float | `0.05` | largest force change per tick beyond what the stylus's motion explains (the tool spring times its move), contact onset included, N (> 0, <= `max_force_n`) |
 //! | `haptic.local_model` | bool | `true` | between frames, render with the frame's local model of the contact patch (the force follows the hand tick by tick); `false`: against the frame's surface alone |
 //! | `haptic.passivity_max_damping` | float | `5` | most damping the passivity controller at the device port adds, N·s/m (0..=40; 0: off) |
 //! | `deform.core` | integer | not pinned | CPU the deformation thread is pinned to |

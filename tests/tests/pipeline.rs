@@ -417,3 +417,121 @@ fn a_stopped_or_killed_haptic_process_starts_its_force_over_from_zero() {
     assert!(peak > 0.2, "the restarted loop felt at most {peak} N");
     let _ = std::fs::remove_file(&force_log);
 }
+
+/// A haptic loop that starts with the stylus already in the tissue (a restart while the hand
+/// holds it there; here a mock script pressed 12 mm into the liver from its first sample, held
+/// for 3 s, then withdrawn): the tool starts on the surface and the force ramps in from zero
+/// at the safety's step limit, is felt all the while it presses, and eases off as the stylus
+/// comes out. Before, the loop rendered nothing for the 3 s and then stepped from 0 to 0.89 N
+/// in one tick as the stylus left the tissue.
+#[test]
+fn a_loop_that_starts_with_the_stylus_in_the_tissue_ramps_the_surface_in() {
+    let prefix = unique_prefix("haptic-inside");
+    let dir = std::env::temp_dir();
+    let script = dir.join(format!("{prefix}-inside.toml"));
+    std::fs::write(
+        &script,
+        r#"name = "inside"
+description = "Starts pressed 12 mm into the liver's front, holds, withdraws."
+end = "hold"
+interpolation = "smooth"
+
+[[waypoint]]
+t = 0.0
+position = [-27.58, 9.71, 21.18]
+
+[[waypoint]]
+t = 3.0
+position = [-27.58, 9.71, 21.18]
+
+[[waypoint]]
+t = 3.6
+position = [-26.94, 9.45, 27.12]
+
+[[waypoint]]
+t = 4.4
+position = [-26.14, 9.1, 34.57]
+"#,
+    )
+    .unwrap();
+    let force_log = dir.join(format!("{prefix}-forces.csv"));
+    let device = format!("mock:{}", script.display());
+    let mut daemon = Daemon::spawn(
+        &[
+            "run",
+            "--scene",
+            "abdomen",
+            "--device",
+            &device,
+            "--prefix",
+            &prefix,
+            "--quiet",
+            "--force-log",
+            &force_log.display().to_string(),
+        ],
+        &prefix,
+        Duration::from_secs(120),
+    );
+    // Until the script has withdrawn (4.4 s of its time) and a little more.
+    let mut client = Attachment::open(&prefix, Duration::from_secs(30))
+        .unwrap_or_else(|e| panic!("attach: {e}\n{}", daemon.log_text()));
+    let mut tools: Vec<ToolState> = Vec::new();
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(30) {
+        client.tool_states(&mut tools);
+        if tools.last().is_some_and(|t| t.stamp_ns > 0) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    std::thread::sleep(Duration::from_secs(6));
+    drop(client);
+    daemon.signal(libc::SIGINT);
+    let status = daemon
+        .wait(Duration::from_secs(20))
+        .expect("lopd run did not stop");
+    assert!(status.success(), "exit {status}\n{}", daemon.log_text());
+    let csv = std::fs::read_to_string(&force_log).expect("force log");
+    let rows: Vec<(f64, f64)> = csv
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
+            (f[0], (f[1] * f[1] + f[2] * f[2] + f[3] * f[3]).sqrt())
+        })
+        .collect();
+    assert!(rows.len() > 4000, "{} rows", rows.len());
+    assert_eq!(rows[0].1, 0.0, "the first force");
+    let largest = rows
+        .windows(2)
+        .map(|w| (w[1].1 - w[0].1).abs())
+        .fold(0.0, f64::max);
+    // The safety's 0.05 N a tick plus what the stylus's motion explains (none while it holds
+    // still; the withdrawal moves it about 0.01 mm a tick).
+    assert!(largest <= 0.1, "a step of {largest} N in one tick");
+    // Felt while it presses: from 1 s (the first frame and the ramp are long done) to 2.9 s
+    // the force holds the 12 mm press (about 1 N measured; the poke of the same depth peaks at
+    // 0.7-1.3 N), and nothing is left once the stylus is out.
+    let pressing: Vec<f64> = rows
+        .iter()
+        .filter(|(t, _)| (1.0..2.9).contains(t))
+        .map(|(_, f)| *f)
+        .collect();
+    assert!(!pressing.is_empty());
+    let weakest = pressing.iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(
+        weakest > 0.4,
+        "{weakest} N while the stylus pressed 12 mm in"
+    );
+    let out: Vec<f64> = rows
+        .iter()
+        .filter(|(t, _)| *t > 4.6)
+        .map(|(_, f)| *f)
+        .collect();
+    assert!(
+        !out.is_empty() && out.iter().all(|f| *f == 0.0),
+        "force left after withdrawal"
+    );
+    let _ = std::fs::remove_file(&force_log);
+    let _ = std::fs::remove_file(&script);
+}

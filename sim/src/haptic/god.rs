@@ -16,6 +16,10 @@
 //! through a thin part cannot pull it out the far side: the force keeps pointing back out of the
 //! face it went in through (tested at 0.5 m/s into a 1 cm slab).
 //!
+//! A proxy that *starts* with the device inside a body (the loop started, or started again,
+//! while the hand held the stylus in the tissue) starts on the surface closest to the device,
+//! in contact, so that surface is felt from the first tick (ramped in by the safety).
+//!
 //! The surface deforms between frames. While in contact the proxy is anchored to the material
 //! point it rests on (triangle + barycentric weights, plus its offset from that point), so a new
 //! frame carries the proxy along with the tissue; then it is pushed out of any triangle that
@@ -30,7 +34,7 @@
 
 use glam::DVec3;
 
-use super::surface::SurfaceSet;
+use super::surface::{Closest, SurfaceSet};
 use super::sweep::{crease, sweep};
 use crate::contact::{bary_point, closest_bary, ForceLaw};
 use crate::vec3::v;
@@ -111,7 +115,8 @@ impl GodObject {
         self.proxy.to_array()
     }
 
-    /// Forgets the surface: the next update puts the proxy on the device.
+    /// Forgets the surface: the next update puts the proxy on the device, or on the surface if
+    /// the device is inside a body.
     pub fn reset(&mut self) {
         self.started = false;
         self.anchor = None;
@@ -157,6 +162,7 @@ impl GodObject {
             self.proxy = device;
             self.anchor = None;
             self.grab = None;
+            self.start_on_surface(set, device);
         }
         // Picking.
         if let Some(g) = self.grab {
@@ -239,6 +245,50 @@ impl GodObject {
             }
         }
         self.state(device, false)
+    }
+
+    /// A proxy that starts with the device inside a body (the haptic loop started, or started
+    /// again after a crash or a stop, with the stylus held in the tissue) starts on the surface:
+    /// at the surface point closest to the device, one radius outside, resting there. The
+    /// force then renders that surface from the first tick (the safety ramps it in from zero)
+    /// and eases off as the stylus comes out. Started where the device is instead, the proxy
+    /// would feel nothing inside and pass out through the one-sided faces; as the stylus left,
+    /// the first face it met from outside would be felt all at once.
+    ///
+    /// Inside means behind the closest point's surface ([`SurfaceSet::behind`]), among the
+    /// bodies whose box holds the device. Allocation-free.
+    fn start_on_surface(&mut self, set: &mut SurfaceSet, device: DVec3) {
+        let p = device.to_array();
+        let mut best: Option<Closest> = None;
+        for b in 0..set.bodies() {
+            if !set.near_body(b, p, 0.0) {
+                continue;
+            }
+            if let Some(c) = set.closest_in_body(b, p, f64::INFINITY) {
+                if set.behind(p, &c) && best.is_none_or(|bc| c.hit.distance < bc.hit.distance) {
+                    best = Some(c);
+                }
+            }
+        }
+        let Some(c) = best else {
+            return;
+        };
+        let q = v(c.hit.point);
+        let out = if c.hit.distance > 1e-12 {
+            (q - device) * (1.0 / c.hit.distance)
+        } else {
+            v(c.hit.normal)
+        };
+        if !out.is_finite() || out == DVec3::ZERO {
+            return;
+        }
+        self.proxy = q + out * (self.radius + SKIN);
+        self.anchor = Some(Anchor {
+            body: c.body,
+            triangle: c.hit.triangle,
+            bary: c.hit.barycentric,
+            offset: (self.proxy - q).to_array(),
+        });
     }
 
     fn state(&self, device: DVec3, grabbing: bool) -> GodState {

@@ -8,12 +8,16 @@
 //!   recovering stream cannot kick the hand.
 //! - Otherwise the force changes by at most `max_step` per tick beyond what the hand's own
 //!   motion explains (the tool spring times the device's move this tick, passed by the loop:
-//!   [`ForceSafety::condition_moving`]), except at contact onset (from zero force), where the
-//!   penalty law's own small value is allowed through at once. The limit stops jumps nothing
-//!   moved for (a frame that lands elsewhere, a proxy that snaps), not the stiffness the hand
-//!   pushes into: a slew limit on that would lag the force behind the stylus, and a lagging
-//!   force on a stiff contact generates energy (`lop-bench haptics`, part 3, measured it
-//!   driving the simulated hand unstable from 1.4 N/mm on stiff tissue).
+//!   [`ForceSafety::condition_moving`]). The limit stops jumps nothing moved for (a frame that
+//!   lands elsewhere, a proxy that snaps), not the stiffness the hand pushes into: a slew limit
+//!   on that would lag the force behind the stylus, and a lagging force on a stiff contact
+//!   generates energy (`lop-bench haptics`, part 3, measured it driving the simulated hand
+//!   unstable from 1.4 N/mm on stiff tissue).
+//! - Contact onset (from zero force) is limited the same way. A touch's first force is the
+//!   tool spring over the penetration of one tick, which the motion allowance covers; a force
+//!   from zero that nothing moved for (a loop that starts, or starts again, with the stylus in
+//!   the tissue; a surface that lands on a still stylus) ramps in at the step limit instead of
+//!   arriving at once.
 //! - With a continuous-force limit (the device's `HD_NOMINAL_MAX_CONTINUOUS_FORCE`, set by
 //!   [`ForceSafety::with_continuous`]): the motors heat with the square of the force, so the
 //!   root mean square of the output over the last seconds (an exponential average) is kept at
@@ -130,10 +134,7 @@ impl ForceSafety {
         let target = if healthy { desired } else { self.last };
         let mut f = clamp_norm(target, self.clamp_now());
         if healthy {
-            let onset = self.last == [0.0; 3];
-            if !onset {
-                f = limit_step(self.last, f, self.max_step + motion);
-            }
+            f = limit_step(self.last, f, self.max_step + motion);
             f = scale(f, gain);
         } else if self.level == 0 {
             f = [0.0; 3];
@@ -286,14 +287,26 @@ mod tests {
     }
 
     #[test]
-    fn step_limit_except_at_onset() {
+    fn step_limit_at_onset_too() {
+        // Onset with nothing moving (a loop that starts with the stylus in the tissue): the
+        // force ramps in at the step limit.
+        let mut still = ForceSafety::new(3.0, 0.05, 5);
+        let ramp: Vec<f64> = (0..4)
+            .map(|_| still.condition_moving([0.0, 0.9, 0.0], true, Some([0.0; 3]), 1000.0)[1])
+            .collect();
+        for (k, f) in ramp.iter().enumerate() {
+            assert!((f - 0.05 * (k + 1) as f64).abs() < 1e-12, "{ramp:?}");
+        }
+        // A touch: the stylus moved 0.3 mm into a 1000 N/m spring this tick; its 0.3 N is what
+        // the motion explains and comes through at once.
         let mut s = ForceSafety::new(3.0, 0.05, 5);
-        // Onset: allowed at once.
-        assert_eq!(s.condition([0.0, 0.3, 0.0], true), [0.0, 0.3, 0.0]);
+        s.condition_moving([0.0; 3], true, Some([0.0; 3]), 1000.0);
+        let f = s.condition_moving([0.0, 0.3, 0.0], true, Some([0.0, 3e-4, 0.0]), 1000.0);
+        assert_eq!(f, [0.0, 0.3, 0.0]);
         // The hand's motion widens the step by what it explains, no more.
         let mut m = s.clone();
         let f = m.condition_moving([0.0, 0.3, 0.0], true, Some([0.0; 3]), 1000.0);
-        assert_eq!(f, [0.0, 0.3, 0.0], "no motion known yet");
+        assert_eq!(f, [0.0, 0.3, 0.0], "no change asked");
         let f = m.condition_moving([0.0, 0.6, 0.0], true, Some([0.0, 0.0, 2e-4]), 1000.0);
         assert!(
             (f[1] - 0.55).abs() < 1e-12,

@@ -451,6 +451,65 @@ impl SurfaceSet {
         })
     }
 
+    /// Whether `p` lies behind the surface at its closest point `c` (inside the body), by the
+    /// angle-weighted pseudo-normal of the feature the closest point lies on: the face's normal
+    /// inside a face, the sum of the two faces' normals on an edge, the faces' normals weighted
+    /// by their angles at a corner. For a closed surface that sign is exact whichever feature is
+    /// closest; one face's normal alone misjudges points whose closest point is an edge or
+    /// corner between faces more than 90° apart ([`SurfaceHit::inside`] is that cheaper test).
+    /// Allocation-free.
+    pub fn behind(&self, p: [f64; 3], c: &Closest) -> bool {
+        let t = c.hit.triangle;
+        if t >= self.tris.len() {
+            return false;
+        }
+        let d = v(p) - v(c.hit.point);
+        let w = c.hit.barycentric;
+        const ON: f64 = 1e-9;
+        let on: [bool; 3] = w.map(|x| x > ON);
+        let corners = self.tris[t];
+        let n = match on.iter().filter(|x| **x).count() {
+            // A corner: every face around it, weighted by its angle there.
+            1 => {
+                let k = on.iter().position(|x| *x).unwrap_or(0);
+                let vtx = corners[k] as usize;
+                let (s, e) = (self.vtri_ptr[vtx] as usize, self.vtri_ptr[vtx + 1] as usize);
+                self.vtri[s..e].iter().fold(DVec3::ZERO, |acc, &u| {
+                    let tri = self.tris[u as usize];
+                    let Some(j) = tri.iter().position(|&i| i as usize == vtx) else {
+                        return acc;
+                    };
+                    let [a, b, c] = self.corners_v(u as usize);
+                    let (o, e1, e2) = match j {
+                        0 => (a, b, c),
+                        1 => (b, c, a),
+                        _ => (c, a, b),
+                    };
+                    let angle = (e1 - o).angle_between(e2 - o);
+                    acc + unit_normal(a, b, c) * if angle.is_finite() { angle } else { 0.0 }
+                })
+            }
+            // An edge: the faces that share it (two on a closed surface).
+            2 => {
+                let (i, j) = match on {
+                    [true, true, _] => (corners[0], corners[1]),
+                    [true, _, true] => (corners[0], corners[2]),
+                    _ => (corners[1], corners[2]),
+                };
+                let (s, e) = (
+                    self.vtri_ptr[i as usize] as usize,
+                    self.vtri_ptr[i as usize + 1] as usize,
+                );
+                self.vtri[s..e]
+                    .iter()
+                    .filter(|&&u| self.tris[u as usize].contains(&j))
+                    .fold(DVec3::ZERO, |acc, &u| acc + self.normal_of_v(u as usize))
+            }
+            _ => self.normal_of_v(t),
+        };
+        d.dot(n) < 0.0
+    }
+
     /// The closest surface point over every body whose box is within `reach` of `p`.
     pub fn closest(&mut self, p: [f64; 3], reach: f64) -> Option<Closest> {
         let mut best: Option<Closest> = None;
