@@ -52,17 +52,23 @@ fn soak_of_45_seconds_passes_every_check() {
     for c in checks {
         assert_eq!(c["pass"], true, "{c}");
     }
-    // Every kind of fault was injected, and answered.
+    // Every kind of fault was injected into both processes, and answered.
     let injections = v["injections"].as_array().expect("injections");
-    for kind in ["kill", "stop"] {
-        assert!(
-            injections
-                .iter()
-                .any(|i| i["kind"] == kind && i["answered"] == true),
-            "no answered {kind}: {text}"
-        );
+    for process in ["deform", "haptic"] {
+        for kind in ["kill", "stop"] {
+            assert!(
+                injections
+                    .iter()
+                    .any(|i| i["process"] == process && i["kind"] == kind && i["answered"] == true),
+                "no answered {process} {kind}: {text}"
+            );
+        }
     }
     let tool = &v["tool_stream"];
+    // The haptic loop came back twice (a new process, a stopped one), from zero each time.
+    assert!(tool["restarts"].as_u64().unwrap() >= 2, "{text}");
+    assert_eq!(tool["violations"]["not_from_zero"], 0, "{text}");
+    assert_eq!(tool["violations"]["jump"], 0, "{text}");
     assert!(tool["episodes_stale"].as_u64().unwrap() >= 2, "{text}");
     assert!(
         tool["planned_samples_flagged"].as_u64().unwrap() >= 4,

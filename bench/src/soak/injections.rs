@@ -1,20 +1,26 @@
-//! The deformation-process faults the soak delivers (SIGKILL, or SIGSTOP then SIGCONT), and
-//! the check that a stale-frame ramp answered every one.
+//! The process faults the soak delivers (SIGKILL, or SIGSTOP then SIGCONT, to the deformation
+//! or the haptic process), and the checks that each was answered: a stale-frame ramp for the
+//! deformation process's, a loop that started its force over from zero for the haptic one's.
 
 use std::time::Instant;
 
 use serde::Serialize;
 
-use super::forces::ForceAudit;
+use super::forces::{ForceAudit, RestartKind};
 use super::memory;
 use super::report::{check, Check, Evidence};
 
 /// An injection is answered by a stale-frame episode that begins at most this long after it.
 const ANSWER_WITHIN_NS: u64 = 2_000_000_000;
+/// A killed haptic process is answered by a new one publishing within this long (the
+/// supervisor's back-off, the process's start-up and its device's).
+const HAPTIC_BACK_WITHIN_NS: u64 = 15_000_000_000;
 
-/// One delivered (or skipped) deformation-process fault.
+/// One delivered (or skipped) process fault.
 #[derive(Debug, Clone, Serialize)]
 pub struct Injection {
+    /// `deform` or `haptic`.
+    pub process: &'static str,
     /// Planned time, s after the first frame.
     pub planned_s: f64,
     /// When it was delivered, s after the first frame (`None`: skipped).
@@ -23,39 +29,75 @@ pub struct Injection {
     pub kind: &'static str,
     /// Planned stop length, s.
     pub stop_s: Option<f64>,
-    /// The deformation process it hit.
+    /// The process it hit.
     pub pid: u32,
     /// `CLOCK_MONOTONIC` at delivery, ns.
     #[serde(skip)]
     pub start_ns: u64,
-    /// Whether a stale-frame ramp answered it (`None`: the bench saw no tool state then).
+    /// Whether it was answered: a stale-frame ramp (deformation process), the loop back with
+    /// its force from zero (haptic process). `None`: the bench saw no tool state then.
     pub answered: Option<bool>,
 }
 
-/// Sends `sig` to `pid` if it is still a deformation process of the run.
-pub(super) fn signal_deform(pid: u32, prefix: &str, sig: i32) -> bool {
+/// Sends `sig` to `pid` if it is still the run's `role` process (`deform`, `haptic`).
+pub(super) fn signal_process(pid: u32, prefix: &str, role: &str, sig: i32) -> bool {
     let args = memory::cmdline(pid);
-    let ours = args.iter().any(|a| a == "deform") && args.iter().any(|a| a == prefix);
-    // SAFETY: kill on a grandchild of this bench, checked to be the run's deformation process.
+    let ours = args.iter().any(|a| a == role) && args.iter().any(|a| a == prefix);
+    // SAFETY: kill on a grandchild of this bench, checked to be the run's process of `role`.
     ours && unsafe { libc::kill(pid as i32, sig) } == 0
 }
 
-/// A stopped deformation process, continued when dropped (on every path, errors included).
-pub(super) struct StoppedDeform {
+/// A stopped process, continued when dropped (on every path, errors included).
+pub(super) struct StoppedProcess {
     pub(super) pid: u32,
     pub(super) prefix: String,
+    pub(super) role: &'static str,
     pub(super) resume_at: Instant,
 }
 
-impl Drop for StoppedDeform {
+impl Drop for StoppedProcess {
     fn drop(&mut self) {
-        signal_deform(self.pid, &self.prefix, libc::SIGCONT);
+        signal_process(self.pid, &self.prefix, self.role, libc::SIGCONT);
     }
+}
+
+/// Whether the injection was answered (see [`Injection::answered`]). `None` if the bench
+/// missed the tool states then.
+pub(super) fn answered(inj: &Injection, audit: &ForceAudit) -> Option<bool> {
+    if inj.process == "haptic" {
+        answered_haptic(inj, audit)
+    } else {
+        answered_deform(inj, audit)
+    }
+}
+
+/// A killed haptic process: a new one (the sequence started over) within
+/// [`HAPTIC_BACK_WITHIN_NS`]; a stopped one: the same loop back after a pause, within the stop
+/// and 2 s. Whether its force started from zero is the audit's rule on every restart.
+fn answered_haptic(inj: &Injection, audit: &ForceAudit) -> Option<bool> {
+    inj.at_s?;
+    let (kind, within) = match inj.kind {
+        "kill" => (RestartKind::Process, HAPTIC_BACK_WITHIN_NS),
+        _ => (
+            RestartKind::Pause,
+            (inj.stop_s.unwrap_or(0.0) * 1e9) as u64 + 2_000_000_000,
+        ),
+    };
+    let (from, to) = (inj.start_ns, inj.start_ns + within);
+    let hit = audit
+        .restarts
+        .iter()
+        .any(|r| r.kind == kind && r.first_ns >= from && r.first_ns <= to);
+    if hit {
+        return Some(true);
+    }
+    let blind = audit.gaps.iter().any(|&(a, b)| a <= to && b >= from);
+    (!blind).then_some(false)
 }
 
 /// Whether a stale-frame episode answered the injection: one that overlaps its moment and began
 /// at most [`ANSWER_WITHIN_NS`] after it. `None` if the bench missed the tool states then.
-pub(super) fn answered(inj: &Injection, audit: &ForceAudit) -> Option<bool> {
+fn answered_deform(inj: &Injection, audit: &ForceAudit) -> Option<bool> {
     inj.at_s?;
     let (from, to) = (inj.start_ns, inj.start_ns + ANSWER_WITHIN_NS);
     let hit = audit
@@ -69,39 +111,81 @@ pub(super) fn answered(inj: &Injection, audit: &ForceAudit) -> Option<bool> {
     (!blind).then_some(false)
 }
 
-/// How many injections of `kind` (`kill`, `stop`) were delivered.
-pub(super) fn delivered(injections: &[Injection], kind: &str) -> usize {
+/// How many injections of `kind` (`kill`, `stop`) were delivered to `process`.
+pub(super) fn delivered(injections: &[Injection], process: &str, kind: &str) -> usize {
     injections
         .iter()
-        .filter(|i| i.kind == kind && i.at_s.is_some())
+        .filter(|i| i.process == process && i.kind == kind && i.at_s.is_some())
         .count()
 }
 
 // ---------------------------------------------------------------------------------------------
 // The checks on this evidence.
 
-/// Safety invariant 2 seen from the injections: every stop and kill made the frames stale and
-/// the force ramp.
+/// Safety invariant 2 seen from the injections: every stop and kill of the deformation
+/// process made the frames stale and the force ramp.
 pub(super) fn check_answered(e: &Evidence<'_>) -> Check {
-    let injections = e.injections;
-    let unanswered = injections
+    let deform: Vec<&Injection> = e
+        .injections
         .iter()
-        .filter(|i| i.answered == Some(false))
-        .count();
-    let blind = injections
+        .filter(|i| i.process == "deform")
+        .collect();
+    let unanswered = deform.iter().filter(|i| i.answered == Some(false)).count();
+    let blind = deform
         .iter()
         .filter(|i| i.at_s.is_some() && i.answered.is_none())
         .count();
-    let skipped = injections.iter().filter(|i| i.at_s.is_none()).count();
-    let kills = delivered(injections, "kill");
+    let skipped = deform.iter().filter(|i| i.at_s.is_none()).count();
+    let kills = delivered(e.injections, "deform", "kill");
+    let stops = delivered(e.injections, "deform", "stop");
     check(
         "every deformation stop and kill answered by a stale-frame ramp",
-        unanswered == 0 && kills + delivered(injections, "stop") > 0,
+        unanswered == 0 && kills + stops > 0,
         format!(
-            "{kills} kills, {} stops (0.3–3 s) delivered, {skipped} skipped (no process), \
+            "{kills} kills, {stops} stops (0.3–3 s) delivered, {skipped} skipped (no process), \
              {unanswered} without a stale-frame episode, {blind} unseen (the bench missed those \
-             ticks)",
-            delivered(injections, "stop")
+             ticks)"
+        ),
+    )
+}
+
+/// The haptic process's own faults (issue of the restart): every kill answered by a new
+/// process and every stop by the loop coming back, each starting its force over from zero
+/// (the audit's rule on every restart), and the force never rising faster than the step limit
+/// plus the stylus's motion anywhere in the run.
+pub(super) fn check_haptic_restarts(e: &Evidence<'_>) -> Check {
+    let haptic: Vec<&Injection> = e
+        .injections
+        .iter()
+        .filter(|i| i.process == "haptic")
+        .collect();
+    let unanswered = haptic.iter().filter(|i| i.answered == Some(false)).count();
+    let blind = haptic
+        .iter()
+        .filter(|i| i.at_s.is_some() && i.answered.is_none())
+        .count();
+    let kills = delivered(e.injections, "haptic", "kill");
+    let stops = delivered(e.injections, "haptic", "stop");
+    let a = e.audit;
+    let loaded = a.restarts.iter().filter(|r| r.force_before > 0.0).count();
+    let first_max = a
+        .restarts
+        .iter()
+        .filter_map(|r| r.first_force)
+        .fold(0.0, f64::max);
+    check(
+        "the haptic loop, killed or stopped, came back with its force from zero; no force rose \
+         faster than the step limit and the stylus's motion",
+        unanswered == 0 && kills + stops > 0 && a.counts.not_from_zero == 0 && a.counts.jump == 0,
+        format!(
+            "{kills} kills, {stops} stops (0.2–1.5 s) delivered, {unanswered} not seen coming \
+             back, {blind} unseen; {} restarts in the stream ({loaded} with a force on the hand \
+             before), largest first force after one {first_max:.4} N, {} not from zero; {} \
+             rises over the limit (largest rise beyond its allowance {:+.4} N)",
+            a.restarts.len(),
+            a.counts.not_from_zero,
+            a.counts.jump,
+            a.largest_rise_excess
         ),
     )
 }

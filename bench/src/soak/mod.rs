@@ -8,6 +8,8 @@
 //! (`schedule.rs`):
 //! - the deformation process killed (SIGKILL; the supervisor restarts it) or stopped (SIGSTOP
 //!   for 0.3–3 s, then SIGCONT), which makes the frames go stale;
+//! - the haptic process killed (the supervisor restarts it) or stopped (0.2–1.5 s), wherever
+//!   the stylus is then (in the tissue too);
 //! - NaN and out-of-workspace device samples, 1–40 ticks long (the script's `[[fault]]` windows
 //!   with `sample =`);
 //! - control requests hammered through `PREFIX/control`, and bursts of `lopd ctl`
@@ -23,8 +25,9 @@
 //! - the force ramped down — not cut, not held, zero in time — on every stale frame and every
 //!   broken sample, every planned broken sample caught, and every stop and kill of the
 //!   deformation process answered by a stale-frame ramp (`forces.rs`);
-//! - the supervisor restarted every killed deformation process, the haptic loop never
-//!   restarted;
+//! - the force never rose faster than the safety's step limit plus what the stylus's motion
+//!   explains, and every killed or stopped haptic loop came back with its force from zero;
+//! - the supervisor restarted every killed process, and no other;
 //! - no bad control request accepted, no good one refused as bad, the viewer's access rules
 //!   held in every session;
 //! - the recording readable and complete;
@@ -67,13 +70,13 @@ use serde::Serialize;
 
 use crate::pipeline::{self, Lopd, LopdOptions};
 use control::{CtlReport, HammerReport};
-use forces::{ForceAudit, ForceLog, ToolStreamReport};
-use injections::{Injection, StoppedDeform};
+use forces::{ForceAudit, ForceLog, StepLimits, ToolStreamReport};
+use injections::{Injection, StoppedProcess};
 use leftovers::Leftovers;
 use memory::ProcessWatch;
 use recording::RecordingReport;
 use report::{Evidence, SoakReport, TelemetryReport};
-use schedule::{DeformFault, Schedule};
+use schedule::{ProcessEvent, ProcessFault, Schedule};
 use supervisor::{log_line, SupervisorReport};
 use viewers::ViewerReport;
 
@@ -155,6 +158,10 @@ struct Settings {
     clamp_n: f64,
     ramp_ticks: u64,
     stale_ms: f64,
+    /// The safety's step limit, N a tick beyond the stylus's motion.
+    max_step_n: f64,
+    /// The scene's tool spring, N/m.
+    tool_stiffness: f64,
     rate_hz: f64,
     script_parts: Vec<String>,
     script_period_s: f64,
@@ -235,6 +242,8 @@ pub fn run(a: SoakArgs) -> Result<()> {
         clamp_n: clamp,
         ramp_ticks,
         stale_ms: haptic.stale_frame_ms,
+        max_step_n: haptic.max_force_step_n,
+        tool_stiffness: scene.tool.stiffness,
         rate_hz: rate,
         script_parts: soak_script
             .parts
@@ -404,7 +413,16 @@ fn observe(
 
     // Monitors and injectors, each on its own thread with its own iceoryx2 node.
     let stop = Arc::new(AtomicBool::new(false));
-    let audit = ForceAudit::new(settings.clamp_n, settings.ramp_ticks, &plan.samples);
+    let audit = ForceAudit::new(
+        settings.clamp_n,
+        settings.ramp_ticks,
+        &plan.samples,
+        StepLimits {
+            max_step: settings.max_step_n,
+            stiffness: settings.tool_stiffness,
+            stale_ns: (settings.stale_ms * 1e6) as u64,
+        },
+    );
     let tools = {
         let (prefix, stop) = (settings.prefix.clone(), stop.clone());
         std::thread::Builder::new()
@@ -470,8 +488,9 @@ fn observe(
     })
 }
 
-/// The main thread's part of the run: delivers the deformation faults on time, samples the
-/// processes once a second, and checks that `lopd run` and the tool monitor are alive.
+/// The main thread's part of the run: delivers the process faults on time (the deformation
+/// and the haptic process's in one time order, a fault waiting while a stop lasts), samples
+/// the processes once a second, and checks that `lopd run` and the tool monitor are alive.
 fn drive(
     lopd: &mut Lopd,
     settings: &Settings,
@@ -481,9 +500,16 @@ fn drive(
     watch: &mut ProcessWatch,
     tools: &std::thread::JoinHandle<Result<(ForceAudit, Option<HapticTelemetry>)>>,
 ) -> Result<Vec<Injection>> {
+    let mut events: Vec<(&'static str, ProcessEvent)> = plan
+        .deform
+        .iter()
+        .map(|e| ("deform", *e))
+        .chain(plan.haptic.iter().map(|e| ("haptic", *e)))
+        .collect();
+    events.sort_by(|a, b| a.1.at_s.total_cmp(&b.1.at_s));
     let mut injections = Vec::new();
     let mut next = 0;
-    let mut stopped: Option<StoppedDeform> = None;
+    let mut stopped: Option<StoppedProcess> = None;
     let mut last_sample = f64::NEG_INFINITY;
     loop {
         lopd.check_alive()?;
@@ -504,14 +530,15 @@ fn drive(
         if now >= settings.seconds && stopped.is_none() {
             return Ok(injections);
         }
-        if let (None, Some(e)) = (&stopped, plan.deform.get(next)) {
+        if let (None, Some(&(role, e))) = (&stopped, events.get(next)) {
             if now >= e.at_s {
                 watch.sample(epoch.elapsed().as_secs_f64());
                 let (kind, stop_s) = match e.fault {
-                    DeformFault::Kill => ("kill", None),
-                    DeformFault::Stop { seconds } => ("stop", Some(seconds)),
+                    ProcessFault::Kill => ("kill", None),
+                    ProcessFault::Stop { seconds } => ("stop", Some(seconds)),
                 };
                 let mut inj = Injection {
+                    process: role,
                     planned_s: e.at_s,
                     at_s: None,
                     kind,
@@ -520,20 +547,20 @@ fn drive(
                     start_ns: 0,
                     answered: None,
                 };
-                let target = watch.live("deform");
-                if let Some(pid) = target {
+                if let Some(pid) = watch.live(role) {
                     let sig = match e.fault {
-                        DeformFault::Kill => libc::SIGKILL,
-                        DeformFault::Stop { .. } => libc::SIGSTOP,
+                        ProcessFault::Kill => libc::SIGKILL,
+                        ProcessFault::Stop { .. } => libc::SIGSTOP,
                     };
                     inj.start_ns = clock::monotonic_ns();
-                    if injections::signal_deform(pid, &settings.prefix, sig) {
+                    if injections::signal_process(pid, &settings.prefix, role, sig) {
                         inj.at_s = Some(now);
                         inj.pid = pid;
-                        if let DeformFault::Stop { seconds } = e.fault {
-                            stopped = Some(StoppedDeform {
+                        if let ProcessFault::Stop { seconds } = e.fault {
+                            stopped = Some(StoppedProcess {
                                 pid,
                                 prefix: settings.prefix.clone(),
+                                role,
                                 resume_at: Instant::now() + Duration::from_secs_f64(seconds),
                             });
                         }
@@ -580,12 +607,13 @@ fn judge(
         memory: &memory,
         watch: &obs.watch,
     };
-    let checks: [fn(&Evidence<'_>) -> report::Check; 13] = [
+    let checks: [fn(&Evidence<'_>) -> report::Check; 14] = [
         forces::within_clamp,
         forces::zero_at_stop,
         forces::ramped,
         forces::samples_caught,
         injections::check_answered,
+        injections::check_haptic_restarts,
         supervisor::check_restarts,
         control::check_requests,
         viewers::check_access,

@@ -10,7 +10,7 @@ use serde::Serialize;
 
 use super::control::{CtlReport, HammerReport};
 use super::forces::{ForceAudit, ForceLog, ToolStreamReport};
-use super::injections::Injection;
+use super::injections::{delivered, Injection};
 use super::leftovers::Leftovers;
 use super::memory::{kib, ProcessWatch, Verdict};
 use super::recording::RecordingReport;
@@ -50,7 +50,7 @@ pub(super) struct Evidence<'a> {
     pub(super) tool: &'a ToolStreamReport,
     /// The device's force record, or why it could not be read.
     pub(super) force_log: &'a Result<ForceLog, String>,
-    /// The deformation faults, each with whether a stale-frame ramp answered it.
+    /// The process faults, each with whether it was answered.
     pub(super) injections: &'a [Injection],
     pub(super) supervisor: &'a SupervisorReport,
     pub(super) hammer: &'a HammerReport,
@@ -111,17 +111,13 @@ pub(super) fn render(r: &SoakReport) -> String {
     let p = &r.plan;
     out += &crate::table::note(
         &format!(
-            "injected: {} deformation kills and {} stops, {} runs of broken samples ({} ticks), \
-             {} viewer sessions, {} lopd ctl bursts, control requests every {} ms; the script \
-             loops every {:.1} s",
-            r.injections
-                .iter()
-                .filter(|i| i.kind == "kill" && i.at_s.is_some())
-                .count(),
-            r.injections
-                .iter()
-                .filter(|i| i.kind == "stop" && i.at_s.is_some())
-                .count(),
+            "injected: {} deformation kills and {} stops, {} haptic kills and {} stops, {} runs \
+             of broken samples ({} ticks), {} viewer sessions, {} lopd ctl bursts, control \
+             requests every {} ms; the script loops every {:.1} s",
+            delivered(&r.injections, "deform", "kill"),
+            delivered(&r.injections, "deform", "stop"),
+            delivered(&r.injections, "haptic", "kill"),
+            delivered(&r.injections, "haptic", "stop"),
             p.samples.len(),
             p.samples.iter().map(|e| e.ticks).sum::<u64>(),
             p.viewers.len(),

@@ -15,27 +15,29 @@ use serde::Serialize;
 
 pub use lop_test_support::rng::Rng;
 
-/// What is done to the deformation process.
+/// What is done to a process of the pipeline (`lopd deform` or `lopd haptic`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
-pub enum DeformFault {
-    /// SIGKILL: the supervisor must restart it while the haptic loop ramps the force down on
-    /// the frames that stopped coming.
+pub enum ProcessFault {
+    /// SIGKILL: the supervisor must restart it. A killed deformation process: the haptic loop
+    /// ramps the force down on the frames that stopped coming. A killed haptic process: the new
+    /// one starts its force over from zero.
     Kill,
-    /// SIGSTOP for `seconds`, then SIGCONT: frozen, its frames go stale.
+    /// SIGSTOP for `seconds`, then SIGCONT. A stopped deformation process: its frames go stale.
+    /// A stopped haptic loop: it starts its force over from zero when it runs again.
     Stop {
         /// How long it stays stopped.
         seconds: f64,
     },
 }
 
-/// A planned deformation-process fault.
+/// A planned process fault.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct DeformEvent {
+pub struct ProcessEvent {
     /// Seconds after the first frame.
     pub at_s: f64,
     /// What is done.
-    pub fault: DeformFault,
+    pub fault: ProcessFault,
 }
 
 /// A planned run of broken device samples.
@@ -126,7 +128,9 @@ pub struct Schedule {
     /// Length of the run after the first frame, s.
     pub seconds: f64,
     /// Deformation-process kills and stops, in time order.
-    pub deform: Vec<DeformEvent>,
+    pub deform: Vec<ProcessEvent>,
+    /// Haptic-process kills and stops, in time order.
+    pub haptic: Vec<ProcessEvent>,
     /// Broken device samples, in tick order, never overlapping.
     pub samples: Vec<SampleEvent>,
     /// Viewer sessions, in time order.
@@ -158,6 +162,14 @@ pub mod rates {
     pub const VIEWERS: f64 = 8.0;
     /// `lopd ctl` bursts per minute (at least 1).
     pub const CTL: f64 = 2.0;
+    /// Haptic-process kills per minute (at least 1), in the first half of the fault window like
+    /// the deformation process's.
+    pub const HAPTIC_KILLS: f64 = 0.5;
+    /// Haptic-process stops per minute (at least 1).
+    pub const HAPTIC_STOPS: f64 = 0.5;
+    /// Shortest and longest haptic stop, s: beyond the 100 ms stale limit by 2× (the loop
+    /// starts its force over), up to a stall a user would feel as the device going limp.
+    pub const HAPTIC_STOP_S: (f64, f64) = (0.2, 1.5);
 }
 
 /// Seconds after the first frame before the first event: start-up, the first contact.
@@ -196,18 +208,18 @@ impl Schedule {
         let kills = count(rates::KILLS, seconds, 1);
         let stops = count(rates::STOPS, seconds, 1);
         let mid = LEAD_S + KILL_SHARE * (end - TAIL_S - LEAD_S);
-        let mut deform: Vec<DeformEvent> = spread(&mut rng, kills, LEAD_S, mid, 0.5)
+        let mut deform: Vec<ProcessEvent> = spread(&mut rng, kills, LEAD_S, mid, 0.5)
             .into_iter()
-            .map(|at_s| DeformEvent {
+            .map(|at_s| ProcessEvent {
                 at_s,
-                fault: DeformFault::Kill,
+                fault: ProcessFault::Kill,
             })
             .collect();
         for at_s in spread(&mut rng, stops, LEAD_S, end - TAIL_S, 0.5) {
             let (lo, hi) = rates::STOP_S;
-            deform.push(DeformEvent {
+            deform.push(ProcessEvent {
                 at_s,
-                fault: DeformFault::Stop {
+                fault: ProcessFault::Stop {
                     seconds: rng.range(lo, hi),
                 },
             });
@@ -266,10 +278,34 @@ impl Schedule {
             .map(|at_s| CtlEvent { at_s })
             .collect();
 
+        // Haptic process: drawn from a generator of its own, so a seed's other events are what
+        // they were before the haptic process was faulted too.
+        let mut hrng = Rng::for_seed(seed, "haptic");
+        let kills = count(rates::HAPTIC_KILLS, seconds, 1);
+        let stops = count(rates::HAPTIC_STOPS, seconds, 1);
+        let mut haptic: Vec<ProcessEvent> = spread(&mut hrng, kills, LEAD_S, mid, 0.5)
+            .into_iter()
+            .map(|at_s| ProcessEvent {
+                at_s,
+                fault: ProcessFault::Kill,
+            })
+            .collect();
+        for at_s in spread(&mut hrng, stops, LEAD_S, end - TAIL_S, 0.5) {
+            let (lo, hi) = rates::HAPTIC_STOP_S;
+            haptic.push(ProcessEvent {
+                at_s,
+                fault: ProcessFault::Stop {
+                    seconds: hrng.range(lo, hi),
+                },
+            });
+        }
+        haptic.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
+
         Schedule {
             seed,
             seconds,
             deform,
+            haptic,
             samples,
             viewers,
             ctl,
@@ -291,7 +327,7 @@ impl Schedule {
     pub fn kills(&self) -> usize {
         self.deform
             .iter()
-            .filter(|e| e.fault == DeformFault::Kill)
+            .filter(|e| e.fault == ProcessFault::Kill)
             .count()
     }
 }
@@ -305,6 +341,7 @@ mod tests {
         let a = Schedule::draw(7, 120.0, 1000.0);
         let b = Schedule::draw(7, 120.0, 1000.0);
         assert_eq!(a.deform, b.deform);
+        assert_eq!(a.haptic, b.haptic);
         assert_eq!(a.samples, b.samples);
         assert_eq!(a.viewers, b.viewers);
         assert_eq!(a.ctl, b.ctl);
@@ -336,10 +373,29 @@ mod tests {
             for e in &s.deform {
                 assert!(e.at_s >= LEAD_S && e.at_s <= 30.0 - TAIL_S, "{e:?}");
                 match e.fault {
-                    DeformFault::Stop { seconds } => {
+                    ProcessFault::Stop { seconds } => {
                         assert!(seconds >= rates::STOP_S.0 && seconds <= rates::STOP_S.1)
                     }
-                    DeformFault::Kill => {
+                    ProcessFault::Kill => {
+                        assert!(e.at_s <= LEAD_S + KILL_SHARE * (30.0 - TAIL_S - LEAD_S))
+                    }
+                }
+            }
+            // Haptic faults: at least a kill and a stop, in order, inside the same window.
+            let hk = s
+                .haptic
+                .iter()
+                .filter(|e| e.fault == ProcessFault::Kill)
+                .count();
+            assert!(hk >= 1 && s.haptic.len() - hk >= 1, "seed {seed}");
+            assert!(s.haptic.windows(2).all(|w| w[0].at_s <= w[1].at_s));
+            for e in &s.haptic {
+                assert!(e.at_s >= LEAD_S && e.at_s <= 30.0 - TAIL_S, "{e:?}");
+                match e.fault {
+                    ProcessFault::Stop { seconds } => assert!(
+                        seconds >= rates::HAPTIC_STOP_S.0 && seconds <= rates::HAPTIC_STOP_S.1
+                    ),
+                    ProcessFault::Kill => {
                         assert!(e.at_s <= LEAD_S + KILL_SHARE * (30.0 - TAIL_S - LEAD_S))
                     }
                 }
@@ -363,6 +419,7 @@ mod tests {
         assert_eq!(s.samples.len(), 240);
         assert_eq!(s.viewers.len(), 240);
         assert_eq!(s.ctl.len(), 60);
+        assert_eq!(s.haptic.len(), 30);
     }
 
     #[test]

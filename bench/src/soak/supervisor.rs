@@ -1,6 +1,6 @@
 //! What `lopd run`'s log says about its supervision (restarts, its exit, the services it
-//! removed), and the checks on it: every killed deformation process restarted, the haptic loop
-//! never; a clean stop.
+//! removed), and the checks on it: every killed process restarted, and no other; a clean
+//! stop.
 
 use serde::Serialize;
 
@@ -55,21 +55,25 @@ pub(super) fn number_after(line: &str, label: &str) -> Option<u64> {
 // ---------------------------------------------------------------------------------------------
 // The checks on this evidence.
 
-/// Safety invariant 4: the supervisor restarted every killed deformation process while the
-/// haptic loop stayed up.
+/// Safety invariant 4: the supervisor restarted every killed process, and no other: the
+/// haptic loop only when it was killed.
 pub(super) fn check_restarts(e: &Evidence<'_>) -> Check {
-    let kills = super::injections::delivered(e.injections, "kill");
+    let kills = super::injections::delivered(e.injections, "deform", "kill");
+    let haptic_kills = super::injections::delivered(e.injections, "haptic", "kill");
     check(
-        "supervisor restarted every killed deformation process; the haptic loop never restarted",
+        "supervisor restarted every killed process, and only those",
         e.supervisor.deform_restarts == Some(kills as u64)
-            && e.supervisor.haptic_restarts == Some(0)
-            && e.audit.segments == 0,
+            && e.supervisor.haptic_restarts == Some(haptic_kills as u64)
+            && e.audit.segments == haptic_kills as u64,
         format!(
-            "deform restarts {:?} for {kills} kills, haptic restarts {:?}, {} deformation \
-             processes in all",
+            "deform restarts {:?} for {kills} kills, haptic restarts {:?} for {haptic_kills} \
+             kills ({} new haptic processes seen in the tool stream), {} deformation and {} \
+             haptic processes in all",
             e.supervisor.deform_restarts,
             e.supervisor.haptic_restarts,
-            e.watch.instances_of("deform")
+            e.audit.segments,
+            e.watch.instances_of("deform"),
+            e.watch.instances_of("haptic")
         ),
     )
 }
