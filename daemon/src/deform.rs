@@ -127,6 +127,8 @@ pub struct DeformLoop {
     period: u64,
     start: u64,
     deadline: u64,
+    /// A body was still behind the wall clock after the last round: the next one runs at once.
+    catching_up: bool,
     sequence: u64,
     /// Duration of each body's last step, ns.
     step_ns: Vec<u32>,
@@ -230,7 +232,7 @@ impl DeformLoop {
         let now = rt::now_ns();
         let period = (1e9 / scene.rates.deform_max_hz).round() as u64;
         Ok(DeformLoop {
-            rounds: Rounds::live(laws),
+            rounds: Rounds::live(laws, period),
             step_ns: vec![0u32; world.bodies.len()],
             paces,
             meters: vec![RealTimeMeter::new(REAL_TIME_WINDOW); world.bodies.len()],
@@ -253,6 +255,7 @@ impl DeformLoop {
             period,
             start: now,
             deadline: now,
+            catching_up: false,
             sequence: 0,
             lagged: 0,
         })
@@ -278,7 +281,13 @@ impl DeformLoop {
     /// publishes a frame if anything advanced.
     pub fn tick(&mut self) {
         self.deadline += self.period;
-        let now = rt::sleep_until(self.deadline, 0);
+        // A body still behind the wall clock after a round (its steps took the round's budget)
+        // gets the next round at once, each round's frame published (`Rounds::live`).
+        let now = if self.catching_up {
+            rt::now_ns()
+        } else {
+            rt::sleep_until(self.deadline, 0)
+        };
         if now > self.deadline + self.period {
             // Fell behind: do not burst. The next deadline stays on the grid of whole periods
             // from the start, which the bodies' clocks keep to (`World::round`).
@@ -333,6 +342,7 @@ impl DeformLoop {
             rt::now_ns,
         );
         let report = self.world.last_round();
+        self.catching_up = !paused && report.bodies.iter().any(|b| b.due);
         for (i, r) in report.bodies.iter().enumerate() {
             if r.steps > 0 {
                 self.step_ns[i] = r.last_step_ns.min(u32::MAX as u64) as u32;

@@ -11,8 +11,12 @@ use crate::ToolLaws;
 use lop_sim::contact::ToolSphere;
 use lop_sim::world::{Coupling, Round, RoundTool, World};
 
-/// Most steps a body takes in one live round to catch up with the wall clock; beyond that its
-/// simulated time is dropped rather than spiralling (counted as lag).
+/// Most steps a body takes in one live round to catch up with the wall clock, and most periods
+/// it may be behind after them; beyond that its simulated time is dropped rather than
+/// spiralling (counted as lag). Its second and later steps come only within the round's budget
+/// (one loop period): a body whose steps are long takes one a round and `lopd deform` runs the
+/// next round at once, a frame published after each, where taking them all in one round
+/// published nothing until the last (frames of a 10k-tetrahedra organ 4 steps apart).
 pub const MAX_CATCH_UP: u32 = 4;
 
 /// The tool for one round, as the haptic side resolved it.
@@ -37,19 +41,27 @@ pub struct Rounds {
     round_laws: Vec<ToolSphere>,
     max_catch_up: u32,
     drop_lag: bool,
+    max_lag: u32,
+    budget_ns: u64,
 }
 
 impl Rounds {
-    /// Rounds on the wall clock (`lopd deform`): at most [`MAX_CATCH_UP`] steps a body, then
-    /// its lag is dropped.
-    pub fn live(laws: ToolLaws) -> Rounds {
-        Rounds::new(laws, MAX_CATCH_UP, true)
+    /// Rounds on the wall clock (`lopd deform`): at most [`MAX_CATCH_UP`] steps a body, the
+    /// second and later only while the round has run for less than `budget_ns` (the loop's
+    /// period); a body still behind after them may stay up to `MAX_CATCH_UP − 1` periods
+    /// behind (the rest is dropped as lag) and is [`due`](lop_sim::world::BodyRound::due) for
+    /// the next round at once.
+    pub fn live(laws: ToolLaws, budget_ns: u64) -> Rounds {
+        Rounds {
+            budget_ns,
+            ..Rounds::new(laws, MAX_CATCH_UP, true, MAX_CATCH_UP - 1)
+        }
     }
 
     /// Rounds on simulated time (`lopd simulate`): each round advances to the earliest next
     /// step, one step per body due, and no time is ever dropped.
     pub fn offline(laws: ToolLaws) -> Rounds {
-        Rounds::new(laws, 1, false)
+        Rounds::new(laws, 1, false, 0)
     }
 
     /// Rounds on simulated time that take every step due by the round's end (a caller that
@@ -57,15 +69,17 @@ impl Rounds {
     /// round can leave a body a step behind when rounding puts its next step a hair past the
     /// tick).
     pub fn catching_up(laws: ToolLaws) -> Rounds {
-        Rounds::new(laws, u32::MAX, false)
+        Rounds::new(laws, u32::MAX, false, 0)
     }
 
-    fn new(laws: ToolLaws, max_catch_up: u32, drop_lag: bool) -> Rounds {
+    fn new(laws: ToolLaws, max_catch_up: u32, drop_lag: bool, max_lag: u32) -> Rounds {
         Rounds {
             round_laws: laws.bodies.clone(),
             laws,
             max_catch_up,
             drop_lag,
+            max_lag,
+            budget_ns: 0,
         }
     }
 
@@ -110,6 +124,8 @@ impl Rounds {
             until,
             max_catch_up: self.max_catch_up,
             drop_lag: self.drop_lag,
+            max_lag: self.max_lag,
+            budget_ns: self.budget_ns,
             tool,
             skip,
             paused,

@@ -47,7 +47,7 @@ fn both_paths_agree(scene: &str, script_name: &str, steps: u64) {
             max_stiffness_n_per_mm: MockDevice::omni_limits().max_stiffness_n_per_mm,
         },
     );
-    let mut rounds = Rounds::live(ToolLaws::new(&scene_file, DeviceClamp::NONE));
+    let mut rounds = Rounds::live(ToolLaws::new(&scene_file, DeviceClamp::NONE), 1_000_000);
     let workspace = scene_file.workspace.transform();
     let mut world = lop_scene::load(scene_file).unwrap().world;
     let script = MockScript::load(&script_path).unwrap();

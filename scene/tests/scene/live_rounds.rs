@@ -1,7 +1,9 @@
-//! The live rounds' clock (`Rounds::live`): a body that cannot catch up drops the time still
-//! due as lag, but the hand-over from the cage (20 ms) to the FEM (1 ms) on a touch is the
-//! cage's hold, not lag: the FEM starts from the cage's last state, up to one cage period
-//! behind the wall clock, and joins the clock in that round.
+//! The live rounds' clock (`Rounds::live`): a body behind takes up to `MAX_CATCH_UP` steps
+//! within the round's budget and catches up over the rounds that follow, up to
+//! `MAX_CATCH_UP − 1` periods behind; beyond, it drops the time still due as lag. The
+//! hand-over from the cage (20 ms) to the FEM (1 ms) on a touch is the cage's hold, not lag:
+//! the FEM starts from the cage's last state, up to one cage period behind the wall clock, and
+//! joins the clock in that round.
 
 use std::path::PathBuf;
 
@@ -17,7 +19,7 @@ fn abdomen() -> lop_config::Scene {
 #[test]
 fn a_hand_over_joins_the_wall_clock_and_real_lag_is_dropped() {
     let scene = abdomen();
-    let mut rounds = Rounds::live(ToolLaws::new(&scene, DeviceClamp::NONE));
+    let mut rounds = Rounds::live(ToolLaws::new(&scene, DeviceClamp::NONE), 1_000_000);
     let mut world = lop_scene::load(scene).unwrap().world;
     let liver = world
         .bodies
@@ -74,22 +76,59 @@ fn a_hand_over_joins_the_wall_clock_and_real_lag_is_dropped() {
     assert_eq!(dropped, 0.0);
     assert!(400e-3 - world.bodies[liver].time < 1e-3 + 1e-12);
 
-    // Now a stall of 10 ms with the FEM running: at most four 1 ms steps, the rest dropped as
-    // lag, and only the steps count as advanced.
+    // Now a stall of 10 ms with the FEM running, steps that cost nothing on the round's clock:
+    // four 1 ms steps, up to three more periods kept behind, the rest dropped as lag; the body
+    // is due at once, and the next round (run back to back, at the same wall time here)
+    // catches up.
     let dt = world.bodies[liver].model.dt();
     assert!(dt <= 1e-3 + 1e-12, "{dt}");
     let before = world.bodies[liver].time;
     let until = before + 10e-3;
     rounds.advance(&mut world, until, Some(&tool), &[], false, || 0);
     let r = world.last_round().bodies[liver];
-    assert!(r.lagged(), "{r:?}");
+    assert!(r.lagged() && r.due, "{r:?}");
     assert_eq!(r.steps, lop_scene::MAX_CATCH_UP);
+    let time = world.bodies[liver].time;
+    let kept = f64::from(lop_scene::MAX_CATCH_UP - 1) * dt;
+    assert!(
+        until - time >= kept - 1e-12 && until - time < kept + dt,
+        "{time} for {until}"
+    );
+    let stepped_to = before + f64::from(r.steps) * dt;
+    assert!((r.dropped - (time - stepped_to)).abs() < 1e-12, "{r:?}");
+    assert!(r.dropped > 2e-3, "{r:?}");
+    rounds.advance(&mut world, until, Some(&tool), &[], false, || 0);
+    let r = world.last_round().bodies[liver];
+    assert_eq!((r.steps, r.dropped, r.due), (3, 0.0, false), "{r:?}");
     let time = world.bodies[liver].time;
     assert!(
         time <= until + 1e-12 && until - time < dt,
         "{time} for {until}"
     );
-    let stepped_to = before + f64::from(r.steps) * dt;
-    assert!((r.dropped - (time - stepped_to)).abs() < 1e-12, "{r:?}");
-    assert!(r.dropped > 5e-3, "{r:?}");
+
+    // The same stall with steps that take 0.4 ms of the round's clock each (and its every
+    // reading): the round's 1 ms budget allows one step, then the round ends with its frame;
+    // the rounds that follow take one step each until the body has caught up.
+    let before = world.bodies[liver].time;
+    let until = before + 10e-3;
+    let mut t = 0u64;
+    let mut slow = || {
+        t += 400_000;
+        t
+    };
+    rounds.advance(&mut world, until, Some(&tool), &[], false, &mut slow);
+    let r = world.last_round().bodies[liver];
+    assert!(r.lagged() && r.due && r.steps == 1, "{r:?}");
+    let mut rounds_after = 0;
+    loop {
+        rounds.advance(&mut world, until, Some(&tool), &[], false, &mut slow);
+        let r = world.last_round().bodies[liver];
+        assert_eq!((r.steps, r.dropped), (1, 0.0), "{r:?}");
+        rounds_after += 1;
+        if !r.due {
+            break;
+        }
+        assert!(rounds_after < 10, "never caught up");
+    }
+    assert_eq!(rounds_after, lop_scene::MAX_CATCH_UP - 1);
 }

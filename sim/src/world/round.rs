@@ -6,8 +6,9 @@
 //!    once per [`World::set_collision_interval`]): the contact springs hold for every step of
 //!    the round, and of the rounds until the next detection.
 //! 3. **The bodies that are due**, each on its own `dt`, at most [`Round::max_catch_up`] steps
-//!    each; on the wall clock ([`Round::drop_lag`]) a body still due after them drops the rest
-//!    of its simulated time (counted as lag) rather than spiral behind.
+//!    each, and the second and later only within the round's [`Round::budget_ns`]; on the wall
+//!    clock ([`Round::drop_lag`]) a body still due after them drops the rest of its simulated
+//!    time beyond [`Round::max_lag`] periods (counted as lag) rather than spiral behind.
 //! 4. **Heat**: the cautery on the held point, then the heat steps that are due (at most
 //!    [`MAX_HEAT_CATCH_UP`]); a failed heat step stops the heat model, never the bodies.
 //! 5. **A report** of what happened and how long each stage took ([`RoundReport`]), timed with
@@ -59,9 +60,17 @@ pub struct Round<'a> {
     /// Most steps one body takes in this round.
     pub max_catch_up: u32,
     /// A body still due after `max_catch_up` steps drops the rest of its simulated time (the
-    /// wall-clock pace of `lopd deform`); `false`: it stays due for the next round (`lopd
-    /// simulate`, which advances on simulated time alone).
+    /// wall-clock pace of `lopd deform`), all but `max_lag` of its periods; `false`: it stays
+    /// due for the next round (`lopd simulate`, which advances on simulated time alone).
     pub drop_lag: bool,
+    /// With `drop_lag`: how many of its periods a body still due after its steps may stay
+    /// behind (it catches up in the rounds that follow, which its caller runs at once:
+    /// [`BodyRound::due`]); the rest is dropped. 0: everything still due is dropped.
+    pub max_lag: u32,
+    /// A body's second and later steps are taken only while the round has run for less than
+    /// this, ns (by the round's clock; 0: no limit): a body catching up publishes a frame at
+    /// least this often, instead of after all its steps.
+    pub budget_ns: u64,
     /// The tool, if a device is present.
     pub tool: Option<RoundTool<'a>>,
     /// Bodies left alone this round (`lopd simulate` once a body has taken its steps); empty
@@ -80,6 +89,8 @@ impl<'a> Round<'a> {
             until,
             max_catch_up,
             drop_lag: true,
+            max_lag: 0,
+            budget_ns: 0,
             tool: None,
             skip: &[],
             paused: false,
@@ -109,6 +120,9 @@ pub struct BodyRound {
     /// clock or drops the rest, the time a body fell behind real time; a real-time meter's
     /// measure.
     pub dropped: f64,
+    /// Still due after the round (behind by up to [`Round::max_lag`] periods, or on simulated
+    /// time): the next round has a step for it at once.
+    pub due: bool,
 }
 
 impl BodyRound {
@@ -180,7 +194,15 @@ impl World {
                 let tool = round.tool.and_then(|t| t.sphere(i));
                 let mut r = BodyRound::default();
                 let dt_before = self.bodies[i].model.dt();
-                while self.body_due(i, round.until) && r.steps < round.max_catch_up {
+                let within_budget = |r: &BodyRound, now: u64| {
+                    r.steps == 0
+                        || round.budget_ns == 0
+                        || now.saturating_sub(start) < round.budget_ns
+                };
+                while self.body_due(i, round.until)
+                    && r.steps < round.max_catch_up
+                    && within_budget(&r, clock())
+                {
                     let t0 = clock();
                     if let Err(cause) = self.step_body_coupled(i, tool.as_ref(), coupling) {
                         r.blow_up = Some(cause);
@@ -202,13 +224,22 @@ impl World {
                     // whole periods (plus the wake-up latency), so a clock on the same grid
                     // has one step due per round, where a clock a fraction of a period off it
                     // would have none or two by the latency's whim (frames 2 ms apart at 1 ms).
+                    //
+                    // A body may stay up to `max_lag` periods behind that grid (not at a
+                    // hand-over): it catches up one step a round, each round's frame published.
                     let dt = self.bodies[i].model.dt();
                     let grid = ((round.until + 1e-12) / dt).floor() * dt;
-                    self.bodies[i].time = grid.max(stepped_to);
+                    let keep = if dt >= dt_before {
+                        f64::from(round.max_lag) * dt
+                    } else {
+                        0.0
+                    };
+                    self.bodies[i].time = (grid - keep).max(stepped_to);
                     if dt >= dt_before {
                         r.dropped = self.bodies[i].time - stepped_to;
                     }
                 }
+                r.due = self.body_due(i, round.until);
                 self.report.bodies[i] = r;
             }
         }
