@@ -256,7 +256,9 @@ impl GodObject {
     /// the first face it met from outside would be felt all at once.
     ///
     /// Inside means behind the closest point's surface ([`SurfaceSet::behind`]), among the
-    /// bodies whose box holds the device. Allocation-free.
+    /// bodies whose box holds the device. With the grab button held, that surface point is
+    /// grabbed at once, as on any touch made with the button held (a grab needs contact and the
+    /// button, not a press of it). Allocation-free.
     fn start_on_surface(&mut self, set: &mut SurfaceSet, device: DVec3) {
         let p = device.to_array();
         let mut best: Option<Closest> = None;
