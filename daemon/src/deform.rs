@@ -127,8 +127,6 @@ pub struct DeformLoop {
     period: u64,
     start: u64,
     deadline: u64,
-    /// A body was still behind the wall clock after the last round: the next one runs at once.
-    catching_up: bool,
     sequence: u64,
     /// Duration of each body's last step, ns.
     step_ns: Vec<u32>,
@@ -255,7 +253,6 @@ impl DeformLoop {
             period,
             start: now,
             deadline: now,
-            catching_up: false,
             sequence: 0,
             lagged: 0,
         })
@@ -283,7 +280,8 @@ impl DeformLoop {
         self.deadline += self.period;
         // A body still behind the wall clock after a round (its steps took the round's budget)
         // gets the next round at once, each round's frame published (`Rounds::live`).
-        let now = if self.catching_up {
+        let catching_up = self.world.last_round().bodies.iter().any(|b| b.due);
+        let now = if catching_up {
             rt::now_ns()
         } else {
             rt::sleep_until(self.deadline, 0)
@@ -342,7 +340,6 @@ impl DeformLoop {
             rt::now_ns,
         );
         let report = self.world.last_round();
-        self.catching_up = !paused && report.bodies.iter().any(|b| b.due);
         for (i, r) in report.bodies.iter().enumerate() {
             if r.steps > 0 {
                 self.step_ns[i] = r.last_step_ns.min(u32::MAX as u64) as u32;

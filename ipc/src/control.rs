@@ -418,15 +418,16 @@ impl ControlClient {
     ) -> Result<ControlResponse, ControlError> {
         use iceoryx2::service::port_factory::PortFactory as _;
         let start = std::time::Instant::now();
+        let no_answer = || ControlError::NoAnswer {
+            service: self.service_name.clone(),
+            waited: timeout,
+        };
         // A request sent while the service exists but its server port does not yet (the daemon
         // between creating the one and the other) reaches no server and is never answered:
         // send once the server is there.
         while self.service.dynamic_config().number_of_servers() == 0 {
             if start.elapsed() >= timeout {
-                return Err(ControlError::NoAnswer {
-                    service: self.service_name.clone(),
-                    waited: timeout,
-                });
+                return Err(no_answer());
             }
             std::thread::sleep(std::time::Duration::from_millis(1));
         }
@@ -443,10 +444,7 @@ impl ControlClient {
                 return Ok(*r.payload());
             }
             if start.elapsed() >= timeout {
-                return Err(ControlError::NoAnswer {
-                    service: self.service_name.clone(),
-                    waited: timeout,
-                });
+                return Err(no_answer());
             }
             std::thread::sleep(std::time::Duration::from_millis(1));
         }

@@ -66,7 +66,7 @@ fn max_displacement(a: &lop_client::Frame, b: &lop_client::Frame) -> f32 {
 
 /// `lopd run --scene SCENE --device mock --quiet --force-log F` under a fresh prefix tagged
 /// `tag`: the prefix, the force log's path and the daemon.
-fn run_mock(scene: &str, tag: &str) -> (String, std::path::PathBuf, Daemon) {
+fn run_mock(scene: &str, tag: &str, device: &str) -> (String, std::path::PathBuf, Daemon) {
     let prefix = unique_prefix(tag);
     let force_log = std::env::temp_dir().join(format!("{prefix}-forces.csv"));
     let force_log_s = force_log.display().to_string();
@@ -76,7 +76,7 @@ fn run_mock(scene: &str, tag: &str) -> (String, std::path::PathBuf, Daemon) {
             "--scene",
             scene,
             "--device",
-            "mock",
+            device,
             "--prefix",
             &prefix,
             "--quiet",
@@ -89,9 +89,32 @@ fn run_mock(scene: &str, tag: &str) -> (String, std::path::PathBuf, Daemon) {
     (prefix, force_log, daemon)
 }
 
+/// Ctrl-C to `lopd run`: it must exit 0 within 20 s. Its log.
+fn interrupt(daemon: &mut Daemon) -> String {
+    daemon.signal(libc::SIGINT);
+    let status = daemon
+        .wait(Duration::from_secs(20))
+        .expect("lopd run did not stop");
+    let log = daemon.log_text();
+    assert!(status.success(), "exit {status}\n{log}");
+    log
+}
+
+/// The force log's rows: the time, s, and |F|, N.
+fn force_rows(path: &std::path::Path) -> Vec<(f64, f64)> {
+    let csv = std::fs::read_to_string(path).expect("force log");
+    csv.lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
+            (f[0], (f[1] * f[1] + f[2] * f[2] + f[3] * f[3]).sqrt())
+        })
+        .collect()
+}
+
 #[test]
 fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
-    let (prefix, force_log, mut daemon) = run_mock("organs", "pipeline");
+    let (prefix, force_log, mut daemon) = run_mock("organs", "pipeline", "mock");
 
     // Attach and get the topology.
     let mut client = Attachment::open(&prefix, Duration::from_secs(30))
@@ -243,22 +266,12 @@ fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
 
     // Ctrl-C: clean exit, zero force last, nothing left behind.
     drop(client);
-    daemon.signal(libc::SIGINT);
-    let status = daemon
-        .wait(Duration::from_secs(20))
-        .expect("lopd run did not stop");
-    assert!(status.success(), "exit {status}\n{}", daemon.log_text());
+    let log = interrupt(&mut daemon);
     let left = lop_ipc::services::list_services(&prefix);
     assert!(left.is_empty(), "services left behind: {left:?}");
-    let csv = std::fs::read_to_string(&force_log).expect("force log");
-    let last = csv.lines().last().expect("force rows");
-    let f: Vec<f64> = last
-        .split(',')
-        .skip(1)
-        .map(|v| v.parse().unwrap())
-        .collect();
-    assert_eq!(f, [0.0, 0.0, 0.0], "last force written: {last}");
-    assert!(daemon.log_text().contains("no service left"));
+    let last = *force_rows(&force_log).last().expect("force rows");
+    assert_eq!(last.1, 0.0, "last force written: {last:?}");
+    assert!(log.contains("no service left"));
     let _ = std::fs::remove_file(&force_log);
 }
 
@@ -274,7 +287,7 @@ fn pipeline_end_to_end_with_deform_restart_and_clean_shutdown() {
 /// blackboard's entry marked as held (`haptic::tool_board_writer`, `deform::TOOL_DROP_NS`).
 #[test]
 fn a_stopped_or_killed_haptic_process_starts_its_force_over_from_zero() {
-    let (prefix, force_log, mut daemon) = run_mock("abdomen", "haptic-restart");
+    let (prefix, force_log, mut daemon) = run_mock("abdomen", "haptic-restart", "mock");
     let mut client = Attachment::open(&prefix, Duration::from_secs(30))
         .unwrap_or_else(|e| panic!("attach: {e}\n{}", daemon.log_text()));
     let mut tools: Vec<ToolState> = Vec::new();
@@ -377,12 +390,7 @@ fn a_stopped_or_killed_haptic_process_starts_its_force_over_from_zero() {
     );
 
     drop(client);
-    daemon.signal(libc::SIGINT);
-    let status = daemon
-        .wait(Duration::from_secs(20))
-        .expect("lopd run did not stop");
-    let log = daemon.log_text();
-    assert!(status.success(), "exit {status}\n{log}");
+    let log = interrupt(&mut daemon);
     assert!(
         log.contains("haptic restarts 1, deform restarts 0"),
         "{log}"
@@ -390,15 +398,7 @@ fn a_stopped_or_killed_haptic_process_starts_its_force_over_from_zero() {
     let left = lop_ipc::services::list_services(&prefix);
     assert!(left.is_empty(), "services left behind: {left:?}");
     // The restarted process's force log (it replaces the killed one's, which died unwritten).
-    let csv = std::fs::read_to_string(&force_log).expect("force log");
-    let norms: Vec<f64> = csv
-        .lines()
-        .skip(1)
-        .map(|l| {
-            let f: Vec<f64> = l.split(',').skip(1).map(|v| v.parse().unwrap()).collect();
-            (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
-        })
-        .collect();
+    let norms: Vec<f64> = force_rows(&force_log).iter().map(|r| r.1).collect();
     assert!(norms.len() > 500, "{} rows", norms.len());
     assert_eq!(norms[0], 0.0, "the restarted loop's first force");
     assert_eq!(*norms.last().unwrap(), 0.0, "the last force written");
@@ -424,9 +424,7 @@ fn a_stopped_or_killed_haptic_process_starts_its_force_over_from_zero() {
 /// in one tick as the stylus left the tissue.
 #[test]
 fn a_loop_that_starts_with_the_stylus_in_the_tissue_ramps_the_surface_in() {
-    let prefix = unique_prefix("haptic-inside");
-    let dir = std::env::temp_dir();
-    let script = dir.join(format!("{prefix}-inside.toml"));
+    let script = std::env::temp_dir().join(format!("lop-inside-{}.toml", std::process::id()));
     std::fs::write(
         &script,
         r#"name = "inside"
@@ -452,24 +450,8 @@ position = [-26.14, 9.1, 34.57]
 "#,
     )
     .unwrap();
-    let force_log = dir.join(format!("{prefix}-forces.csv"));
     let device = format!("mock:{}", script.display());
-    let mut daemon = Daemon::spawn(
-        &[
-            "run",
-            "--scene",
-            "abdomen",
-            "--device",
-            &device,
-            "--prefix",
-            &prefix,
-            "--quiet",
-            "--force-log",
-            &force_log.display().to_string(),
-        ],
-        &prefix,
-        Duration::from_secs(120),
-    );
+    let (prefix, force_log, mut daemon) = run_mock("abdomen", "haptic-inside", &device);
     // Until the script has withdrawn (4.4 s of its time) and a little more.
     let mut client = Attachment::open(&prefix, Duration::from_secs(30))
         .unwrap_or_else(|e| panic!("attach: {e}\n{}", daemon.log_text()));
@@ -484,20 +466,8 @@ position = [-26.14, 9.1, 34.57]
     }
     std::thread::sleep(Duration::from_secs(6));
     drop(client);
-    daemon.signal(libc::SIGINT);
-    let status = daemon
-        .wait(Duration::from_secs(20))
-        .expect("lopd run did not stop");
-    assert!(status.success(), "exit {status}\n{}", daemon.log_text());
-    let csv = std::fs::read_to_string(&force_log).expect("force log");
-    let rows: Vec<(f64, f64)> = csv
-        .lines()
-        .skip(1)
-        .map(|l| {
-            let f: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
-            (f[0], (f[1] * f[1] + f[2] * f[2] + f[3] * f[3]).sqrt())
-        })
-        .collect();
+    interrupt(&mut daemon);
+    let rows = force_rows(&force_log);
     assert!(rows.len() > 4000, "{} rows", rows.len());
     assert_eq!(rows[0].1, 0.0, "the first force");
     // No rise faster than the safety's 0.05 N a tick plus what the stylus's motion explains

@@ -18,13 +18,8 @@
 //!   rising, fails);
 //! - **in time**: from the episode's `R`-th tick on, `|F| = 0`.
 //!
-//! Between consecutive tool states the force never **rises** faster than the safety's step
-//! limit plus what the stylus's own motion explains (`max_step + k · |Δx|`, `k` the tool
-//! spring, `Δx` the stylus's move since the last healthy tick; none after an unhealthy one):
-//! no pop, however the surface, the frames or the processes behave. And a haptic loop that
-//! **restarts** — a new process after a kill (its sequence starts over), or one that did not
-//! tick for longer than the stale limit (stopped) — starts its force over from zero: its first
-//! force is at most one step (`max_step`), never the force it had before.
+//! Every tool state also goes to the rise-and-restart audit (`steps.rs`), told how it follows
+//! the last one.
 //!
 //! The stream is sampled by a subscriber with a bounded buffer, so a busy machine can make the
 //! bench miss tool states; missed ones are counted (coverage), a check never spans a gap, and
@@ -42,6 +37,7 @@ use lop_drivers::mock::SampleFault;
 
 use super::report::{check, Check, Evidence};
 use super::schedule::{SampleEvent, Schedule};
+use super::steps::{Follows, RestartKind, StepAudit, StepLimits, StepViolation};
 
 /// Relative slack on the clamp and on the per-tick ramp step: rounding only.
 const REL_TOL: f64 = 1e-9;
@@ -50,56 +46,6 @@ const KEPT: usize = 20;
 /// Missed tool states from which a gap is kept as a blind stretch (50 ms at 1 kHz: a third of
 /// a stale-frame episode's shortest start-up).
 pub const BLIND_TICKS: u64 = 50;
-
-/// The safety's rules for a rising force (the daemon config's `max_force_step_n`, the scene's
-/// tool spring, the stale limit).
-#[derive(Debug, Clone, Copy, Serialize)]
-pub struct StepLimits {
-    /// Largest rise per tick beyond the stylus's motion, N.
-    pub max_step: f64,
-    /// The tool spring, N/m (the law's stiffness against a body, when larger, is in each tool
-    /// state).
-    pub stiffness: f64,
-    /// A loop that did not tick for longer than this starts its force over, ns.
-    pub stale_ns: u64,
-}
-
-impl StepLimits {
-    /// No rule on a rising force (tests of the other rules).
-    #[cfg(test)]
-    pub fn none() -> StepLimits {
-        StepLimits {
-            max_step: f64::INFINITY,
-            stiffness: 0.0,
-            stale_ns: u64::MAX,
-        }
-    }
-}
-
-/// How the haptic loop came back.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum RestartKind {
-    /// A new process (the sequence started over).
-    Process,
-    /// The same process after a pause longer than the stale limit (stopped).
-    Pause,
-}
-
-/// A restart of the haptic loop seen in the stream.
-#[derive(Debug, Clone, Serialize)]
-pub struct Restart {
-    /// How.
-    pub kind: RestartKind,
-    /// Stamp of the first tool state after it, ns.
-    pub first_ns: u64,
-    /// How long the stream was silent, ms.
-    pub silent_ms: f64,
-    /// |F| before it, N (the last state seen).
-    pub force_before: f64,
-    /// |F| on the first tick after it, N (`None`: the bench missed that tick).
-    pub first_force: Option<f64>,
-}
 
 /// One ramping episode.
 #[derive(Debug, Clone, Serialize)]
@@ -136,7 +82,6 @@ impl Episode {
 pub struct ForceAudit {
     clamp: f64,
     ramp_ticks: u64,
-    limits: StepLimits,
     samples_plan: Vec<SampleEvent>,
     /// Per planned sample event: ticks of it seen, and of those flagged as a device error.
     plan_seen: Vec<(u64, u64)>,
@@ -160,10 +105,8 @@ pub struct ForceAudit {
     pub unexpected_device_errors: u64,
     /// Every episode, in order.
     pub episodes: Vec<Episode>,
-    /// Every restart of the haptic loop, in order.
-    pub restarts: Vec<Restart>,
-    /// The largest rise of |F| in one tick beyond its allowance (negative: within it), N.
-    pub largest_rise_excess: f64,
+    /// Rises and restarts (`steps.rs`).
+    pub steps: StepAudit,
     /// Stretches the bench did not see ([`BLIND_TICKS`] missed tool states or more): the
     /// stamps of the states before and after, ns.
     pub gaps: Vec<(u64, u64)>,
@@ -234,7 +177,6 @@ impl ForceAudit {
         ForceAudit {
             clamp,
             ramp_ticks: ramp_ticks.max(1),
-            limits,
             plan_seen: vec![(0, 0); samples.len()],
             samples_plan: samples.to_vec(),
             last: None,
@@ -248,8 +190,7 @@ impl ForceAudit {
             device_error_ticks: 0,
             unexpected_device_errors: 0,
             episodes: Vec::new(),
-            restarts: Vec::new(),
-            largest_rise_excess: f64::NEG_INFINITY,
+            steps: StepAudit::new(limits),
             gaps: Vec::new(),
             counts: ViolationCounts::default(),
             violations: Vec::new(),
@@ -280,30 +221,43 @@ impl ForceAudit {
     pub fn feed(&mut self, s: &ToolState) {
         self.received += 1;
         // Continuity with the previous state: the next tick, a gap, or a new haptic process.
-        let mut restart = None;
-        let prev = match self.last {
+        let stale_ns = self.steps.limits.stale_ns;
+        let mut follows = Follows::Unknown;
+        let last = self.last;
+        let prev = match &last {
             Some(p)
                 if s.sequence == p.sequence + 1
-                    && s.stamp_ns.saturating_sub(p.stamp_ns) > self.limits.stale_ns =>
+                    && s.stamp_ns.saturating_sub(p.stamp_ns) > stale_ns =>
             {
                 // The loop did not tick for longer than the stale limit: it was stopped.
                 self.gaps.push((p.stamp_ns, s.stamp_ns));
-                restart = Some((RestartKind::Pause, p, true));
+                follows = Follows::Restart {
+                    kind: RestartKind::Pause,
+                    before: p,
+                    first: true,
+                };
                 None
             }
-            Some(p) if s.sequence == p.sequence + 1 => Some(p),
+            Some(p) if s.sequence == p.sequence + 1 => {
+                follows = Follows::Tick(p);
+                Some(*p)
+            }
             Some(p) if s.sequence > p.sequence + 1 => {
                 let missed = s.sequence - p.sequence - 1;
                 self.missed += missed;
                 // Longer than the ticks missed explain (at most 2 ms each): a pause among
                 // them, whose first tick may be one of those missed.
                 let silent = s.stamp_ns.saturating_sub(p.stamp_ns);
-                let paused = silent > self.limits.stale_ns.saturating_add(missed * 2_000_000);
+                let paused = silent > stale_ns.saturating_add(missed * 2_000_000);
                 if missed >= BLIND_TICKS || paused {
                     self.gaps.push((p.stamp_ns, s.stamp_ns));
                 }
                 if paused {
-                    restart = Some((RestartKind::Pause, p, false));
+                    follows = Follows::Restart {
+                        kind: RestartKind::Pause,
+                        before: p,
+                        first: false,
+                    };
                 }
                 if let Some(e) = &mut self.open {
                     e.gapped = true;
@@ -315,63 +269,27 @@ impl ForceAudit {
                 self.gaps.push((p.stamp_ns, s.stamp_ns));
                 self.close_episode();
                 // The new process's first tick is its sequence 0.
-                restart = Some((RestartKind::Process, p, s.sequence == 0));
+                follows = Follows::Restart {
+                    kind: RestartKind::Process,
+                    before: p,
+                    first: s.sequence == 0,
+                };
                 None
             }
             None => None,
         };
-        self.last = Some(*s);
-        let mag_now = norm(s.force);
-        if let Some((kind, p, first_seen)) = restart {
-            let first_force = first_seen.then_some(mag_now);
-            let within = |f: f64| f <= self.limits.max_step * (1.0 + REL_TOL);
-            if first_force.is_some_and(|f| !within(f)) {
+        match self.steps.feed(s, follows) {
+            Some(StepViolation::Jump(what)) => {
+                self.counts.jump += 1;
+                self.violation(what);
+            }
+            Some(StepViolation::NotFromZero(what)) => {
                 self.counts.not_from_zero += 1;
-                self.violation(format!(
-                    "tick {}: the loop came back ({kind:?}) with |F| = {mag_now} N, more than one                      {} N step from zero ({} N before)",
-                    s.sequence,
-                    self.limits.max_step,
-                    norm(p.force)
-                ));
+                self.violation(what);
             }
-            self.restarts.push(Restart {
-                kind,
-                first_ns: s.stamp_ns,
-                silent_ms: s.stamp_ns.saturating_sub(p.stamp_ns) as f64 * 1e-6,
-                force_before: norm(p.force),
-                first_force,
-            });
+            None => {}
         }
-        if let Some(p) = prev {
-            // The safety's step limit: what the stylus moved since the last healthy tick times
-            // the spring, plus the step; nothing moved after an unhealthy tick.
-            let healthy_before = p.flags & TOOL_FLAG_RAMPING == 0;
-            let moved = if healthy_before {
-                let d = [
-                    s.device_position[0] - p.device_position[0],
-                    s.device_position[1] - p.device_position[1],
-                    s.device_position[2] - p.device_position[2],
-                ];
-                norm(d)
-            } else {
-                0.0
-            };
-            let k = s.tool_stiffness.max(self.limits.stiffness);
-            let allowance = self.limits.max_step + k * moved;
-            let rise = mag_now - norm(p.force);
-            if rise.is_finite() && allowance.is_finite() {
-                self.largest_rise_excess = self.largest_rise_excess.max(rise - allowance);
-                if rise > allowance * (1.0 + REL_TOL) + 1e-12 {
-                    self.counts.jump += 1;
-                    self.violation(format!(
-                        "tick {}: |F| rose from {} N to {mag_now} N in one tick; the step limit                          and the stylus's {:.4} mm allow {allowance} N",
-                        s.sequence,
-                        norm(p.force),
-                        moved * 1e3
-                    ));
-                }
-            }
-        }
+        self.last = Some(*s);
 
         // Invariant 1: finite, within the clamp.
         let f = s.force;
@@ -619,8 +537,8 @@ impl ToolStreamReport {
             episodes_device: a.episodes.iter().filter(|e| e.device).count() as u64,
             episodes_gapped: a.episodes.iter().filter(|e| e.gapped).count() as u64,
             longest_episode_ticks: a.episodes.iter().map(|e| e.ticks).max().unwrap_or(0),
-            restarts: a.restarts.len() as u64,
-            largest_rise_excess_n: a.largest_rise_excess,
+            restarts: a.steps.restarts.len() as u64,
+            largest_rise_excess_n: a.steps.largest_rise_excess,
             planned_samples: plan.samples.len(),
             planned_samples_seen: seen,
             planned_samples_flagged: flagged,
@@ -862,96 +780,6 @@ mod tests {
         b.feed(&state(5, 0.0, 0));
         assert_eq!(b.planned_samples(), (1, 0));
         assert_eq!(b.counts.sample_not_flagged, 1);
-    }
-
-    /// The stylus pressing a spring surface and moving on, with frames that land elsewhere,
-    /// stale stretches and a pause, through the daemon's own `ForceSafety`: the audit finds
-    /// nothing. The same stream with one pop, or with a pause the loop did not start over
-    /// from, is caught.
-    #[test]
-    fn the_safety_stage_s_step_limit_and_restart_pass_and_pops_are_caught() {
-        use lop_sim::haptic::ForceSafety;
-        let limits = StepLimits {
-            max_step: 0.05,
-            stiffness: 700.0,
-            stale_ns: 100_000_000,
-        };
-        // (sequence, stamp, device, force, flags) as the loop publishes them.
-        let stream = |restart_after_pause: bool| {
-            let mut safety = ForceSafety::new(3.3, 0.05, 5);
-            let mut out = Vec::new();
-            let mut stamp = 0u64;
-            for tick in 0..4000u64 {
-                // Paused deep in the third press.
-                stamp += if tick == 2250 { 600_000_000 } else { 1_000_000 };
-                if tick == 2250 && restart_after_pause {
-                    safety.restart();
-                }
-                let t = tick as f64 * 1e-3;
-                // 12 mm into the surface and out, twice a second; frames every 10 ms that
-                // move the surface by up to 1 mm (a desired force that jumps).
-                let y = 0.004 - 0.016 * (t * std::f64::consts::PI * 2.0).sin().abs();
-                let surface = 0.001 * ((tick / 10) % 3) as f64 / 2.0;
-                let depth = (surface - y).max(0.0);
-                let stale = (1200..1260).contains(&tick);
-                let desired = [0.0, 700.0 * depth, 0.0];
-                let device = [0.0, y, 0.0];
-                let f = safety.condition_moving(desired, !stale, Some(device), 700.0);
-                let flags = if stale { UNHEALTHY } else { 0 };
-                out.push(ToolState {
-                    sequence: tick,
-                    stamp_ns: stamp,
-                    device_position: device,
-                    force: f,
-                    flags,
-                    ..Default::default()
-                });
-            }
-            out
-        };
-        let audit = |states: &[ToolState]| {
-            let mut a = ForceAudit::new(3.3, 5, &[], limits);
-            for st in states {
-                a.feed(st);
-            }
-            a.finish();
-            a
-        };
-        let good = stream(true);
-        let a = audit(&good);
-        assert_eq!(a.counts.total(), 0, "{:?}", a.violations);
-        assert_eq!(a.restarts.len(), 1);
-        assert_eq!(a.restarts[0].kind, RestartKind::Pause);
-        assert!(
-            a.max_force > 1.0,
-            "the press must load the hand: {}",
-            a.max_force
-        );
-        // The frames' jumps did reach the limit (the rule is tested where it binds).
-        assert!(a.largest_rise_excess > -1e-9, "{}", a.largest_rise_excess);
-
-        // One pop of 0.2 N on a tick in the press.
-        let mut popped = good.clone();
-        let k = (300..2400)
-            .find(|&k| norm(good[k].force) > 0.5 && good[k].flags == 0)
-            .unwrap();
-        popped[k].force[1] += 0.2;
-        assert_eq!(audit(&popped).counts.jump, 1);
-        // A pause that the loop went on from.
-        let b = audit(&stream(false));
-        assert!(b.restarts[0].force_before > 1.0, "{:?}", b.restarts);
-        assert_eq!(b.counts.not_from_zero, 1, "{:?}", b.violations);
-        // A new process (the sequence starts over) that starts with a force.
-        let mut new_process = good[..1000].to_vec();
-        new_process.push(ToolState {
-            sequence: 0,
-            stamp_ns: good[999].stamp_ns + 500_000_000,
-            force: [0.0, 0.4, 0.0],
-            ..Default::default()
-        });
-        let c = audit(&new_process);
-        assert_eq!((c.segments, c.counts.not_from_zero), (1, 1));
-        assert_eq!(c.restarts[0].kind, RestartKind::Process);
     }
 
     #[test]

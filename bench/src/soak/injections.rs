@@ -6,9 +6,10 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use super::forces::{ForceAudit, RestartKind};
+use super::forces::ForceAudit;
 use super::memory;
 use super::report::{check, Check, Evidence};
+use super::steps::RestartKind;
 
 /// An injection is answered by a stale-frame episode that begins at most this long after it.
 const ANSWER_WITHIN_NS: u64 = 2_000_000_000;
@@ -61,49 +62,37 @@ impl Drop for StoppedProcess {
     }
 }
 
-/// Whether the injection was answered (see [`Injection::answered`]). `None` if the bench
-/// missed the tool states then.
+/// Whether the injection was answered (see [`Injection::answered`]): by a stale-frame episode
+/// that overlaps its moment and began at most [`ANSWER_WITHIN_NS`] after it (the deformation
+/// process's); by a new haptic process (the sequence started over) within
+/// [`HAPTIC_BACK_WITHIN_NS`] of a kill, or the same loop back after a pause within a stop and
+/// 2 s (the haptic process's; whether its force started from zero is the audit's rule on
+/// every restart). `None` if the bench missed the tool states then.
 pub(super) fn answered(inj: &Injection, audit: &ForceAudit) -> Option<bool> {
-    if inj.process == "haptic" {
-        answered_haptic(inj, audit)
-    } else {
-        answered_deform(inj, audit)
-    }
-}
-
-/// A killed haptic process: a new one (the sequence started over) within
-/// [`HAPTIC_BACK_WITHIN_NS`]; a stopped one: the same loop back after a pause, within the stop
-/// and 2 s. Whether its force started from zero is the audit's rule on every restart.
-fn answered_haptic(inj: &Injection, audit: &ForceAudit) -> Option<bool> {
     inj.at_s?;
-    let (kind, within) = match inj.kind {
-        "kill" => (RestartKind::Process, HAPTIC_BACK_WITHIN_NS),
-        _ => (
-            RestartKind::Pause,
-            (inj.stop_s.unwrap_or(0.0) * 1e9) as u64 + 2_000_000_000,
-        ),
+    let within = match (inj.process, inj.kind) {
+        ("haptic", "kill") => HAPTIC_BACK_WITHIN_NS,
+        ("haptic", _) => (inj.stop_s.unwrap_or(0.0) * 1e9) as u64 + 2_000_000_000,
+        _ => ANSWER_WITHIN_NS,
     };
     let (from, to) = (inj.start_ns, inj.start_ns + within);
-    let hit = audit
-        .restarts
-        .iter()
-        .any(|r| r.kind == kind && r.first_ns >= from && r.first_ns <= to);
-    if hit {
-        return Some(true);
-    }
-    let blind = audit.gaps.iter().any(|&(a, b)| a <= to && b >= from);
-    (!blind).then_some(false)
-}
-
-/// Whether a stale-frame episode answered the injection: one that overlaps its moment and began
-/// at most [`ANSWER_WITHIN_NS`] after it. `None` if the bench missed the tool states then.
-fn answered_deform(inj: &Injection, audit: &ForceAudit) -> Option<bool> {
-    inj.at_s?;
-    let (from, to) = (inj.start_ns, inj.start_ns + ANSWER_WITHIN_NS);
-    let hit = audit
-        .episodes
-        .iter()
-        .any(|e| e.stale && e.first_ns <= to && e.last_ns >= from);
+    let hit = if inj.process == "haptic" {
+        let kind = if inj.kind == "kill" {
+            RestartKind::Process
+        } else {
+            RestartKind::Pause
+        };
+        audit
+            .steps
+            .restarts
+            .iter()
+            .any(|r| r.kind == kind && r.first_ns >= from && r.first_ns <= to)
+    } else {
+        audit
+            .episodes
+            .iter()
+            .any(|e| e.stale && e.first_ns <= to && e.last_ns >= from)
+    };
     if hit {
         return Some(true);
     }
@@ -119,23 +108,25 @@ pub(super) fn delivered(injections: &[Injection], process: &str, kind: &str) -> 
         .count()
 }
 
+/// Of the injections into `process`: how many were not answered, how many the bench did not
+/// see (delivered, answer unknown), how many were skipped (no process to signal).
+fn outcomes(injections: &[Injection], process: &str) -> (usize, usize, usize) {
+    let of = || injections.iter().filter(|i| i.process == process);
+    (
+        of().filter(|i| i.answered == Some(false)).count(),
+        of().filter(|i| i.at_s.is_some() && i.answered.is_none())
+            .count(),
+        of().filter(|i| i.at_s.is_none()).count(),
+    )
+}
+
 // ---------------------------------------------------------------------------------------------
 // The checks on this evidence.
 
 /// Safety invariant 2 seen from the injections: every stop and kill of the deformation
 /// process made the frames stale and the force ramp.
 pub(super) fn check_answered(e: &Evidence<'_>) -> Check {
-    let deform: Vec<&Injection> = e
-        .injections
-        .iter()
-        .filter(|i| i.process == "deform")
-        .collect();
-    let unanswered = deform.iter().filter(|i| i.answered == Some(false)).count();
-    let blind = deform
-        .iter()
-        .filter(|i| i.at_s.is_some() && i.answered.is_none())
-        .count();
-    let skipped = deform.iter().filter(|i| i.at_s.is_none()).count();
+    let (unanswered, blind, skipped) = outcomes(e.injections, "deform");
     let kills = delivered(e.injections, "deform", "kill");
     let stops = delivered(e.injections, "deform", "stop");
     check(
@@ -154,21 +145,18 @@ pub(super) fn check_answered(e: &Evidence<'_>) -> Check {
 /// (the audit's rule on every restart), and the force never rising faster than the step limit
 /// plus the stylus's motion anywhere in the run.
 pub(super) fn check_haptic_restarts(e: &Evidence<'_>) -> Check {
-    let haptic: Vec<&Injection> = e
-        .injections
-        .iter()
-        .filter(|i| i.process == "haptic")
-        .collect();
-    let unanswered = haptic.iter().filter(|i| i.answered == Some(false)).count();
-    let blind = haptic
-        .iter()
-        .filter(|i| i.at_s.is_some() && i.answered.is_none())
-        .count();
+    let (unanswered, blind, _) = outcomes(e.injections, "haptic");
     let kills = delivered(e.injections, "haptic", "kill");
     let stops = delivered(e.injections, "haptic", "stop");
     let a = e.audit;
-    let loaded = a.restarts.iter().filter(|r| r.force_before > 0.0).count();
+    let loaded = a
+        .steps
+        .restarts
+        .iter()
+        .filter(|r| r.force_before > 0.0)
+        .count();
     let first_max = a
+        .steps
         .restarts
         .iter()
         .filter_map(|r| r.first_force)
@@ -182,10 +170,10 @@ pub(super) fn check_haptic_restarts(e: &Evidence<'_>) -> Check {
              back, {blind} unseen; {} restarts in the stream ({loaded} with a force on the hand \
              before), largest first force after one {first_max:.4} N, {} not from zero; {} \
              rises over the limit (largest rise beyond its allowance {:+.4} N)",
-            a.restarts.len(),
+            a.steps.restarts.len(),
             a.counts.not_from_zero,
             a.counts.jump,
-            a.largest_rise_excess
+            a.steps.largest_rise_excess
         ),
     )
 }

@@ -26,7 +26,8 @@
 //!   broken sample, every planned broken sample caught, and every stop and kill of the
 //!   deformation process answered by a stale-frame ramp (`forces.rs`);
 //! - the force never rose faster than the safety's step limit plus what the stylus's motion
-//!   explains, and every killed or stopped haptic loop came back with its force from zero;
+//!   explains, and every killed or stopped haptic loop came back with its force from zero
+//!   (`steps.rs`);
 //! - the supervisor restarted every killed process, and no other;
 //! - no bad control request accepted, no good one refused as bad, the viewer's access rules
 //!   held in every session;
@@ -36,7 +37,9 @@
 //!   (`memory.rs` states the bound and why).
 //!
 //! Each check is a `fn(&Evidence) -> Check` beside its evidence (`forces.rs`, `injections.rs`,
-//! `supervisor.rs`, `control.rs`, `viewers.rs`, `recording.rs`, `leftovers.rs`, `memory.rs`);
+//! `supervisor.rs`, `control.rs`, `viewers.rs`, `recording.rs`, `leftovers.rs`, `memory.rs`;
+//! the rise-and-restart audit of `steps.rs` is judged in `injections.rs`, with the haptic
+//! faults);
 //! this file runs the pipeline, gathers the evidence and lists the checks in the report's order
 //! (`report.rs` holds the report and prints it).
 //!
@@ -53,6 +56,7 @@ mod recording;
 mod report;
 mod schedule;
 mod script;
+mod steps;
 mod supervisor;
 mod viewers;
 
@@ -70,13 +74,14 @@ use serde::Serialize;
 
 use crate::pipeline::{self, Lopd, LopdOptions};
 use control::{CtlReport, HammerReport};
-use forces::{ForceAudit, ForceLog, StepLimits, ToolStreamReport};
+use forces::{ForceAudit, ForceLog, ToolStreamReport};
 use injections::{Injection, StoppedProcess};
 use leftovers::Leftovers;
 use memory::ProcessWatch;
 use recording::RecordingReport;
 use report::{Evidence, SoakReport, TelemetryReport};
 use schedule::{ProcessEvent, ProcessFault, Schedule};
+use steps::StepLimits;
 use supervisor::{log_line, SupervisorReport};
 use viewers::ViewerReport;
 

@@ -195,6 +195,35 @@ fn spread(rng: &mut Rng, n: usize, from: f64, to: f64, fill: f64) -> Vec<f64> {
         .collect()
 }
 
+/// A process's faults in time order: `kills` in `[LEAD_S, mid)` (the process restarted last
+/// lives through the rest, and its memory can be judged), `stops` of `stop_s` seconds anywhere
+/// in `[LEAD_S, end − TAIL_S)`.
+fn process_faults(
+    rng: &mut Rng,
+    kills: usize,
+    stops: usize,
+    (mid, end): (f64, f64),
+    (lo, hi): (f64, f64),
+) -> Vec<ProcessEvent> {
+    let mut events: Vec<ProcessEvent> = spread(rng, kills, LEAD_S, mid, 0.5)
+        .into_iter()
+        .map(|at_s| ProcessEvent {
+            at_s,
+            fault: ProcessFault::Kill,
+        })
+        .collect();
+    for at_s in spread(rng, stops, LEAD_S, end - TAIL_S, 0.5) {
+        events.push(ProcessEvent {
+            at_s,
+            fault: ProcessFault::Stop {
+                seconds: rng.range(lo, hi),
+            },
+        });
+    }
+    events.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
+    events
+}
+
 impl Schedule {
     /// Draws the plan of a run of `seconds` (≥ [`MIN_SECONDS`]) whose haptic loop ticks at
     /// `rate_hz`.
@@ -205,26 +234,14 @@ impl Schedule {
         // Deformation process: kills in the first half of the fault window, so the process
         // restarted last lives through the second half and its memory can be judged; stops
         // anywhere. The bench delivers them in time order, a fault waiting while a stop lasts.
-        let kills = count(rates::KILLS, seconds, 1);
-        let stops = count(rates::STOPS, seconds, 1);
         let mid = LEAD_S + KILL_SHARE * (end - TAIL_S - LEAD_S);
-        let mut deform: Vec<ProcessEvent> = spread(&mut rng, kills, LEAD_S, mid, 0.5)
-            .into_iter()
-            .map(|at_s| ProcessEvent {
-                at_s,
-                fault: ProcessFault::Kill,
-            })
-            .collect();
-        for at_s in spread(&mut rng, stops, LEAD_S, end - TAIL_S, 0.5) {
-            let (lo, hi) = rates::STOP_S;
-            deform.push(ProcessEvent {
-                at_s,
-                fault: ProcessFault::Stop {
-                    seconds: rng.range(lo, hi),
-                },
-            });
-        }
-        deform.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
+        let deform = process_faults(
+            &mut rng,
+            count(rates::KILLS, seconds, 1),
+            count(rates::STOPS, seconds, 1),
+            (mid, end),
+            rates::STOP_S,
+        );
 
         // Broken samples, in ticks: NaN and out-of-workspace runs interleaved in shuffled
         // order, from 2 s of haptic time to the end of the run (the haptic loop starts before
@@ -280,26 +297,13 @@ impl Schedule {
 
         // Haptic process: drawn from a generator of its own, so a seed's other events are what
         // they were before the haptic process was faulted too.
-        let mut hrng = Rng::for_seed(seed, "haptic");
-        let kills = count(rates::HAPTIC_KILLS, seconds, 1);
-        let stops = count(rates::HAPTIC_STOPS, seconds, 1);
-        let mut haptic: Vec<ProcessEvent> = spread(&mut hrng, kills, LEAD_S, mid, 0.5)
-            .into_iter()
-            .map(|at_s| ProcessEvent {
-                at_s,
-                fault: ProcessFault::Kill,
-            })
-            .collect();
-        for at_s in spread(&mut hrng, stops, LEAD_S, end - TAIL_S, 0.5) {
-            let (lo, hi) = rates::HAPTIC_STOP_S;
-            haptic.push(ProcessEvent {
-                at_s,
-                fault: ProcessFault::Stop {
-                    seconds: hrng.range(lo, hi),
-                },
-            });
-        }
-        haptic.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
+        let haptic = process_faults(
+            &mut Rng::for_seed(seed, "haptic"),
+            count(rates::HAPTIC_KILLS, seconds, 1),
+            count(rates::HAPTIC_STOPS, seconds, 1),
+            (mid, end),
+            rates::HAPTIC_STOP_S,
+        );
 
         Schedule {
             seed,

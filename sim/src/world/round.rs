@@ -194,14 +194,11 @@ impl World {
                 let tool = round.tool.and_then(|t| t.sphere(i));
                 let mut r = BodyRound::default();
                 let dt_before = self.bodies[i].model.dt();
-                let within_budget = |r: &BodyRound, now: u64| {
-                    r.steps == 0
-                        || round.budget_ns == 0
-                        || now.saturating_sub(start) < round.budget_ns
-                };
                 while self.body_due(i, round.until)
                     && r.steps < round.max_catch_up
-                    && within_budget(&r, clock())
+                    && (r.steps == 0
+                        || round.budget_ns == 0
+                        || clock().saturating_sub(start) < round.budget_ns)
                 {
                     let t0 = clock();
                     if let Err(cause) = self.step_body_coupled(i, tool.as_ref(), coupling) {
