@@ -281,7 +281,7 @@ pub fn parse_daemon_config(text: &str, path: &Path) -> Result<DaemonConfig, Conf
             rt_priority: deform_priority,
         },
         status_interval_ms,
-        device: device_config(raw.device, path),
+        device: device_config(&c, raw.device, path)?,
     })
 }
 
@@ -292,16 +292,38 @@ pub struct DeviceConfig {
     /// path is relative to the config file. `None`: the loader's search and the usual install
     /// directories. The environment variable `LOP_HD_LIBRARY` wins over this key.
     pub hd_library: Option<std::path::PathBuf>,
+    /// The Force Dimension DHD library (`libdhd.so`) to load for `--device dhd`; a relative
+    /// path is relative to the config file. `None`: the loader's search and the usual install
+    /// directories. The environment variable `LOP_DHD_LIBRARY` wins over this key.
+    pub dhd_library: Option<std::path::PathBuf>,
 }
 
-fn device_config(raw: crate::raw::RawDaemonDevice, config_path: &Path) -> DeviceConfig {
-    DeviceConfig {
-        hd_library: raw.hd_library.map(|p| {
-            if p.is_relative() {
-                config_path.parent().unwrap_or(Path::new(".")).join(p)
-            } else {
-                p
-            }
-        }),
+fn device_config(
+    c: &Check,
+    raw: crate::raw::RawDaemonDevice,
+    config_path: &Path,
+) -> Result<DeviceConfig, ConfigError> {
+    let resolve = |p: std::path::PathBuf| {
+        if p.is_relative() {
+            config_path.parent().unwrap_or(Path::new(".")).join(p)
+        } else {
+            p
+        }
+    };
+    if raw
+        .dhd_library
+        .as_ref()
+        .is_some_and(|p| p.as_os_str().is_empty())
+    {
+        return Err(c.invalid(
+            &KeyPath::top("device").key("dhd_library"),
+            "\"\"",
+            "dhd_library must name the DHD library file (libdhd.so); leave the key out to \
+             search the usual places",
+        ));
     }
+    Ok(DeviceConfig {
+        hd_library: raw.hd_library.map(resolve),
+        dhd_library: raw.dhd_library.map(resolve),
+    })
 }

@@ -318,6 +318,7 @@
 //! | `deform.max_period_ms` | integer | `10` | longest period a touched body may step at where its step costs more than its own period, 1..=100 ms |
 //! | `deform.rt_priority` | integer | `40` (at most `haptic.rt_priority` − 2) | `SCHED_FIFO` priority of the deformation thread, below the haptic loop's frame thread (`haptic.rt_priority` − 1); `0`: the normal scheduler. Not permitted: runs normally, with a warning |
 //! | `device.hd_library` | path | search `libHD.so` | OpenHaptics library for `--device openhaptics` (relative to the config file; `LOP_HD_LIBRARY` wins) |
+//! | `device.dhd_library` | path | search `libdhd.so` | Force Dimension DHD library for `--device dhd` (relative to the config file; `LOP_DHD_LIBRARY` wins; not empty) |
 //!
 //! ```toml
 //! status_interval_ms = 500

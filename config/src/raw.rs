@@ -228,9 +228,10 @@ pub(crate) struct RawDeform {
     pub rt_priority: Option<u32>,
 }
 
-/// `[device]` of the daemon config (issue 7: the OpenHaptics library).
+/// `[device]` of the daemon config: the vendor libraries (OpenHaptics, Force Dimension DHD).
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct RawDaemonDevice {
     pub hd_library: Option<std::path::PathBuf>,
+    pub dhd_library: Option<std::path::PathBuf>,
 }

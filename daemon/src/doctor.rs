@@ -4,7 +4,8 @@
 //! Each check reports OK, WARN (runs, but worse than it should) or FAIL (fix before use) with
 //! what it measured. Checks: the daemon config; real-time privileges (`SCHED_FIFO`, memory
 //! locking); the kernel's preemption model; CPU isolation and affinity of the haptic core; the
-//! OpenHaptics library and the device itself (and access to `/dev/fw*`, `/dev/ttyACM*`); free
+//! vendor library and the device itself (OpenHaptics: access to `/dev/fw*`, `/dev/ttyACM*`;
+//! Force Dimension: every device the DHD SDK sees, and which one `--device` opens); free
 //! shared memory in `/dev/shm`; stale iceoryx2 resources left by crashed processes. Exit code 1
 //! when any check fails. Nothing is changed on the machine except, with `--clean`, removing the
 //! resources of dead iceoryx2 nodes.
@@ -14,6 +15,7 @@ use std::path::{Path, PathBuf};
 
 use iceoryx2::prelude::*;
 use lop_config::{load_daemon_config, DaemonConfig};
+use lop_drivers::forcedimension::{self, ForceDimensionDevice};
 use lop_drivers::openhaptics::{OpenHapticsDevice, LIBRARY_ENV};
 use lop_drivers::{DeviceOpenError, DeviceSpec, HapticDevice};
 use serde::Serialize;
@@ -379,13 +381,163 @@ fn device_nodes() -> (Vec<String>, Vec<String>) {
 }
 
 fn check_device(spec: &DeviceSpec, config: &DaemonConfig, out: &mut Vec<Finding>) {
-    let DeviceSpec::OpenHaptics { name } = spec else {
-        out.push(ok(
+    match spec {
+        DeviceSpec::OpenHaptics { name } => check_openhaptics(spec, name, config, out),
+        DeviceSpec::ForceDimension { id } => check_force_dimension(*id, config, out),
+        _ => out.push(ok(
             "device",
             format!("--device {spec}: no hardware or vendor library needed"),
+        )),
+    }
+}
+
+/// The DHD library, every Force Dimension device it sees (index, type, serial), and the one
+/// `--device dhd[:ID]` opens, started for a moment (zero force) to show it answers.
+fn check_force_dimension(id: Option<u8>, config: &DaemonConfig, out: &mut Vec<Finding>) {
+    let configured = config.device.dhd_library.as_deref();
+    let env = forcedimension::LIBRARY_ENV;
+    let found = match ForceDimensionDevice::discover(configured) {
+        Ok(found) => found,
+        Err(e) => {
+            let why = match &e {
+                DeviceOpenError::Unavailable { reason, .. } => reason.clone(),
+                other => other.to_string(),
+            };
+            out.push(problem(
+                "device-library",
+                Status::Fail,
+                why,
+                format!(
+                    "install the Force Dimension SDK (libdhd.so; its `make install` puts it in \
+                     /usr/local/lib), or point {env} / [device] dhd_library in the config at \
+                     the library; for a rig without a device use --device mock"
+                ),
+            ));
+            out.push(problem(
+                "device",
+                Status::Fail,
+                "not probed: no DHD library",
+                "fix device-library first",
+            ));
+            return;
+        }
+    };
+    let library = found.library.display().to_string();
+    out.push(ok(
+        "device-library",
+        format!("loaded {library} (SDK {})", found.sdk_version),
+    ));
+    let index = id.unwrap_or(0);
+    let spec = DeviceSpec::ForceDimension { id };
+    if found.devices.is_empty() {
+        out.push(problem(
+            "device",
+            Status::Fail,
+            format!(
+                "{library} (chosen by {env}, else [device] dhd_library, else the usual \
+                     places) sees no Force Dimension device"
+            ),
+            format!(
+                "connect the device by USB and power it, let it finish its calibration, give \
+                 this user access to it (udev rule for its USB IDs, docs/deploy.md); if another \
+                 SDK is meant, point {env} at its libdhd.so"
+            ),
         ));
         return;
+    }
+    let listing = found
+        .devices
+        .iter()
+        .map(|d| {
+            let what = match &d.system_type {
+                Ok(t) => format!(
+                    "{} (type {t}{})",
+                    d.system_name.as_deref().or(d.model).unwrap_or("unnamed"),
+                    if d.model.is_some() {
+                        ""
+                    } else {
+                        ", not in lop's limits table"
+                    }
+                ),
+                Err(e) => e.clone(),
+            };
+            let serial = d
+                .serial
+                .map(|s| format!(", serial {s}"))
+                .unwrap_or_default();
+            let chosen = if d.index == index {
+                " <- --device opens this one"
+            } else {
+                ""
+            };
+            format!("[{}] {what}{serial}{chosen}", d.index)
+        })
+        .collect::<Vec<_>>()
+        .join("; ");
+    let count = found.devices.len();
+    if usize::from(index) >= count {
+        out.push(problem(
+            "device",
+            Status::Fail,
+            format!("--device {spec} opens index {index}, but {library} sees {count}: {listing}"),
+            format!(
+                "use one of the indices listed: --device dhd:0 to dhd:{}",
+                count - 1
+            ),
+        ));
+        return;
+    }
+    let mut device = match ForceDimensionDevice::open(id, configured) {
+        Ok(d) => d,
+        Err(e) => {
+            out.push(problem(
+                "device",
+                Status::Fail,
+                e.to_string(),
+                "see device-library",
+            ));
+            return;
+        }
     };
+    match device.start() {
+        Ok(()) => {
+            let limits = device.limits();
+            let position = device.read(0.0);
+            device.stop();
+            out.push(ok(
+                "device",
+                format!(
+                    "{count} Force Dimension device(s): {listing}; {spec} answers: {}, peak {} N, \
+                     continuous {} N, stiffness {} N/mm, workspace {:?}..{:?} mm{}",
+                    device.model().name,
+                    limits.max_force_n,
+                    limits.max_continuous_force_n,
+                    limits.max_stiffness_n_per_mm,
+                    limits.workspace_min_mm,
+                    limits.workspace_max_mm,
+                    match position {
+                        Ok(s) => format!(", handle at {:?} mm", s.position_mm),
+                        Err(e) => format!(", read failed: {e}"),
+                    }
+                ),
+            ));
+        }
+        Err(e) => out.push(problem(
+            "device",
+            Status::Fail,
+            format!("{count} Force Dimension device(s): {listing}; {e}"),
+            "check that no other program holds the device and that it finished its \
+             calibration; `--device dhd:ID` picks another index",
+        )),
+    }
+}
+
+fn check_openhaptics(
+    spec: &DeviceSpec,
+    name: &Option<String>,
+    config: &DaemonConfig,
+    out: &mut Vec<Finding>,
+) {
     let (nodes, denied) = device_nodes();
     let nodes_text = if nodes.is_empty() {
         "no /dev/fw* or /dev/ttyACM* device nodes".to_string()

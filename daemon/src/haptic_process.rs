@@ -12,6 +12,7 @@ use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use lop_config::{DaemonConfig, Scene};
+use lop_drivers::forcedimension::ForceDimensionDevice;
 use lop_drivers::hand::HandDevice;
 use lop_drivers::mock::MockDevice;
 use lop_drivers::openhaptics::OpenHapticsDevice;
@@ -34,6 +35,8 @@ pub enum Device {
     Replay(ReplayDevice),
     /// `--device openhaptics[:NAME]`.
     OpenHaptics(Box<OpenHapticsDevice>),
+    /// `--device dhd[:ID]`.
+    ForceDimension(Box<ForceDimensionDevice>),
 }
 
 impl Device {
@@ -44,6 +47,7 @@ impl Device {
             Device::Hand(h) => h.as_mut(),
             Device::Replay(r) => r,
             Device::OpenHaptics(o) => o.as_mut(),
+            Device::ForceDimension(f) => f.as_mut(),
         }
     }
 
@@ -54,6 +58,7 @@ impl Device {
             Device::Hand(h) => h.as_ref(),
             Device::Replay(r) => r,
             Device::OpenHaptics(o) => o.as_ref(),
+            Device::ForceDimension(f) => f.as_ref(),
         }
     }
 

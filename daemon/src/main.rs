@@ -13,6 +13,7 @@ use lop_config::{
 };
 use lop_daemon::haptic_process::{Device, HapticProcess};
 use lop_daemon::{deform, signals, supervisor};
+use lop_drivers::forcedimension::ForceDimensionDevice;
 use lop_drivers::hand::HandDevice;
 use lop_drivers::mock::{MockDevice, MockScript};
 use lop_drivers::openhaptics::OpenHapticsDevice;
@@ -68,7 +69,8 @@ struct DoctorArgs {
     /// Daemon configuration (default: /etc/lop/lopd.toml if it exists).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// The rig's device: openhaptics[:NAME] | mock[:SCRIPT] | hand[:SCRIPT] | replay:PATH.
+    /// The rig's device: openhaptics[:NAME] | dhd[:ID] | mock[:SCRIPT] | hand[:SCRIPT] |
+    /// replay:PATH.
     #[arg(long, default_value = "openhaptics")]
     device: String,
     /// Service prefix to look for stale services under.
@@ -223,7 +225,7 @@ struct CommonArgs {
 struct HapticArgs {
     #[command(flatten)]
     common: CommonArgs,
-    /// mock[:SCRIPT] | hand[:SCRIPT] | replay:PATH | openhaptics[:NAME]
+    /// mock[:SCRIPT] | hand[:SCRIPT] | replay:PATH | openhaptics[:NAME] | dhd[:ID]
     #[arg(long, default_value = "mock")]
     device: String,
     /// Write every force the device received as CSV at exit (mock and hand devices).
@@ -441,6 +443,13 @@ fn open_device(spec: &DeviceSpec, scene: &Scene, config: &DaemonConfig) -> Resul
                 config.device.hd_library.as_deref(),
             ))?;
             Ok(Device::OpenHaptics(Box::new(device)))
+        }
+        DeviceSpec::ForceDimension { id } => {
+            let device = bad(ForceDimensionDevice::open(
+                *id,
+                config.device.dhd_library.as_deref(),
+            ))?;
+            Ok(Device::ForceDimension(Box::new(device)))
         }
     }
 }

@@ -16,11 +16,14 @@
 //! - [`openhaptics`]: a Phantom Omni / Touch through the proprietary OpenHaptics HD library,
 //!   loaded at run time; the device's servo callback is the clock ([`Pacing::DeviceClock`],
 //!   [`HapticDevice::run_clocked`]).
+//! - [`forcedimension`]: Force Dimension omega / sigma / delta devices through the proprietary
+//!   DHD SDK, loaded at run time; paced by lop's own loop, device chosen by the SDK's index.
 //!
 //! Units and frame are the device's own (OpenHaptics): millimetres, newtons, +x right, +y up,
 //! +z toward the user.
 
 mod device;
+pub mod forcedimension;
 pub mod hand;
 pub mod mock;
 pub mod openhaptics;

@@ -187,6 +187,44 @@ fn daemon_config_other_errors() {
     daemon_err("[haptic\n", &["line 1"]);
 }
 
+/// `[device] dhd_library`: a relative path is the config file's neighbour, an absolute one is
+/// kept, and an empty or non-path value names the key.
+#[test]
+fn the_dhd_library_key() {
+    let cfg = parse_daemon_config(
+        "[device]\ndhd_library = \"sdk/lib/libdhd.so\"\n",
+        Path::new("/etc/lop/lopd.toml"),
+    )
+    .unwrap();
+    assert_eq!(
+        cfg.device.dhd_library,
+        Some(PathBuf::from("/etc/lop/sdk/lib/libdhd.so"))
+    );
+    assert_eq!(cfg.device.hd_library, None);
+    let cfg = parse_daemon_config(
+        "[device]\ndhd_library = \"/opt/fd/libdhd.so\"\n",
+        Path::new("lopd.toml"),
+    )
+    .unwrap();
+    assert_eq!(
+        cfg.device.dhd_library,
+        Some(PathBuf::from("/opt/fd/libdhd.so"))
+    );
+    assert_eq!(DaemonConfig::default().device.dhd_library, None);
+    daemon_err(
+        "[device]\ndhd_library = \"\"\n",
+        &["device.dhd_library", "libdhd.so"],
+    );
+    daemon_err(
+        "[device]\ndhd_library = 3\n",
+        &["lopd.toml:2", "device.dhd_library", "3"],
+    );
+    daemon_err(
+        "[device]\ndhd_libary = \"x\"\n",
+        &["dhd_libary", "unknown field"],
+    );
+}
+
 #[test]
 fn missing_files_name_the_path() {
     let err = load_daemon_config(Path::new("/nonexistent/lopd.toml")).unwrap_err();

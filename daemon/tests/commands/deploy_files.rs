@@ -157,4 +157,7 @@ fn limits_and_udev_files_are_well_formed() {
     }
     assert!(rules.iter().any(|r| r.contains("fw[0-9]*")));
     assert!(rules.iter().any(|r| r.contains("ttyACM[0-9]*")));
+    assert!(rules
+        .iter()
+        .any(|r| r.contains("ATTRS{idVendor}==\"1451\"")));
 }

@@ -53,6 +53,10 @@ fn every_form_parses_and_round_trips() {
                 name: Some("left:arm".into()),
             },
         ),
+        ("dhd", DeviceSpec::ForceDimension { id: None }),
+        ("dhd:0", DeviceSpec::ForceDimension { id: Some(0) }),
+        ("dhd:1", DeviceSpec::ForceDimension { id: Some(1) }),
+        ("dhd:127", DeviceSpec::ForceDimension { id: Some(127) }),
     ];
     for (text, spec) in cases {
         let parsed: DeviceSpec = text.parse().unwrap();
@@ -74,6 +78,8 @@ fn bad_values_are_quoted_and_the_forms_listed() {
         "replay:",
         "hand:",
         "Hand",
+        "dhd:",
+        "DHD",
     ] {
         let error: DeviceSpecError = bad.parse::<DeviceSpec>().unwrap_err();
         assert_eq!(error.value, bad);
@@ -84,8 +90,29 @@ fn bad_values_are_quoted_and_the_forms_listed() {
             "hand:SCRIPT",
             "replay:PATH",
             "openhaptics:NAME",
+            "dhd:ID",
         ] {
             assert!(message.contains(form), "{message}");
         }
+    }
+}
+
+/// A Force Dimension ID is the SDK's device index: a plain whole number the SDK can take
+/// (0 to 127), written the one way that prints back the same.
+#[test]
+fn bad_force_dimension_ids_are_refused_with_the_reason() {
+    for bad in [
+        "dhd:-1", "dhd:128", "dhd:256", "dhd:one", "dhd:1.0", "dhd:+1", "dhd: 1", "dhd:01",
+        "dhd:0x1", "dhd:1:2",
+    ] {
+        let error = bad.parse::<DeviceSpec>().unwrap_err();
+        assert_eq!(error.value, bad);
+        let message = error.to_string();
+        assert!(message.contains(&format!("`{bad}`")), "{message}");
+        assert!(
+            message.contains("device index") && message.contains("0 to 127"),
+            "{message}"
+        );
+        assert!(message.contains("lopd doctor --device dhd"), "{message}");
     }
 }
