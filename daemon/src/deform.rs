@@ -562,13 +562,12 @@ fn pace_bodies(world: &mut World, max_period_ms: u32, threads: usize) -> Vec<Opt
             if cost > STAY * longest {
                 warn_behind(&name, cost, longest);
             }
+            tracing::info!(
+                "{name}: a step from rest costs about {:.2} ms here; it starts at {} ms",
+                cost * 1e3,
+                period * 1e3
+            );
             if period != base {
-                tracing::info!(
-                    "{name}: a step costs about {:.2} ms here; it starts at {} ms instead of {} ms",
-                    cost * 1e3,
-                    period * 1e3,
-                    base * 1e3
-                );
                 if let Err(e) = fem.set_dt(period) {
                     tracing::warn!("{name}: period not changed: {e}");
                 }
