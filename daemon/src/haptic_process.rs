@@ -303,6 +303,29 @@ impl HapticProcessBuilder {
                 );
             }
         }
+        if let Device::ForceDimension(f) = &device {
+            let s = f.stats();
+            if s.clamped_forces + s.non_finite_forces + s.saturated_forces > 0
+                || s.velocity_unavailable > 0
+                || s.last_error_code != 0
+            {
+                let last = match s.last_error_code {
+                    0 => String::new(),
+                    code => format!(
+                        "; last DHD error: {} ({code})",
+                        lop_drivers::forcedimension::ffi::error_name(code)
+                    ),
+                };
+                tracing::info!(
+                    "device: {} forces clamped to its peak, {} non-finite refused, {} saturated by \
+                     the SDK, {} reads without a velocity estimate yet{last}",
+                    s.clamped_forces,
+                    s.non_finite_forces,
+                    s.saturated_forces,
+                    s.velocity_unavailable
+                );
+            }
+        }
         let summary = result?;
         if let Some(path) = &force_log {
             device
