@@ -499,29 +499,11 @@ fn check_force_dimension(id: Option<u8>, config: &DaemonConfig, out: &mut Vec<Fi
             return;
         }
     };
-    match device.start() {
-        Ok(()) => {
-            let limits = device.limits();
-            let position = device.read(0.0);
-            device.stop();
-            out.push(ok(
-                "device",
-                format!(
-                    "{count} Force Dimension device(s): {listing}; {spec} answers: {}, peak {} N, \
-                     continuous {} N, stiffness {} N/mm, workspace {:?}..{:?} mm{}",
-                    device.model().name,
-                    limits.max_force_n,
-                    limits.max_continuous_force_n,
-                    limits.max_stiffness_n_per_mm,
-                    limits.workspace_min_mm,
-                    limits.workspace_max_mm,
-                    match position {
-                        Ok(s) => format!(", handle at {:?} mm", s.position_mm),
-                        Err(e) => format!(", read failed: {e}"),
-                    }
-                ),
-            ));
-        }
+    match answer(&mut device, |d| Some(d.model().name.to_owned())) {
+        Ok(answer) => out.push(ok(
+            "device",
+            format!("{count} Force Dimension device(s): {listing}; {spec} answers: {answer}"),
+        )),
         Err(e) => out.push(problem(
             "device",
             Status::Fail,
@@ -530,6 +512,32 @@ fn check_force_dimension(id: Option<u8>, config: &DaemonConfig, out: &mut Vec<Fi
              calibration; `--device dhd:ID` picks another index",
         )),
     }
+}
+
+/// Starts `device`, reads it once and stops it: its model (`model`, asked once it has started;
+/// if known), limits and where its tip is, as the doctor reports them.
+fn answer<D: HapticDevice>(
+    device: &mut D,
+    model: impl Fn(&D) -> Option<String>,
+) -> Result<String, DeviceOpenError> {
+    device.start()?;
+    let model = model(device);
+    let limits = device.limits();
+    let position = device.read(0.0);
+    device.stop();
+    Ok(format!(
+        "{}peak {} N, continuous {} N, stiffness {} N/mm, workspace {:?}..{:?} mm{}",
+        model.map(|m| format!("{m}, ")).unwrap_or_default(),
+        limits.max_force_n,
+        limits.max_continuous_force_n,
+        limits.max_stiffness_n_per_mm,
+        limits.workspace_min_mm,
+        limits.workspace_max_mm,
+        match position {
+            Ok(s) => format!(", tip at {:?} mm", s.position_mm),
+            Err(e) => format!(", read failed: {e}"),
+        }
+    ))
 }
 
 fn check_openhaptics(
@@ -587,30 +595,8 @@ fn check_openhaptics(
                 return;
             }
         };
-    match device.start() {
-        Ok(()) => {
-            let limits = device.limits();
-            let position = device.read(0.0);
-            device.stop();
-            out.push(ok(
-                "device",
-                format!(
-                    "{} answers: {}peak {} N, continuous {} N, stiffness {} N/mm, workspace \
-                     {:?}..{:?} mm{}",
-                    spec,
-                    device.model().map(|m| format!("{m}, ")).unwrap_or_default(),
-                    limits.max_force_n,
-                    limits.max_continuous_force_n,
-                    limits.max_stiffness_n_per_mm,
-                    limits.workspace_min_mm,
-                    limits.workspace_max_mm,
-                    match position {
-                        Ok(s) => format!(", stylus at {:?} mm", s.position_mm),
-                        Err(e) => format!(", read failed: {e}"),
-                    }
-                ),
-            ));
-        }
+    match answer(&mut device, |d| d.model().map(str::to_owned)) {
+        Ok(answer) => out.push(ok("device", format!("{spec} answers: {answer}"))),
         Err(e) => out.push(problem(
             "device",
             Status::Fail,

@@ -29,6 +29,7 @@ pub mod mock;
 pub mod openhaptics;
 pub mod replay;
 mod spec;
+mod vendor_lib;
 
 pub use device::{
     DeviceError, DeviceLimits, DeviceOpenError, DeviceSample, HapticDevice, Pacing, ServoClock,

@@ -2,9 +2,7 @@
 //! shared library, and steers it. Include it with
 //! `#[path = "<relative>/drivers/standin-dhd/testing.rs"] mod standin_dhd;`.
 //!
-//! `cargo test` does not reliably produce a `cdylib` of another workspace member, and a nested
-//! `cargo build` would contend for the build lock, so the stand-in (one file, std only) is
-//! compiled with `rustc` directly, once per test process, into the test's scratch directory.
+//! Built once per test process by `lop_test_support::standin::build_standin`.
 //!
 //! [`Controls`] opens the same library file the driver loads (`dlopen` of one path twice gives
 //! one copy, so one state) and calls its `lop_standin_dhd_*` functions.
@@ -14,45 +12,17 @@
 
 use std::ffi::{c_int, c_uint, c_void, CString};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::OnceLock;
 
 /// Path of a freshly built stand-in library (built once per process).
 pub fn standin_library() -> PathBuf {
     static LIB: OnceLock<PathBuf> = OnceLock::new();
     LIB.get_or_init(|| {
-        let source = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("..")
-            .join("drivers/standin-dhd/src/lib.rs");
-        let source = if source.exists() {
-            source
-        } else {
-            // The drivers crate itself.
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("standin-dhd/src/lib.rs")
-        };
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-            .join(format!("standin-dhd-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("stand-in build directory");
-        let out = dir.join("liblop_standin_dhd.so");
-        let rustc = std::env::var_os("RUSTC").unwrap_or_else(|| "rustc".into());
-        let status = Command::new(rustc)
-            .args([
-                "--edition",
-                "2021",
-                "--crate-type",
-                "cdylib",
-                "--crate-name",
-                "lop_standin_dhd",
-                "-C",
-                "opt-level=1",
-                "-o",
-            ])
-            .arg(&out)
-            .arg(&source)
-            .status()
-            .expect("run rustc to build the stand-in libdhd");
-        assert!(status.success(), "building the stand-in libdhd failed");
-        out
+        lop_test_support::standin::build_standin(
+            env!("CARGO_MANIFEST_DIR"),
+            env!("CARGO_TARGET_TMPDIR"),
+            "dhd",
+        )
     })
     .clone()
 }

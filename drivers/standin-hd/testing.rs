@@ -2,53 +2,23 @@
 //! shared library. Include it with
 //! `#[path = "<relative>/drivers/standin-hd/testing.rs"] mod standin;`.
 //!
-//! `cargo test` does not reliably produce a `cdylib` of another workspace member, and a nested
-//! `cargo build` would contend for the build lock, so the stand-in (one file, std only) is
-//! compiled with `rustc` directly, once per test process, into the test's scratch directory.
+//! Built once per test process by `lop_test_support::standin::build_standin`.
 
 // Each test crate uses a different part of this file.
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::OnceLock;
 
 /// Path of a freshly built stand-in library (built once per process).
 pub fn standin_library() -> PathBuf {
     static LIB: OnceLock<PathBuf> = OnceLock::new();
     LIB.get_or_init(|| {
-        let source = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("..")
-            .join("drivers/standin-hd/src/lib.rs");
-        let source = if source.exists() {
-            source
-        } else {
-            // The drivers crate itself.
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("standin-hd/src/lib.rs")
-        };
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-            .join(format!("standin-hd-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("stand-in build directory");
-        let out = dir.join("liblop_standin_hd.so");
-        let rustc = std::env::var_os("RUSTC").unwrap_or_else(|| "rustc".into());
-        let status = Command::new(rustc)
-            .args([
-                "--edition",
-                "2021",
-                "--crate-type",
-                "cdylib",
-                "--crate-name",
-                "lop_standin_hd",
-                "-C",
-                "opt-level=1",
-                "-o",
-            ])
-            .arg(&out)
-            .arg(&source)
-            .status()
-            .expect("run rustc to build the stand-in libHD");
-        assert!(status.success(), "building the stand-in libHD failed");
-        out
+        lop_test_support::standin::build_standin(
+            env!("CARGO_MANIFEST_DIR"),
+            env!("CARGO_TARGET_TMPDIR"),
+            "hd",
+        )
     })
     .clone()
 }

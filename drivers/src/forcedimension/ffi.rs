@@ -20,8 +20,10 @@
 //!   `i` is pressed;
 //! - `dhdEnableForce(DHD_OFF, id)` disables the motors and puts the device in BRAKE mode.
 
-use std::ffi::{c_char, c_int, c_uchar, c_uint, c_ushort, c_void, CStr, CString};
+use std::ffi::{c_char, c_int, c_uchar, c_uint, c_ushort, c_void, CStr};
 use std::path::{Path, PathBuf};
+
+use crate::vendor_lib::Library;
 
 /// `DHD_ON` / `DHD_OFF` for `dhdEnableForce`.
 pub const DHD_ON: c_uchar = 1;
@@ -117,27 +119,7 @@ pub const LIBRARY_ENV: &str = "LOP_DHD_LIBRARY";
 /// The libraries to try, in order: `LOP_DHD_LIBRARY` if set, else `configured` if given, else
 /// [`DEFAULT_LIBRARY_CANDIDATES`].
 pub fn library_candidates(configured: Option<&Path>) -> Vec<PathBuf> {
-    match std::env::var_os(LIBRARY_ENV).filter(|v| !v.is_empty()) {
-        Some(v) => vec![PathBuf::from(v)],
-        None => match configured {
-            Some(p) => vec![p.to_path_buf()],
-            None => DEFAULT_LIBRARY_CANDIDATES
-                .iter()
-                .map(PathBuf::from)
-                .collect(),
-        },
-    }
-}
-
-fn dlerror_text() -> String {
-    // SAFETY: dlerror returns NULL or a NUL-terminated string valid until the next dl* call.
-    let e = unsafe { libc::dlerror() };
-    if e.is_null() {
-        "unknown dlopen error".into()
-    } else {
-        // SAFETY: checked non-null above.
-        unsafe { CStr::from_ptr(e) }.to_string_lossy().into_owned()
-    }
+    crate::vendor_lib::candidates(LIBRARY_ENV, configured, &DEFAULT_LIBRARY_CANDIDATES)
 }
 
 /// A NUL-terminated static string from the library, or `None` for NULL.
@@ -153,23 +135,7 @@ impl DhdApi {
     /// with the loader's reason, or the symbol a loaded library lacks, or its unsupported
     /// version.
     pub fn load(candidates: &[PathBuf]) -> Result<&'static DhdApi, String> {
-        let mut tried = Vec::new();
-        for path in candidates {
-            let Ok(c_path) = CString::new(path.as_os_str().as_encoded_bytes()) else {
-                tried.push(format!("{} (contains a NUL byte)", path.display()));
-                continue;
-            };
-            // SAFETY: valid C string; RTLD_NOW resolves everything now so a broken library fails
-            // here, not in the haptic loop.
-            let handle =
-                unsafe { libc::dlopen(c_path.as_ptr(), libc::RTLD_NOW | libc::RTLD_LOCAL) };
-            if handle.is_null() {
-                tried.push(dlerror_text());
-                continue;
-            }
-            return Self::resolve(handle, path).map(|api| &*Box::leak(Box::new(api)));
-        }
-        Err(tried.join("; "))
+        crate::vendor_lib::load(candidates, Self::resolve)
     }
 
     /// The SDK version as the vendor prints it.
@@ -180,13 +146,9 @@ impl DhdApi {
 
     // Each transmute's target is the type of the struct field it initialises.
     #[allow(clippy::missing_transmute_annotations)]
-    fn resolve(handle: *mut c_void, path: &Path) -> Result<DhdApi, String> {
-        let sym = |name: &str| -> Option<*mut c_void> {
-            let c = CString::new(name).expect("symbol names have no NUL");
-            // SAFETY: valid handle from dlopen and a valid C string.
-            let p = unsafe { libc::dlsym(handle, c.as_ptr()) };
-            (!p.is_null()).then_some(p)
-        };
+    fn resolve(library: &Library) -> Result<DhdApi, String> {
+        let path = &library.path;
+        let sym = |name: &str| library.symbol(name);
         // The version first, so a missing symbol can be reported with it.
         let mut version = [-1; 4];
         if let Some(p) = sym("dhdGetSDKVersion") {
@@ -247,7 +209,7 @@ impl DhdApi {
             error_get_last: f!("dhdErrorGetLast"),
             error_get_last_str: f!("dhdErrorGetLastStr"),
             version,
-            path: path.to_path_buf(),
+            path: path.clone(),
         })
     }
 

@@ -5,8 +5,10 @@
 //! it: [`HdApi::load`] `dlopen`s the library and resolves each symbol by name. The library stays
 //! loaded for the life of the process (its scheduler thread may outlive any one device).
 
-use std::ffi::{c_char, c_int, c_uint, c_ulong, c_void, CStr, CString};
+use std::ffi::{c_char, c_int, c_uint, c_ulong, c_void};
 use std::path::{Path, PathBuf};
+
+use crate::vendor_lib::Library;
 
 /// `HHD`: a device handle.
 pub type Hhd = c_uint;
@@ -129,67 +131,27 @@ pub const LIBRARY_ENV: &str = "LOP_HD_LIBRARY";
 /// The libraries to try, in order: `LOP_HD_LIBRARY` if set, else `configured` if given, else
 /// [`DEFAULT_LIBRARY_CANDIDATES`].
 pub fn library_candidates(configured: Option<&Path>) -> Vec<PathBuf> {
-    match std::env::var_os(LIBRARY_ENV).filter(|v| !v.is_empty()) {
-        Some(v) => vec![PathBuf::from(v)],
-        None => match configured {
-            Some(p) => vec![p.to_path_buf()],
-            None => DEFAULT_LIBRARY_CANDIDATES
-                .iter()
-                .map(PathBuf::from)
-                .collect(),
-        },
-    }
-}
-
-fn dlerror_text() -> String {
-    // SAFETY: dlerror returns NULL or a NUL-terminated string valid until the next dl* call.
-    let e = unsafe { libc::dlerror() };
-    if e.is_null() {
-        "unknown dlopen error".into()
-    } else {
-        // SAFETY: checked non-null above.
-        unsafe { CStr::from_ptr(e) }.to_string_lossy().into_owned()
-    }
+    crate::vendor_lib::candidates(LIBRARY_ENV, configured, &DEFAULT_LIBRARY_CANDIDATES)
 }
 
 impl HdApi {
     /// Loads the first library of `candidates` that opens. Err: one line per candidate tried,
     /// with the loader's reason, or the symbol that a loaded library lacks.
     pub fn load(candidates: &[PathBuf]) -> Result<&'static HdApi, String> {
-        let mut tried = Vec::new();
-        for path in candidates {
-            let Ok(c_path) = CString::new(path.as_os_str().as_encoded_bytes()) else {
-                tried.push(format!("{} (contains a NUL byte)", path.display()));
-                continue;
-            };
-            // SAFETY: valid C string; RTLD_NOW resolves everything now so a broken library fails
-            // here, not in the servo loop.
-            let handle =
-                unsafe { libc::dlopen(c_path.as_ptr(), libc::RTLD_NOW | libc::RTLD_LOCAL) };
-            if handle.is_null() {
-                tried.push(dlerror_text());
-                continue;
-            }
-            return Self::resolve(handle, path).map(|api| &*Box::leak(Box::new(api)));
-        }
-        Err(tried.join("; "))
+        crate::vendor_lib::load(candidates, Self::resolve)
     }
 
     // Each transmute's target is the type of the struct field it initialises.
     #[allow(clippy::missing_transmute_annotations)]
-    fn resolve(handle: *mut c_void, path: &Path) -> Result<HdApi, String> {
+    fn resolve(library: &Library) -> Result<HdApi, String> {
+        let path = &library.path;
         let sym = |name: &str| -> Result<*mut c_void, String> {
-            let c = CString::new(name).expect("symbol names have no NUL");
-            // SAFETY: valid handle from dlopen and a valid C string.
-            let p = unsafe { libc::dlsym(handle, c.as_ptr()) };
-            if p.is_null() {
-                Err(format!(
+            library.symbol(name).ok_or_else(|| {
+                format!(
                     "{} lacks the symbol `{name}`: is it the OpenHaptics HD library (libHD.so)?",
                     path.display()
-                ))
-            } else {
-                Ok(p)
-            }
+                )
+            })
         };
         // SAFETY (every transmute below): the symbol has this C signature in the HD API
         // (the vendor's HD API reference); a function pointer and a data pointer have the same size
@@ -220,7 +182,7 @@ impl HdApi {
             get_integerv: f!("hdGetIntegerv"),
             get_error: f!("hdGetError"),
             get_string,
-            path: path.to_path_buf(),
+            path: path.clone(),
         })
     }
 }
