@@ -194,20 +194,13 @@ impl Pace {
         }
         let last = period == longest;
         if self.debt > DEBT.max(2.0 * period) && self.len >= DEBT_STEPS && !last {
-            // Losing time at this period: judge by the window so far, at least one rung up.
+            // Losing time at this period: judged by the window so far.
             let median = median(&mut self.costs[..self.len]);
-            let next = self.periods[self.index + 1];
-            let to = self.fitting(median, FIT).map_or(longest, |p| p.max(next));
-            self.judged = median;
-            return self.change(to);
+            return self.move_up(median);
         }
         if self.over >= FAST_STEPS && !last {
-            // Losing time fast: judge by the cheapest of those steps, at least one rung up.
-            let cheapest = self.over_cheapest;
-            let next = self.periods[self.index + 1];
-            let to = self.fitting(cheapest, FIT).map_or(longest, |p| p.max(next));
-            self.judged = cheapest;
-            return self.change(to);
+            // Losing time fast: judged by the cheapest of those steps.
+            return self.move_up(self.over_cheapest);
         }
         if self.len < window {
             return None;
@@ -224,6 +217,16 @@ impl Pace {
             Some(to) if to < period => self.change(to),
             _ => None,
         }
+    }
+
+    /// Moves to the shortest period that fits a step of `cost` (s), at least one rung up;
+    /// not at the longest period.
+    fn move_up(&mut self, cost: f64) -> Option<f64> {
+        let next = self.periods[self.index + 1];
+        let longest = self.periods[self.periods.len() - 1];
+        let to = self.fitting(cost, FIT).map_or(longest, |p| p.max(next));
+        self.judged = cost;
+        self.change(to)
     }
 
     fn change(&mut self, to: f64) -> Option<f64> {
