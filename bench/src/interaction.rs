@@ -174,7 +174,7 @@ fn haptic_ticks(scene_name: &str, script_name: &str, seconds: f64) -> Result<Row
                 heat: false,
                 stiffness: None,
             };
-            rounds.advance(&mut world, t, Some(&tool), &[], false, || 0);
+            rounds.advance(&mut world, t, std::slice::from_ref(&tool), &[], false, || 0);
             for (b, body) in world.bodies.iter().enumerate() {
                 let x = body.model.positions();
                 frame[offsets[b]..offsets[b] + x.len()].copy_from_slice(x);
@@ -412,7 +412,7 @@ fn collision_steps(scene_name: &str, steps: usize) -> Result<Row> {
         // One round: detection and the contact springs (timed in the report), then the
         // bodies' steps (the springs' solve is part of them).
         let clock = Instant::now();
-        rounds.advance(&mut world, t, Some(&tool), &[], false, || {
+        rounds.advance(&mut world, t, std::slice::from_ref(&tool), &[], false, || {
             clock.elapsed().as_nanos() as u64
         });
         let report = world.last_round();

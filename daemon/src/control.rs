@@ -298,7 +298,7 @@ impl ControlServer {
         if self.rebuild.is_some() {
             return Decision::Answer(self.busy_rebuilding());
         }
-        if world.bodies[i].last_contact.depth > 0.0 {
+        if world.bodies[i].touched() {
             return Decision::Answer(self.describe(
                 i,
                 world,

@@ -334,7 +334,7 @@ impl DeformLoop {
         self.rounds.advance(
             &mut self.world,
             sim_now,
-            tool.as_ref(),
+            tool.as_slice(),
             &[],
             paused,
             rt::now_ns,
@@ -380,8 +380,8 @@ impl DeformLoop {
         // The press's contact patch, balanced where the haptic loop should rest its proxy.
         // With it, the local model the haptic loop renders between frames.
         let contact = tool.as_ref().and_then(|t| {
-            let (b, p) = self.world.contact_proxy(t.coupling)?;
-            let local = self.world.contact_local(t.coupling).map(|(_, m)| m);
+            let (b, p) = self.world.contact_proxy(0, t.coupling)?;
+            let local = self.world.contact_local(0, t.coupling).map(|(_, m)| m);
             Some((b as u32, p, local))
         });
         self.publish(sim_now, tool_stamp, tool_read, world_step_ns, contact);
@@ -486,7 +486,7 @@ impl DeformLoop {
             // moves or is touched.
             let active = match &b.lop {
                 Some(_) => b.model.kind() != ModelKind::Gc,
-                None => b.last_contact.depth > 0.0 || speed > REST_SPEED,
+                None => b.touched() || speed > REST_SPEED,
             };
             bf.state = if active {
                 BODY_STATE_ACTIVE

@@ -204,7 +204,7 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
                 let us = r.last_step_ns as f64 * 1e-3;
                 times[i].push(us);
                 steps_done[i] += 1;
-                let f = b.last_contact.force_on_tissue;
+                let f = b.force_on_tissue();
                 // An FEM step's CG iterations, and the factorisations its body has made so far
                 // (on the stepping thread or its factor thread): what makes a slow step slow.
                 let (iterations, factors) = match &b.model {

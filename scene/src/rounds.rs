@@ -9,7 +9,7 @@
 
 use crate::ToolLaws;
 use lop_sim::contact::ToolSphere;
-use lop_sim::world::{Coupling, Round, RoundTool, World};
+use lop_sim::world::{Coupling, Round, RoundTool, World, MAX_TOOLS};
 
 /// Most steps a body takes in one live round to catch up with the wall clock, and most periods
 /// it may be behind after them; beyond that its simulated time is dropped rather than
@@ -37,7 +37,8 @@ pub struct TickTool {
 #[derive(Debug, Clone)]
 pub struct Rounds {
     laws: ToolLaws,
-    /// This round's laws: the scene's, with the hand's stiffness on the held body.
+    /// This round's laws, per tool one per body: the scene's, with the tool's hand's
+    /// stiffness on the body it holds.
     round_laws: Vec<ToolSphere>,
     max_catch_up: u32,
     drop_lag: bool,
@@ -74,7 +75,7 @@ impl Rounds {
 
     fn new(laws: ToolLaws, max_catch_up: u32, drop_lag: bool, max_lag: u32) -> Rounds {
         Rounds {
-            round_laws: laws.bodies.clone(),
+            round_laws: Vec::with_capacity(MAX_TOOLS * laws.bodies.len()),
             laws,
             max_catch_up,
             drop_lag,
@@ -88,45 +89,61 @@ impl Rounds {
         &self.laws
     }
 
-    /// Runs one round of `world` to simulated time `until` with `tool` (see
-    /// [`World::round`]); bodies marked in `skip` are left alone; `paused` steps no body.
-    /// The report is `world.last_round()`. Allocation-free.
+    /// Runs one round of `world` to simulated time `until` with `tools` (in the scene's
+    /// order, at most [`MAX_TOOLS`]; see [`World::round`]); bodies marked in `skip` are left
+    /// alone; `paused` steps no body. Each tool presses with the scene's laws, and with the
+    /// stiffness its hand feels on the body it holds. The report is `world.last_round()`.
+    /// Allocation-free after the first round with the most tools.
     pub fn advance(
         &mut self,
         world: &mut World,
         until: f64,
-        tool: Option<&TickTool>,
+        tools: &[TickTool],
         skip: &[bool],
         paused: bool,
         clock: impl FnMut() -> u64,
     ) {
-        self.round_laws.copy_from_slice(&self.laws.bodies);
-        if let Some(TickTool {
-            coupling: Coupling::GodObject(Some((b, _))),
-            stiffness: Some(k),
-            ..
-        }) = tool
-        {
-            if let Some(law) = self.round_laws.get_mut(*b) {
-                if k.is_finite() && *k > 0.0 {
-                    law.stiffness = *k;
+        let tools = &tools[..tools.len().min(MAX_TOOLS)];
+        let n = self.laws.bodies.len();
+        self.round_laws.clear();
+        for t in tools {
+            let first = self.round_laws.len();
+            self.round_laws.extend_from_slice(&self.laws.bodies);
+            if let TickTool {
+                coupling: Coupling::GodObject(Some((b, _))),
+                stiffness: Some(k),
+                ..
+            } = t
+            {
+                if let Some(law) = self.round_laws[first..].get_mut(*b) {
+                    if k.is_finite() && *k > 0.0 {
+                        law.stiffness = *k;
+                    }
                 }
             }
         }
         let heat_power = self.laws.heat_power;
-        let tool = tool.map(|t| RoundTool {
-            center: t.center,
-            laws: &self.round_laws,
-            coupling: t.coupling,
-            heat_power: if t.heat { heat_power } else { 0.0 },
-        });
+        let mut packed = [RoundTool {
+            center: [0.0; 3],
+            laws: &[],
+            coupling: Coupling::Nearest,
+            heat_power: 0.0,
+        }; MAX_TOOLS];
+        for (k, (slot, t)) in packed.iter_mut().zip(tools).enumerate() {
+            *slot = RoundTool {
+                center: t.center,
+                laws: &self.round_laws[k * n..(k + 1) * n],
+                coupling: t.coupling,
+                heat_power: if t.heat { heat_power } else { 0.0 },
+            };
+        }
         let round = Round {
             until,
             max_catch_up: self.max_catch_up,
             drop_lag: self.drop_lag,
             max_lag: self.max_lag,
             budget_ns: self.budget_ns,
-            tool,
+            tools: &packed[..tools.len()],
             skip,
             paused,
         };

@@ -128,7 +128,9 @@ impl OfflineSession {
     /// `now − end + period` old: one tick when the body steps every tick, up to its step period
     /// when it steps slower (a touched organ whose rate follows its cost).
     pub fn surfaces(&mut self, now: f64, period: f64) -> WorldSurfaces<'_> {
-        let local = self.world.contact_local(self.stepped_with);
+        let local = self
+            .world
+            .contact_local(self.probe.tool(), self.stepped_with);
         let elapsed = local
             .and_then(|(b, _)| self.last_step_until.get(b))
             .map_or(period, |&end| (now - end + period).max(period));
@@ -158,7 +160,7 @@ impl OfflineSession {
             stiffness: t.stiffness,
         });
         self.rounds
-            .advance(&mut self.world, until, tool.as_ref(), skip, false, clock);
+            .advance(&mut self.world, until, tool.as_slice(), skip, false, clock);
         self.stepped_with = coupling;
         for (end, b) in self
             .last_step_until
@@ -176,7 +178,7 @@ impl OfflineSession {
         state
             .and_then(|g| g.anchor)
             .and_then(|a| self.world.bodies.get(a.body))
-            .map_or(0.0, |b| norm(b.last_contact.force_on_tissue))
+            .map_or(0.0, |b| norm(b.force_on_tissue()))
     }
 }
 

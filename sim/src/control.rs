@@ -7,7 +7,7 @@
 //! world stays valid whatever was asked.
 
 use crate::lop::{LopPolicy, PrecisionController};
-use crate::model::{ContactReport, Model};
+use crate::model::Model;
 use crate::world::World;
 
 impl World {
@@ -56,8 +56,7 @@ impl World {
         b.model = model;
         b.lop = lop;
         b.loads.iter_mut().for_each(|f| *f = [0.0; 3]);
-        b.last_contact = ContactReport::default();
-        b.forget_local();
+        b.forget_contacts();
     }
 
     /// Holds every body's clock at `time` (a paused simulation): nothing is due, and after a

@@ -142,6 +142,17 @@ impl Model {
     ) -> Result<ContactReport, BlowUp> {
         dispatch!(self, m => m.step_colliding(gravity, external, contact, springs))
     }
+    /// After a step whose report came from a contact patch (the report has a proxy): the
+    /// patch's solved complementarity problem, from which [`crate::patch::report`] gives each
+    /// of its tools' share (the step reports the first tool's). `None` for a model that
+    /// resolves no patch.
+    pub fn patch_solution(&mut self) -> Option<&mut crate::patch::Lcp> {
+        match self {
+            Model::MassSpring(m) => Some(m.patch_solution()),
+            Model::Fem(m) => m.patch_solution(),
+            Model::Gc(m) => m.patch_solution(),
+        }
+    }
     /// Sub-steps (or solver iterations) per step, for logs.
     pub fn substeps(&self) -> usize {
         match self {

@@ -82,15 +82,31 @@ pub struct PatchPoint {
     pub normal: [f64; 3],
     /// The point stays at least this far from the proxy along `normal`, m.
     pub reach: f64,
+    /// The tool whose sphere the point stays out of: an index into [`ToolPatch::tools`].
+    pub tool: u32,
 }
 
-/// The tool's footprint on one body for one step (see the module docs).
-#[derive(Debug, Clone, Copy)]
-pub struct ToolPatch<'a> {
+/// One tool pressing a patch: the device its spring pulls the proxy to and the spring.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PatchTool {
     /// The device (tool) position the spring pulls the proxy to, m.
     pub device: [f64; 3],
     /// The tool spring between proxy and device, N/m.
     pub stiffness: f64,
+}
+
+/// The tools' footprints on one body for one step (see the module docs).
+///
+/// Several tools may press the same body in one step (a pinch, two hands): each has its own
+/// sphere, proxy and spring, and its points name it. They are solved as one complementarity
+/// problem, so the tissue between them passes each tool's push on to the other through the
+/// model's compliance `K̃⁻¹`, while a tool's spring couples only its own points
+/// (`Nᵀ N / k` per tool): a tissue squeezed between two tools pushes back on both, and with
+/// nothing else holding it the two resultants are equal and opposite.
+#[derive(Debug, Clone, Copy)]
+pub struct ToolPatch<'a> {
+    /// The tools, in the order the points' [`PatchPoint::tool`] name them.
+    pub tools: &'a [PatchTool],
     /// The contact points.
     pub points: &'a [PatchPoint],
 }
@@ -105,28 +121,34 @@ impl ToolPatch<'_> {
     /// `q_j = n_j · (p̂_j − c) − r_j` for every point, with `predicted` the positions after the
     /// step without contact, into `q`.
     pub(crate) fn free_gaps(&self, predicted: impl Fn(u32) -> [f64; 3], q: &mut [f64]) {
-        let c = v(self.device);
         for (j, p) in self.points.iter().enumerate() {
+            let c = v(self.tools[p.tool as usize].device);
             q[j] = v(p.normal).dot(self.point(j, &predicted) - c) - p.reach;
         }
     }
 
-    /// The resultant on the tissue for contact forces `λ`, N.
-    pub(crate) fn resultant(&self, lambda: &[f64]) -> [f64; 3] {
+    /// The resultant on the tissue of tool `tool`'s points for contact forces `λ`, N.
+    pub(crate) fn resultant(&self, tool: usize, lambda: &[f64]) -> [f64; 3] {
         self.points
             .iter()
             .zip(lambda)
+            .filter(|(p, _)| p.tool as usize == tool)
             .fold(DVec3::ZERO, |acc, (p, &l)| acc + v(p.normal) * l)
             .to_array()
     }
 
-    /// Adds `Nᵀ N / k` to the column-major `m × m` matrix `a`.
+    /// Adds `Nᵀ N / k` to the column-major `m × m` matrix `a`, each tool's spring over its own
+    /// points (two points of different tools are not coupled through a spring).
     pub(crate) fn add_tool_compliance(&self, a: &mut [f64]) {
         let m = self.points.len();
-        let inv_k = 1.0 / self.stiffness;
         for j in 0..m {
+            let pj = &self.points[j];
+            let inv_k = 1.0 / self.tools[pj.tool as usize].stiffness;
             for i in 0..m {
-                a[j * m + i] += v(self.points[i].normal).dot(v(self.points[j].normal)) * inv_k;
+                let pi = &self.points[i];
+                if pi.tool == pj.tool {
+                    a[j * m + i] += v(pi.normal).dot(v(pj.normal)) * inv_k;
+                }
             }
         }
     }
@@ -158,11 +180,18 @@ impl PatchSolve {
         }
     }
 
-    /// The patch limited to [`MAX_PATCH`] points, or `None` if it has none or its spring is
-    /// not a positive finite stiffness.
+    /// The patch limited to [`MAX_PATCH`] points, or `None` if it has none, a tool's spring is
+    /// not a positive finite stiffness, or a point names a tool the patch does not have.
     pub(crate) fn limit<'a>(patch: &ToolPatch<'a>) -> Option<ToolPatch<'a>> {
         let m = patch.points.len().min(MAX_PATCH);
-        (m > 0 && patch.stiffness > 0.0 && patch.stiffness.is_finite()).then_some(ToolPatch {
+        let springs = patch
+            .tools
+            .iter()
+            .all(|t| t.stiffness > 0.0 && t.stiffness.is_finite());
+        let named = patch.points[..m]
+            .iter()
+            .all(|p| (p.tool as usize) < patch.tools.len());
+        (m > 0 && springs && named).then_some(ToolPatch {
             points: &patch.points[..m],
             ..*patch
         })
@@ -322,22 +351,41 @@ impl GatherScratch {
 /// come into contact during the step (its force stays zero if it does not).
 pub const REACH_MARGIN: f64 = 0.05;
 
-/// Collects the contact points of a sphere of `radius` at `proxy` on a surface at positions `x`,
-/// walking outwards over the triangles from `start` (the triangle the god-object rests on)
-/// through `node_triangles` (for each node, the triangles using it). Allocation-free once the
-/// scratch is sized; at most [`MAX_PATCH`] points.
-#[allow(clippy::too_many_arguments)]
+/// The sphere of one tool for [`gather`]: where it rests and its radius.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GatherSphere {
+    /// The triangle the god-object rests on: the walk starts there.
+    pub start: u32,
+    /// The sphere's centre (the god-object's proxy), m.
+    pub proxy: [f64; 3],
+    /// The tool's radius, m.
+    pub radius: f64,
+    /// The tool the points are for ([`PatchPoint::tool`]).
+    pub tool: u32,
+}
+
+/// Appends to `out` the contact points of `sphere` on a surface at positions `x`, walking
+/// outwards over the triangles from the sphere's start through `node_triangles` (for each
+/// node, the triangles using it), until `out` holds `max` points (at most [`MAX_PATCH`]).
+/// Call once per tool pressing the body, after clearing `out`. Allocation-free once the
+/// scratch is sized.
 pub fn gather(
     surface: &[[u32; 3]],
     node_triangles: &[Vec<u32>],
     x: &[[f64; 3]],
-    start: u32,
-    proxy: [f64; 3],
-    radius: f64,
+    sphere: GatherSphere,
+    max: usize,
     out: &mut Vec<PatchPoint>,
     s: &mut GatherScratch,
 ) {
-    out.clear();
+    let GatherSphere {
+        start,
+        proxy,
+        radius,
+        tool,
+    } = sphere;
+    let max = max.min(MAX_PATCH);
+    let first = out.len();
     if s.tri_stamp.len() < surface.len() || s.node_stamp.len() < x.len() {
         return;
     }
@@ -360,7 +408,7 @@ pub fn gather(
     s.queue.push(start);
     s.tri_stamp[start as usize] = stamp;
     let mut head = 0;
-    while head < s.queue.len() && out.len() < MAX_PATCH {
+    while head < s.queue.len() && out.len() < max {
         let t = s.queue[head];
         head += 1;
         let tri = surface[t as usize];
@@ -382,12 +430,13 @@ pub fn gather(
             s.node_stamp[k as usize] = stamp;
             let d = v(x[k as usize]) - c;
             let len = d.length();
-            if len < reach && len > 1e-9 * radius && out.len() < MAX_PATCH {
+            if len < reach && len > 1e-9 * radius && out.len() < max {
                 out.push(PatchPoint {
                     nodes: [k; 3],
                     weights: [1.0, 0.0, 0.0],
                     normal: (d / len).to_array(),
                     reach: radius,
+                    tool,
                 });
             }
         }
@@ -411,14 +460,14 @@ pub fn gather(
             .map(|&k| (v(x[k as usize]) - c).length())
             .fold(0.0f64, f64::max);
         let allowance = sag * (1.0 - (farthest - reach) / radius).clamp(0.0, 1.0);
-        if !on_vertex && dist < reach && out.len() < MAX_PATCH {
+        if !on_vertex && dist < reach && out.len() < max {
             let normal = if dist > 1e-9 * radius {
                 (p - c) / dist
             } else {
                 -unit_normal(a, b, cc)
             };
             if normal.is_finite() {
-                let duplicate = out.iter().any(|q| {
+                let duplicate = out[first..].iter().any(|q| {
                     q.nodes != [q.nodes[0]; 3]
                         && (bary_point_of(q, x) - p).length() < 1e-12 * radius.max(1.0)
                 });
@@ -428,6 +477,7 @@ pub fn gather(
                         weights: w,
                         normal: normal.to_array(),
                         reach: radius - allowance,
+                        tool,
                     });
                 }
             }
@@ -444,18 +494,22 @@ pub fn gather(
     }
 }
 
-/// The report of a solved patch: the resultant on the tissue, the tool spring's length, the
-/// proxy it balances at, and how the resultant answers a move of the device
-/// ([`response`]).
-pub(crate) fn report(patch: &ToolPatch<'_>, lcp: &mut Lcp) -> ContactReport {
-    let f = v(patch.resultant(lcp.lambda()));
-    let stiffness = response(lcp, patch);
+/// The report of tool `tool` of a solved patch: the resultant of its points on the tissue, its
+/// spring's length, the proxy it balances at, and how the resultant answers a move of its
+/// device ([`response`]). A model reports its patch's first tool; the world asks for the
+/// others ([`crate::model::Model::patch_solution`]).
+pub fn report(patch: &ToolPatch<'_>, lcp: &mut Lcp, tool: usize) -> ContactReport {
+    let Some(t) = patch.tools.get(tool) else {
+        return ContactReport::default();
+    };
+    let f = v(patch.resultant(tool, lcp.lambda()));
+    let stiffness = response(lcp, patch, tool);
     ContactReport {
         force_on_tissue: f.to_array(),
-        depth: f.length() / patch.stiffness,
-        proxy: Some((v(patch.device) - f / patch.stiffness).to_array()),
+        depth: f.length() / t.stiffness,
+        proxy: Some((v(t.device) - f / t.stiffness).to_array()),
         response: stiffness.map(|stiffness| PatchResponse {
-            device: patch.device,
+            device: t.device,
             stiffness,
         }),
     }
@@ -509,23 +563,31 @@ fn bary_point_of(p: &PatchPoint, x: &[[f64; 3]]) -> DVec3 {
     })
 }
 
-/// After a successful [`Lcp::solve`] of `patch`'s problem: how the resultant on the tissue
-/// `R = N λ` answers a move `δ` of the device while the same points touch,
-/// `∂R/∂c = N_S A_SS⁻¹ N_Sᵀ` (the gaps `q_j` fall by `n_j · δ`, so `λ_S` grows by
-/// `A_SS⁻¹ N_Sᵀ δ`), with the factor of `A_SS` the last pivot left. Zero without a touching
-/// point; `None` if it is not finite. Three substitutions with the factor.
-pub fn response(lcp: &mut Lcp, patch: &ToolPatch<'_>) -> Option<[[f64; 3]; 3]> {
+/// After a successful [`Lcp::solve`] of `patch`'s problem: how the resultant of tool `tool`'s
+/// points on the tissue `R_t = N_t λ` answers a move `δ` of its device while the same points
+/// touch, `∂R_t/∂c_t = N_t,S A_SS⁻¹ N_t,Sᵀ` (the gaps of its points fall by `n_j · δ`, so
+/// `λ_S` grows by `A_SS⁻¹ N_t,Sᵀ δ`; `N_t`'s columns are zero at the other tools' points),
+/// with the factor of `A_SS` the last pivot left. The other tools' devices are held (their
+/// forces change too, through the tissue between them). Zero without a touching point;
+/// `None` if it is not finite. Three substitutions with the factor.
+pub fn response(lcp: &mut Lcp, patch: &ToolPatch<'_>, tool: usize) -> Option<[[f64; 3]; 3]> {
     let mut k = [[0.0; 3]; 3];
     if lcp.lambda().iter().all(|&l| l == 0.0) {
         return Some(k);
     }
     let in_range = |j: usize| j < patch.points.len();
+    let mine = |j: usize| patch.points[j].tool as usize == tool;
     for axis in 0..3 {
-        let Some((idx, x)) = lcp.solve_on_active_set(in_range, |j| patch.points[j].normal[axis])
-        else {
+        let Some((idx, x)) = lcp.solve_on_active_set(in_range, |j| {
+            if mine(j) {
+                patch.points[j].normal[axis]
+            } else {
+                0.0
+            }
+        }) else {
             return Some(k);
         };
-        for (&j, &x) in idx.iter().zip(x) {
+        for (&j, &x) in idx.iter().zip(x).filter(|(j, _)| mine(**j)) {
             let n = patch.points[j].normal;
             for (row, &nr) in k.iter_mut().zip(&n) {
                 row[axis] += nr * x;
@@ -551,23 +613,29 @@ mod tests {
                 weights: [1.0, 0.0, 0.0],
                 normal: normal(0.3),
                 reach: 1.0,
+                tool: 0,
             },
             PatchPoint {
                 nodes: [0, 1, 3],
                 weights: [0.2, 0.5, 0.3],
                 normal: normal(1.9),
                 reach: 1.0,
+                tool: 0,
             },
             PatchPoint {
                 nodes: [3, 2, 0],
                 weights: [0.6, 0.1, 0.3],
                 normal: normal(4.0),
                 reach: 1.0,
+                tool: 0,
             },
         ];
-        let patch = ToolPatch {
+        let tools = [PatchTool {
             device: [0.0; 3],
             stiffness: 1.0,
+        }];
+        let patch = ToolPatch {
+            tools: &tools,
             points: &points,
         };
         // Node 2 is held.
@@ -624,6 +692,7 @@ mod tests {
                         weights: [1.0, 0.0, 0.0],
                         normal: n.to_array(),
                         reach: 1e-3,
+                        tool: 0,
                     }
                 })
                 .collect();
@@ -639,9 +708,12 @@ mod tests {
             // Free gaps at device 0: every point pressed by 0.1–0.3 mm.
             let q0: Vec<f64> = (0..m).map(|_| -2e-4 + 1e-4 * rnd()).collect();
             let solve = |lcp: &mut Lcp, c: DVec3| -> (DVec3, Option<[[f64; 3]; 3]>) {
-                let patch = ToolPatch {
+                let tools = [PatchTool {
                     device: c.to_array(),
                     stiffness: k_tool,
+                }];
+                let patch = ToolPatch {
+                    tools: &tools,
                     points: &points,
                 };
                 lcp.reset(m);
@@ -651,7 +723,10 @@ mod tests {
                 }
                 patch.add_tool_compliance(lcp.matrix());
                 assert!(lcp.solve());
-                (v(patch.resultant(lcp.lambda())), response(lcp, &patch))
+                (
+                    v(patch.resultant(0, lcp.lambda())),
+                    response(lcp, &patch, 0),
+                )
             };
             let mut lcp = Lcp::with_capacity(MAX_PATCH);
             let (r0, k) = solve(&mut lcp, DVec3::ZERO);
@@ -680,6 +755,97 @@ mod tests {
                 let ku = DVec3::from_array(k.map(|row| v(row).dot(u)));
                 let along = u.dot(ku);
                 assert!((-1e-9..=k_tool * (1.0 + 1e-9)).contains(&along), "{along}");
+            }
+        }
+    }
+
+    /// Two tools on one patch: each tool's response is the derivative of its own resultant
+    /// with its own device (the other device held), and a tool's spring couples only its own
+    /// points (the balance through the tissue is checked on whole bodies, `tests/physics/pinch.rs`).
+    #[test]
+    fn two_tools_share_one_problem() {
+        let mut rng = Rng::new(5);
+        let mut rnd = || rng.signed();
+        let springs = [400.0, 900.0];
+        let m = 8;
+        let points: Vec<PatchPoint> = (0..m)
+            .map(|j| {
+                // Tool 0 presses along −z from above, tool 1 along +z from below.
+                let up = if j % 2 == 0 { -1.0 } else { 1.0 };
+                let n = DVec3::new(0.3 * rnd(), 0.3 * rnd(), up).normalize();
+                PatchPoint {
+                    nodes: [0; 3],
+                    weights: [1.0, 0.0, 0.0],
+                    normal: n.to_array(),
+                    reach: 1e-3,
+                    tool: (j % 2) as u32,
+                }
+            })
+            .collect();
+        let b: Vec<f64> = (0..m * m).map(|_| 0.01 * rnd()).collect();
+        let a_t: Vec<f64> = (0..m * m)
+            .map(|e| {
+                let (i, j) = (e % m, e / m);
+                (0..m).map(|l| b[i * m + l] * b[j * m + l]).sum::<f64>()
+                    + if i == j { 2e-3 } else { 0.0 }
+            })
+            .collect();
+        let q0: Vec<f64> = (0..m).map(|_| -2e-4 + 1e-4 * rnd()).collect();
+        let solve = |lcp: &mut Lcp, c: [DVec3; 2]| {
+            let tools = [0, 1].map(|t| PatchTool {
+                device: c[t].to_array(),
+                stiffness: springs[t],
+            });
+            let patch = ToolPatch {
+                tools: &tools,
+                points: &points,
+            };
+            lcp.reset(m);
+            lcp.matrix().copy_from_slice(&a_t);
+            for (j, p) in points.iter().enumerate() {
+                lcp.q()[j] = q0[j] - v(p.normal).dot(c[p.tool as usize]);
+            }
+            patch.add_tool_compliance(lcp.matrix());
+            assert!(lcp.solve());
+            let r = [0, 1].map(|t| v(patch.resultant(t, lcp.lambda())));
+            let k = [0, 1].map(|t| response(lcp, &patch, t).expect("finite"));
+            (r, k)
+        };
+        let mut lcp = Lcp::with_capacity(MAX_PATCH);
+        let (r0, k) = solve(&mut lcp, [DVec3::ZERO; 2]);
+        assert!(r0[0].length() > 0.0 && r0[1].length() > 0.0);
+        let h = 1e-9;
+        for t in 0..2 {
+            for axis in 0..3 {
+                let mut c = [DVec3::ZERO; 2];
+                c[t][axis] = h;
+                let (r1, _) = solve(&mut lcp, c);
+                let fd = (r1[t] - r0[t]) / h;
+                for row in 0..3 {
+                    assert!(
+                        (fd[row] - k[t][row][axis]).abs() < 1e-5 * springs[t],
+                        "tool {t}: ∂R{row}/∂c{axis} {} vs finite difference {}",
+                        k[t][row][axis],
+                        fd[row]
+                    );
+                }
+            }
+        }
+        // The spring term: entries between the two tools' points carry no `1/k`.
+        let mut a = vec![0.0; m * m];
+        let tools = [0, 1].map(|t| PatchTool {
+            device: [0.0; 3],
+            stiffness: springs[t],
+        });
+        let patch = ToolPatch {
+            tools: &tools,
+            points: &points,
+        };
+        patch.add_tool_compliance(&mut a);
+        for j in 0..m {
+            for i in 0..m {
+                let same = points[i].tool == points[j].tool;
+                assert_eq!(a[j * m + i] != 0.0, same, "({i}, {j})");
             }
         }
     }

@@ -517,7 +517,7 @@ fn run_one(
         for (k, b) in before.iter_mut().zip(&world.bodies) {
             *k = b.model.kind();
         }
-        world_rounds.advance(&mut world, t, tool.as_ref(), &[], false, || {
+        world_rounds.advance(&mut world, t, tool.as_slice(), &[], false, || {
             wall.elapsed().as_nanos() as u64
         });
         let report = world.last_round();

@@ -163,7 +163,7 @@ pub(super) fn threads(quick: bool, targets: &[usize]) -> Result<Vec<ThreadRow>> 
                     in_step_factorizations: after.factorizations - before.factorizations,
                     background_factorizations: after.background_factorizations,
                     factor_waits: after.factor_waits,
-                    force_n: -world.bodies[0].last_contact.force_on_tissue[2],
+                    force_n: -world.bodies[0].contacts[0].force_on_tissue[2],
                     same_as_one_thread: same,
                 });
             }

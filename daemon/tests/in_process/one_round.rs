@@ -88,7 +88,14 @@ fn both_paths_agree(scene: &str, script_name: &str, steps: u64) {
             heat: sample.pressed(BUTTON_HEAT),
             stiffness,
         };
-        rounds.advance(&mut world, next, Some(&tool), &skip, false, || 0);
+        rounds.advance(
+            &mut world,
+            next,
+            std::slice::from_ref(&tool),
+            &skip,
+            false,
+            || 0,
+        );
         for (k, r) in taken.iter_mut().zip(&world.last_round().bodies) {
             *k += r.steps as u64;
         }

@@ -46,7 +46,14 @@ fn a_hand_over_joins_the_wall_clock_and_real_lag_is_dropped() {
         let until = k as f64 * 1e-3 + [20e-6, 90e-6, 50e-6][k % 3];
         let before = (world.bodies[liver].time, world.bodies[liver].model.kind());
         let touching = (k > 250).then_some(&tool);
-        rounds.advance(&mut world, until, touching, &[], false, || 0);
+        rounds.advance(
+            &mut world,
+            until,
+            touching.map_or(&[][..], std::slice::from_ref),
+            &[],
+            false,
+            || 0,
+        );
         let r = world.last_round().bodies[liver];
         let time = world.bodies[liver].time;
         dropped += r.dropped;
@@ -84,7 +91,14 @@ fn a_hand_over_joins_the_wall_clock_and_real_lag_is_dropped() {
     assert!(dt <= 1e-3 + 1e-12, "{dt}");
     let before = world.bodies[liver].time;
     let until = before + 10e-3;
-    rounds.advance(&mut world, until, Some(&tool), &[], false, || 0);
+    rounds.advance(
+        &mut world,
+        until,
+        std::slice::from_ref(&tool),
+        &[],
+        false,
+        || 0,
+    );
     let r = world.last_round().bodies[liver];
     assert!(r.lagged() && r.due, "{r:?}");
     assert_eq!(r.steps, lop_scene::MAX_CATCH_UP);
@@ -97,7 +111,14 @@ fn a_hand_over_joins_the_wall_clock_and_real_lag_is_dropped() {
     let stepped_to = before + f64::from(r.steps) * dt;
     assert!((r.dropped - (time - stepped_to)).abs() < 1e-12, "{r:?}");
     assert!(r.dropped > 2e-3, "{r:?}");
-    rounds.advance(&mut world, until, Some(&tool), &[], false, || 0);
+    rounds.advance(
+        &mut world,
+        until,
+        std::slice::from_ref(&tool),
+        &[],
+        false,
+        || 0,
+    );
     let r = world.last_round().bodies[liver];
     assert_eq!((r.steps, r.dropped, r.due), (3, 0.0, false), "{r:?}");
     let time = world.bodies[liver].time;
@@ -116,12 +137,26 @@ fn a_hand_over_joins_the_wall_clock_and_real_lag_is_dropped() {
         t += 400_000;
         t
     };
-    rounds.advance(&mut world, until, Some(&tool), &[], false, &mut slow);
+    rounds.advance(
+        &mut world,
+        until,
+        std::slice::from_ref(&tool),
+        &[],
+        false,
+        &mut slow,
+    );
     let r = world.last_round().bodies[liver];
     assert!(r.lagged() && r.due && r.steps == 1, "{r:?}");
     let mut rounds_after = 0;
     loop {
-        rounds.advance(&mut world, until, Some(&tool), &[], false, &mut slow);
+        rounds.advance(
+            &mut world,
+            until,
+            std::slice::from_ref(&tool),
+            &[],
+            false,
+            &mut slow,
+        );
         let r = world.last_round().bodies[liver];
         assert_eq!((r.steps, r.dropped), (1, 0.0), "{r:?}");
         rounds_after += 1;

@@ -8,6 +8,14 @@ use crate::interaction::ContactReport;
 use crate::patch::{report, PatchSolve, ToolPatch};
 
 impl Fem {
+    /// The last step's solved contact patch (its forces and the factor of its active set),
+    /// if the step applied one; for the reports of a patch's other tools
+    /// ([`crate::patch::report`]).
+    pub fn patch_solution(&mut self) -> Option<&mut crate::patch::Lcp> {
+        let s = &mut *self.s;
+        s.patch_applied.then_some(&mut s.patch.lcp)
+    }
+
     /// With `sol` the increment of the step without the tool: solves the patch with the
     /// current factor of `K̃` and adds its response to `sol`. A linear body keeps `K̃⁻¹`'s
     /// columns of the patch's nodes across steps (`patch_slot`); otherwise the points' columns
@@ -63,7 +71,7 @@ impl Fem {
             .zip(&s.patch.correction)
             .for_each(|(d, c)| *d += c);
         s.patch_applied = true;
-        report(&patch, &mut s.patch.lcp)
+        report(&patch, &mut s.patch.lcp, 0)
     }
 
     /// Puts every free node of the patch in the column cache; false if they do not all fit.

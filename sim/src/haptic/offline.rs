@@ -18,6 +18,9 @@ pub struct WorldProbe {
     node_offsets: Vec<usize>,
     /// How the last tick's god-object acts on the tissue.
     coupling: Coupling,
+    /// The tool this probe is, in the order the world's rounds are given the tools (0 for
+    /// one tool): whose contact patch its god-object rests on.
+    tool: usize,
 }
 
 impl WorldProbe {
@@ -40,9 +43,20 @@ impl WorldProbe {
             god,
             node_offsets,
             coupling: Coupling::GodObject(None),
+            tool: 0,
         };
         probe.sync(world);
         probe
+    }
+
+    /// The same probe as tool `tool` of the world's rounds (see [`crate::world::Round::tools`]).
+    pub fn for_tool(self, tool: usize) -> WorldProbe {
+        WorldProbe { tool, ..self }
+    }
+
+    /// The tool this probe is.
+    pub fn tool(&self) -> usize {
+        self.tool
     }
 
     /// The surfaces as last synchronised.
@@ -62,7 +76,7 @@ impl WorldProbe {
         });
         self.god.follow_surface(&self.set);
         // A press balanced as a contact patch: the proxy rests where the tissue put it.
-        if let Some((b, p)) = world.contact_proxy(self.coupling) {
+        if let Some((b, p)) = world.contact_proxy(self.tool, self.coupling) {
             self.god.rest_at(&self.set, b, p);
         }
     }

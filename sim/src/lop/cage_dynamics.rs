@@ -551,7 +551,7 @@ fn patch_correct(
     d.iter_mut()
         .zip(&solve.correction)
         .for_each(|(d, c)| *d += c);
-    patch::report(&patch, &mut solve.lcp)
+    patch::report(&patch, &mut solve.lcp, 0)
 }
 
 /// Calls `add` with every non-zero nodal load: the first `n` of `external`, then the tool's

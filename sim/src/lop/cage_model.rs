@@ -233,6 +233,15 @@ pub fn fitted_cells(points: &[[f64; 3]]) -> [usize; 3] {
 }
 
 impl CageModel {
+    /// The last step's contact patch problem, for projected dynamics (the mass-spring cage
+    /// presses at one point); meaningful only when the step's report came from a patch.
+    pub fn patch_solution(&mut self) -> Option<&mut crate::patch::Lcp> {
+        match &mut self.dynamics {
+            Dynamics::Projected(r) => Some(&mut r.patch.lcp),
+            Dynamics::MassSpring(_) => None,
+        }
+    }
+
     /// Builds the GC model of the body `mesh` (rest shape, fixed nodes), whose precise model
     /// provides `ops`.
     pub fn new(

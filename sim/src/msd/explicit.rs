@@ -199,6 +199,13 @@ pub(super) struct ExplicitPatch {
 }
 
 impl ExplicitPatch {
+    /// The last sub-step's complementarity problem (see [`MassSpring::patch_solution`]).
+    ///
+    /// [`MassSpring::patch_solution`]: super::MassSpring::patch_solution
+    pub fn solution(&mut self) -> &mut crate::patch::Lcp {
+        &mut self.solve.lcp
+    }
+
     pub fn new() -> ExplicitPatch {
         ExplicitPatch {
             solve: PatchSolve::new(0),
@@ -262,7 +269,7 @@ impl ExplicitPatch {
                     }
                 }
             }
-            report = patch::report(&patch, &mut self.solve.lcp);
+            report = patch::report(&patch, &mut self.solve.lcp, 0);
         }
         self.report = Some(report);
     }

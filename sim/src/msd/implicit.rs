@@ -243,6 +243,11 @@ impl ImplicitSolver {
         }
     }
 
+    /// The last step's complementarity problem (see [`super::MassSpring::patch_solution`]).
+    pub fn patch_solution(&mut self) -> &mut crate::patch::Lcp {
+        &mut self.patch.lcp
+    }
+
     /// What the last step's contact patch did, if it had one.
     pub fn patch_report(&self) -> Option<ContactReport> {
         self.patch_report
@@ -283,7 +288,7 @@ impl ImplicitSolver {
             .iter_mut()
             .zip(&self.patch.correction)
             .for_each(|(d, c)| *d += c);
-        crate::patch::report(&patch, &mut self.patch.lcp)
+        crate::patch::report(&patch, &mut self.patch.lcp, 0)
     }
 
     /// Numeric refactorisation into the reused buffers, then the solve: `rhs` becomes `Δv`.

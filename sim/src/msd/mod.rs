@@ -286,6 +286,16 @@ enum Stepper {
 }
 
 impl MassSpring {
+    /// The last step's contact patch problem (its forces and the factor of its active set);
+    /// meaningful only when the step's report came from a patch (it has a proxy). For the
+    /// reports of a patch's other tools ([`crate::patch::report`]).
+    pub fn patch_solution(&mut self) -> &mut crate::patch::Lcp {
+        match &mut self.stepper {
+            Stepper::Implicit(solver) => solver.patch_solution(),
+            Stepper::Explicit { patch, .. } => patch.solution(),
+        }
+    }
+
     /// Builds the model on `mesh` (rest shape = the mesh's nodes; fixed = `mesh.fixed`).
     pub fn new(mesh: &TetMesh, params: MsdParameters) -> MassSpring {
         let n = mesh.nodes.len();

@@ -23,7 +23,9 @@ use crate::mesh::TetMesh;
 use crate::model::{BlowUp, ContactReport, ContactSpring, Model, ToolAnchor, ToolContact};
 use crate::msd::{MassSpring, MsdParameters};
 use crate::parallel::WorkerPool;
-use crate::patch::{gather, GatherScratch, PatchPoint, ToolPatch, MAX_PATCH};
+use crate::patch::{
+    gather, GatherScratch, GatherSphere, PatchPoint, PatchSolve, PatchTool, ToolPatch, MAX_PATCH,
+};
 use std::sync::Arc;
 
 /// How far beyond the tool radius a body's bounding box is still checked for contact, m. Covers
@@ -33,6 +35,10 @@ const CONTACT_MARGIN: f64 = 0.01;
 /// touching it, m: one step early rather than one step late (a tool at 0.2 m/s covers 2 mm in a
 /// 10 ms step).
 pub const SWITCH_MARGIN: f64 = 0.002;
+
+/// Most tools a world is stepped with at once (a scene's tools: two hands, a grasper and a
+/// hook…). Fixed so a body's per-tool state needs no allocation.
+pub const MAX_TOOLS: usize = 4;
 
 /// One deformable body.
 #[derive(Debug, Clone)]
@@ -54,28 +60,59 @@ pub struct Body {
     pub resets: u32,
     /// Cause of the most recent blow-up.
     pub last_blow_up: Option<BlowUp>,
-    /// What the tool did to the body in its last step.
-    pub last_contact: ContactReport,
-    /// The haptic loop's local model of the last step's contact patch (see
+    /// What each tool (in the order the step was given them) did to the body in its last
+    /// step; the default report for a tool that did not touch it.
+    pub contacts: [ContactReport; MAX_TOOLS],
+    /// Per tool, the haptic loop's local model of the last step's contact patch (see
     /// [`crate::haptic::LocalModel`]); `None` without one.
-    pub last_local: Option<LocalModel>,
-    /// Pairs consecutive patch steps for the local model's free motion.
-    free_motion: FreeMotion,
+    pub locals: [Option<LocalModel>; MAX_TOOLS],
+    /// Per tool, pairs consecutive patch steps for the local model's free motion.
+    free_motion: [FreeMotion; MAX_TOOLS],
     /// For each node, the surface triangles that use it (built once).
     node_triangles: Vec<Vec<u32>>,
     /// Scratch: filled by `step_body` with the triangles near the tool, read by the model.
     candidates: Vec<u32>,
-    /// Scratch: the god-object press's contact patch, gathered by `step_body_coupled`.
+    /// Scratch: the god-objects' presses as one contact patch, gathered by
+    /// `step_body_tools`.
     patch_points: Vec<PatchPoint>,
     patch_scratch: GatherScratch,
 }
 
 impl Body {
-    /// Drops the local model and the free motion's history (the model was replaced).
+    /// Drops the local models and the free motions' history (the model was replaced).
     pub fn forget_local(&mut self) {
-        self.last_local = None;
-        self.free_motion.reset();
+        self.locals = [None; MAX_TOOLS];
+        self.free_motion.iter_mut().for_each(FreeMotion::reset);
     }
+
+    /// The force every tool together applied to the tissue in the last step, N.
+    pub fn force_on_tissue(&self) -> [f64; 3] {
+        self.contacts.iter().fold([0.0; 3], |acc, c| {
+            let f = c.force_on_tissue;
+            [acc[0] + f[0], acc[1] + f[1], acc[2] + f[2]]
+        })
+    }
+
+    /// Whether a tool pressed or held the body in its last step.
+    pub fn touched(&self) -> bool {
+        self.contacts.iter().any(|c| c.depth > 0.0)
+    }
+
+    /// Forgets what the tools did in the last step (the body was reset).
+    pub fn forget_contacts(&mut self) {
+        self.contacts = [ContactReport::default(); MAX_TOOLS];
+        self.forget_local();
+    }
+}
+
+/// One tool as a body's step sees it: its sphere (the law against this body, centred on the
+/// tool's device) and how it couples.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BodyTool {
+    /// The tool sphere against this body.
+    pub sphere: ToolSphere,
+    /// Which body the tool acts on, and where.
+    pub coupling: Coupling,
 }
 
 /// How the tool acts on the bodies.
@@ -380,9 +417,9 @@ impl World {
             time: 0.0,
             resets: 0,
             last_blow_up: None,
-            last_contact: ContactReport::default(),
-            last_local: None,
-            free_motion: FreeMotion::default(),
+            contacts: [ContactReport::default(); MAX_TOOLS],
+            locals: [None; MAX_TOOLS],
+            free_motion: Default::default(),
             node_triangles,
             candidates: Vec::with_capacity(64),
             patch_points: Vec::with_capacity(MAX_PATCH),
@@ -451,24 +488,24 @@ impl World {
         b.time + b.model.dt() <= until + 1e-12
     }
 
-    /// Where the god-object's press (`coupling`) last balanced as a contact patch: the body
-    /// and the proxy of its last step (see [`crate::patch`]); `None` for a grab, no contact,
-    /// or a step that pressed at one point. The god-object rests its proxy there.
-    pub fn contact_proxy(&self, coupling: Coupling) -> Option<(usize, [f64; 3])> {
+    /// Where tool `tool`'s god-object press (`coupling`) last balanced as a contact patch:
+    /// the body and the proxy of its last step (see [`crate::patch`]); `None` for a grab, no
+    /// contact, or a step that pressed at one point. The god-object rests its proxy there.
+    pub fn contact_proxy(&self, tool: usize, coupling: Coupling) -> Option<(usize, [f64; 3])> {
         match coupling {
             Coupling::GodObject(Some((b, a))) if !a.grab => {
-                Some((b, self.bodies.get(b)?.last_contact.proxy?))
+                Some((b, self.bodies.get(b)?.contacts.get(tool)?.proxy?))
             }
             _ => None,
         }
     }
 
-    /// The local model of the god-object's press (`coupling`) after its body's last step: the
-    /// body and what the haptic loop renders between frames (see
+    /// The local model of tool `tool`'s god-object press (`coupling`) after its body's last
+    /// step: the body and what the haptic loop renders between frames (see
     /// [`crate::haptic::LocalModel`]); `None` when [`World::contact_proxy`] is.
-    pub fn contact_local(&self, coupling: Coupling) -> Option<(usize, LocalModel)> {
-        let (b, _) = self.contact_proxy(coupling)?;
-        Some((b, self.bodies.get(b)?.last_local?))
+    pub fn contact_local(&self, tool: usize, coupling: Coupling) -> Option<(usize, LocalModel)> {
+        let (b, _) = self.contact_proxy(tool, coupling)?;
+        Some((b, (*self.bodies.get(b)?.locals.get(tool)?)?))
     }
 
     /// Advances body `i` by one of its steps with its current loads and, if given, the tool
@@ -479,20 +516,33 @@ impl World {
     }
 
     /// Advances body `i` by one of its steps with its current loads and, if given, the tool
-    /// acting on it as `coupling` says. A blow-up resets the body (counted in `resets`) and is
-    /// returned; the world stays valid either way. Allocation-free after the first steps.
+    /// acting on it as `coupling` says: [`World::step_body_tools`] with one tool.
     pub fn step_body_coupled(
         &mut self,
         i: usize,
         tool: Option<&ToolSphere>,
         coupling: Coupling,
     ) -> Result<(), BlowUp> {
+        let tool = tool.map(|&sphere| BodyTool { sphere, coupling });
+        self.step_body_tools(i, std::slice::from_ref(&tool))
+    }
+
+    /// Advances body `i` by one of its steps with its current loads and the tools acting on it
+    /// (`None`: that tool has no law against this body). A blow-up resets the body (counted
+    /// in `resets`) and is returned; the world stays valid either way. Allocation-free after
+    /// the first steps. At most [`MAX_TOOLS`] tools; the rest are ignored.
+    ///
+    /// Every god-object press (linear law) on this body joins one contact patch, each tool
+    /// with its own points, sphere and spring, solved together ([`crate::patch`]): tissue
+    /// pinched between two tools pushes back on both, and each tool's share is its report in
+    /// [`Body::contacts`]. When the tools press more points than a patch holds, each keeps
+    /// an equal share of [`MAX_PATCH`]. A body grabbed by a tool (or pressed with the
+    /// quadratic law, a point contact) takes that tool alone this step, the first such tool:
+    /// the others' presses on it are not applied to the tissue until it lets go.
+    /// [`Coupling::Nearest`] acts with the first tool whose sphere reaches the body.
+    pub fn step_body_tools(&mut self, i: usize, tools: &[Option<BodyTool>]) -> Result<(), BlowUp> {
+        let tools = &tools[..tools.len().min(MAX_TOOLS)];
         let gravity = self.gravity;
-        let (god, anchor) = match coupling {
-            Coupling::Nearest => (false, None),
-            Coupling::GodObject(Some((body, a))) if body == i => (true, Some(a)),
-            Coupling::GodObject(_) => (true, None),
-        };
         let springs: &[ContactSpring] = match &self.collisions {
             Some(c) => c.springs.get(i).map_or(&[], |v| &v[..]),
             None => &[],
@@ -500,13 +550,33 @@ impl World {
         let b = &mut self.bodies[i];
         b.candidates.clear();
         let mut touching = false;
-        if let Some(t) = tool {
-            if near_bounds(b.model.positions(), t.center, t.radius + CONTACT_MARGIN) {
+        // Per tool: its god-object's anchor on this body.
+        let mut anchors: [Option<ToolAnchor>; MAX_TOOLS] = [None; MAX_TOOLS];
+        // The tool whose sphere presses the nearest surface (`Coupling::Nearest`).
+        let mut nearest = None;
+        for (t, tool) in tools.iter().enumerate() {
+            let Some(BodyTool { sphere, coupling }) = tool else {
+                continue;
+            };
+            let (god, anchor) = match *coupling {
+                Coupling::Nearest => (false, None),
+                Coupling::GodObject(Some((body, a))) if body == i => (true, Some(a)),
+                Coupling::GodObject(_) => (true, None),
+            };
+            if near_bounds(
+                b.model.positions(),
+                sphere.center,
+                sphere.radius + CONTACT_MARGIN,
+            ) {
                 if let Some(hit) =
-                    closest_on_surface(b.model.positions(), &b.mesh.surface, t.center)
+                    closest_on_surface(b.model.positions(), &b.mesh.surface, sphere.center)
                 {
-                    touching = hit.signed_distance() < t.radius + SWITCH_MARGIN;
-                    if !god && (hit.distance < t.radius + CONTACT_MARGIN || hit.inside) {
+                    touching |= hit.signed_distance() < sphere.radius + SWITCH_MARGIN;
+                    if !god
+                        && nearest.is_none()
+                        && (hit.distance < sphere.radius + CONTACT_MARGIN || hit.inside)
+                    {
+                        nearest = Some(t);
                         for &node in &b.mesh.surface[hit.triangle] {
                             for &tri in &b.node_triangles[node as usize] {
                                 if !b.candidates.contains(&tri) {
@@ -517,66 +587,119 @@ impl World {
                     }
                 }
             }
+            touching |= anchor.is_some();
+            anchors[t] = anchor;
         }
-        touching |= anchor.is_some();
         if let Some(lop) = &mut b.lop {
             lop.before_step(&mut b.model, touching, b.time);
         }
         let dt = b.model.dt();
         b.time += dt;
-        // A press by the god-object (linear law) acts over the tool's footprint: the patch of
-        // the sphere resting at the anchor, held by the tool spring to the device.
-        let mut patch = None;
-        if let (Some(t), Some(a)) = (tool, anchor) {
-            if !a.grab && t.law == ForceLaw::Linear {
+        let sphere = |t: usize| tools[t].map(|bt| bt.sphere);
+        // A press by a god-object (linear law) acts over the tool's footprint: the patch of
+        // the sphere resting at the anchor, held by the tool spring to the device. A grab or
+        // a quadratic press is a point contact of one tool.
+        let presses = |t: usize| {
+            anchors[t].is_some_and(|a| !a.grab)
+                && sphere(t).is_some_and(|s| s.law == ForceLaw::Linear)
+        };
+        let point = (0..tools.len()).find(|&t| anchors[t].is_some() && !presses(t));
+        let pressing = (0..tools.len()).filter(|&t| presses(t)).count();
+        // Per patch tool: the tool it is (an index into `tools`).
+        let mut patch_of = [0usize; MAX_TOOLS];
+        let mut patch_tools = [PatchTool {
+            device: [0.0; 3],
+            stiffness: 0.0,
+        }; MAX_TOOLS];
+        let mut in_patch = 0;
+        b.patch_points.clear();
+        if point.is_none() {
+            for t in (0..tools.len()).filter(|&t| presses(t)) {
+                let (Some(a), Some(s)) = (anchors[t], sphere(t)) else {
+                    continue;
+                };
                 if let Some(proxy) = a.proxy(&b.mesh.surface, b.model.positions()) {
+                    let max = b.patch_points.len() + MAX_PATCH / pressing;
                     gather(
                         &b.mesh.surface,
                         &b.node_triangles,
                         b.model.positions(),
-                        a.triangle,
-                        proxy,
-                        t.radius,
+                        GatherSphere {
+                            start: a.triangle,
+                            proxy,
+                            radius: s.radius,
+                            tool: in_patch as u32,
+                        },
+                        max,
                         &mut b.patch_points,
                         &mut b.patch_scratch,
                     );
-                    patch = Some(ToolPatch {
-                        device: t.center,
-                        stiffness: t.stiffness,
-                        points: &b.patch_points,
-                    });
+                    patch_tools[in_patch] = PatchTool {
+                        device: s.center,
+                        stiffness: s.stiffness,
+                    };
+                    patch_of[in_patch] = t;
+                    in_patch += 1;
                 }
             }
         }
-        let contact = match tool {
-            Some(t) if anchor.is_some() || !b.candidates.is_empty() => Some(ToolContact {
-                tool: *t,
+        let patch = (in_patch > 0).then_some(ToolPatch {
+            tools: &patch_tools[..in_patch],
+            points: &b.patch_points,
+        });
+        // The tool the contact is given as: the point contact's, else the patch's first,
+        // else the first anchored tool's, else the nearest.
+        let acting = point
+            .or((in_patch > 0).then_some(patch_of[0]))
+            .or((0..tools.len()).find(|&t| anchors[t].is_some()))
+            .or(nearest);
+        let contact = acting.and_then(|t| {
+            let s = sphere(t)?;
+            Some(ToolContact {
+                tool: s,
                 surface: &b.mesh.surface,
                 candidates: &b.candidates,
-                anchor,
-                patch,
-            }),
-            _ => None,
-        };
+                anchor: anchors[t],
+                patch: if point.is_some() { None } else { patch },
+            })
+        });
         let r = b
             .model
             .step_colliding(gravity, &b.loads, contact.as_ref(), springs);
         match r {
             Ok(report) => {
-                b.last_contact = report;
-                b.last_local = b
-                    .free_motion
-                    .step(dt, report.response.map(|r| (r, report.force_on_tissue)));
+                b.contacts = [ContactReport::default(); MAX_TOOLS];
+                match (patch.filter(|_| point.is_none()), report.proxy) {
+                    (Some(patch), Some(_)) => {
+                        b.contacts[patch_of[0]] = report;
+                        // The other tools' shares of the same solve.
+                        if let (Some(limited), Some(lcp)) =
+                            (PatchSolve::limit(&patch), b.model.patch_solution())
+                        {
+                            for (k, &t) in patch_of.iter().enumerate().take(in_patch).skip(1) {
+                                b.contacts[t] = crate::patch::report(&limited, lcp, k);
+                            }
+                        }
+                    }
+                    _ => {
+                        if let Some(t) = acting {
+                            b.contacts[t] = report;
+                        }
+                    }
+                }
+                for ((local, motion), c) in
+                    b.locals.iter_mut().zip(&mut b.free_motion).zip(&b.contacts)
+                {
+                    *local = motion.step(dt, c.response.map(|r| (r, c.force_on_tissue)));
+                }
                 if let Some(lop) = &mut b.lop {
-                    let touched = touching || report.depth > 0.0;
+                    let touched = touching || b.contacts.iter().any(|c| c.depth > 0.0);
                     lop.after_step(&mut b.model, touched, dt, b.time);
                 }
                 Ok(())
             }
             Err(cause) => {
-                b.last_contact = ContactReport::default();
-                b.last_local = None;
-                b.free_motion.reset();
+                b.forget_contacts();
                 b.resets += 1;
                 b.last_blow_up = Some(cause);
                 Err(cause)

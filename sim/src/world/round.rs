@@ -1,7 +1,8 @@
 //! One round of the world: the straight line of stages every caller runs.
 //!
-//! 1. **Tool input**: the device tip, each body's tool law and who the tool touches (the nearest
-//!    surface, or the god-object's anchor) arrive as arguments ([`RoundTool`]).
+//! 1. **Tool input**: per tool, the device tip, each body's tool law and who the tool touches
+//!    (the nearest surface, or the god-object's anchor) arrive as arguments ([`RoundTool`]),
+//!    up to [`super::MAX_TOOLS`] tools.
 //! 2. **Organ collision detection** at the current shapes, once, when a body is due (and at most
 //!    once per [`World::set_collision_interval`]): the contact springs hold for every step of
 //!    the round, and of the rounds until the next detection.
@@ -18,7 +19,7 @@
 //! simulate` and the benchmarks call it with simulated time alone. The same inputs give the same
 //! positions, bit for bit, whoever calls. Allocation-free after the first rounds.
 
-use super::{Coupling, World};
+use super::{BodyTool, Coupling, World, MAX_TOOLS};
 use crate::collide::CollisionStats;
 use crate::contact::ToolSphere;
 use crate::heat::HeatError;
@@ -27,7 +28,7 @@ use crate::model::BlowUp;
 /// Most heat steps in one round; beyond that the heat model drops simulated time.
 pub const MAX_HEAT_CATCH_UP: u32 = 8;
 
-/// The tool as one round sees it.
+/// One tool as one round sees it.
 #[derive(Debug, Clone, Copy)]
 pub struct RoundTool<'a> {
     /// Device tip in the scene, m.
@@ -41,6 +42,9 @@ pub struct RoundTool<'a> {
     /// up. Heats only a touched (not grabbed) point.
     pub heat_power: f64,
 }
+
+/// No tools (a round without a device).
+const NO_TOOLS: &[RoundTool<'static>] = &[];
 
 impl RoundTool<'_> {
     /// The tool sphere against body `i` (its law, centred on the device tip).
@@ -71,8 +75,9 @@ pub struct Round<'a> {
     /// this, ns (by the round's clock; 0: no limit): a body catching up publishes a frame at
     /// least this often, instead of after all its steps.
     pub budget_ns: u64,
-    /// The tool, if a device is present.
-    pub tool: Option<RoundTool<'a>>,
+    /// The tools, in the scene's order (empty without a device): their index is the one
+    /// [`super::Body::contacts`] reports them by. At most [`MAX_TOOLS`]; the rest are ignored.
+    pub tools: &'a [RoundTool<'a>],
     /// Bodies left alone this round (`lopd simulate` once a body has taken its steps); empty
     /// or shorter than the bodies: none.
     pub skip: &'a [bool],
@@ -91,15 +96,15 @@ impl<'a> Round<'a> {
             drop_lag: true,
             max_lag: 0,
             budget_ns: 0,
-            tool: None,
+            tools: NO_TOOLS,
             skip: &[],
             paused: false,
         }
     }
 
-    /// The same round with `tool`.
-    pub fn with_tool(self, tool: Option<RoundTool<'a>>) -> Round<'a> {
-        Round { tool, ..self }
+    /// The same round with `tools`.
+    pub fn with_tools(self, tools: &'a [RoundTool<'a>]) -> Round<'a> {
+        Round { tools, ..self }
     }
 }
 
@@ -177,7 +182,7 @@ impl World {
         self.report.heat_ns = 0;
         self.report.heat_error = None;
         let skipped = |i: usize| round.skip.get(i).copied().unwrap_or(false);
-        let coupling = round.tool.map_or(Coupling::Nearest, |t| t.coupling);
+        let tools = &round.tools[..round.tools.len().min(MAX_TOOLS)];
 
         if !round.paused {
             // Organ-to-organ contacts at the current shapes, for the steps about to be taken.
@@ -191,7 +196,14 @@ impl World {
                 self.report.collision_ns = clock().saturating_sub(t0);
             }
             for i in (0..n).filter(|&i| !skipped(i)) {
-                let tool = round.tool.and_then(|t| t.sphere(i));
+                let mut body_tools = [None; MAX_TOOLS];
+                for (slot, t) in body_tools.iter_mut().zip(tools) {
+                    *slot = t.sphere(i).map(|sphere| BodyTool {
+                        sphere,
+                        coupling: t.coupling,
+                    });
+                }
+                let body_tools = &body_tools[..tools.len()];
                 let mut r = BodyRound::default();
                 let dt_before = self.bodies[i].model.dt();
                 while self.body_due(i, round.until)
@@ -201,7 +213,7 @@ impl World {
                         || clock().saturating_sub(start) < round.budget_ns)
                 {
                     let t0 = clock();
-                    if let Err(cause) = self.step_body_coupled(i, tool.as_ref(), coupling) {
+                    if let Err(cause) = self.step_body_tools(i, body_tools) {
                         r.blow_up = Some(cause);
                     }
                     r.last_step_ns = clock().saturating_sub(t0);
@@ -248,7 +260,7 @@ impl World {
                     hb.clear_sources();
                 }
             }
-            if let Some(t) = round.tool.filter(|t| t.heat_power > 0.0) {
+            for t in tools.iter().filter(|t| t.heat_power > 0.0) {
                 if let Coupling::GodObject(Some((b, a))) = t.coupling {
                     if !a.grab {
                         let tri = self.bodies[b]

@@ -120,7 +120,7 @@ fn press(world: &mut World, probe: &mut WorldProbe, from: usize, steps: usize) -
         world
             .step_body_coupled(0, Some(&tool), probe.coupling())
             .unwrap();
-        trace.push((dt, -world.bodies[0].last_contact.force_on_tissue[2]));
+        trace.push((dt, -world.bodies[0].contacts[0].force_on_tissue[2]));
     }
     trace
 }

@@ -93,13 +93,13 @@ fn pressed_block_is_bitwise_the_same_on_one_and_two_threads() {
             let b = &world.bodies[0];
             trace.push((
                 bits(b.model.positions()),
-                b.last_contact.force_on_tissue.map(f64::to_bits),
+                b.contacts[0].force_on_tissue.map(f64::to_bits),
             ));
         }
         assert!(
-            world.bodies[0].last_contact.force_on_tissue[2] < -1e-3,
+            world.bodies[0].contacts[0].force_on_tissue[2] < -1e-3,
             "pressed: {:?}",
-            world.bodies[0].last_contact
+            world.bodies[0].contacts[0]
         );
         runs.push(trace);
     }

@@ -67,7 +67,7 @@ fn press(world: &mut World) -> ([f64; 3], [f64; 3]) {
             .step_body_coupled(0, Some(&tool(device)), probe.coupling())
             .unwrap();
     }
-    (hand, world.bodies[0].last_contact.force_on_tissue)
+    (hand, world.bodies[0].contacts[0].force_on_tissue)
 }
 
 #[test]

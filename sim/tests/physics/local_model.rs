@@ -74,8 +74,8 @@ impl Press {
         self.world
             .step_body_coupled(0, Some(&tool), coupling)
             .unwrap();
-        let f = self.world.bodies[0].last_contact.force_on_tissue;
-        (f, self.world.contact_local(coupling).map(|(_, m)| m))
+        let f = self.world.bodies[0].contacts[0].force_on_tissue;
+        (f, self.world.contact_local(0, coupling).map(|(_, m)| m))
     }
 }
 

@@ -10,7 +10,7 @@ use lop_sim::lop::{
     CageDynamics, CageModel, CageShape, CageSprings, GcParameters, LopPolicy, PrecisionController,
 };
 use lop_sim::model::{ContactSpring, Model, ModelKind, ToolContact};
-use lop_sim::patch::{PatchPoint, ToolPatch};
+use lop_sim::patch::{PatchPoint, PatchTool, ToolPatch};
 use lop_sim::world::World;
 use lop_test_support::alloc;
 
@@ -56,7 +56,7 @@ fn cage_steps_are_allocation_free() {
         let n = alloc::this_thread(|| {
             for _ in 0..500 {
                 world.step_body(i, Some(&tool)).unwrap();
-                touched += (world.bodies[i].last_contact.depth > 0.0) as usize;
+                touched += (world.bodies[i].contacts[0].depth > 0.0) as usize;
             }
         })
         .allocations;
@@ -134,6 +134,7 @@ fn a_cage_with_a_patch_is_allocation_free() {
                 weights: [1.0, 0.0, 0.0],
                 normal: [d[0] / l, d[1] / l, d[2] / l],
                 reach: r,
+                tool: 0,
             })
         })
         .collect();
@@ -150,8 +151,10 @@ fn a_cage_with_a_patch_is_allocation_free() {
         candidates: &[],
         anchor: None,
         patch: Some(ToolPatch {
-            device: tool.center,
-            stiffness: tool.stiffness,
+            tools: &[PatchTool {
+                device: tool.center,
+                stiffness: tool.stiffness,
+            }],
             points: &points,
         }),
     };

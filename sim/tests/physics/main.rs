@@ -34,3 +34,4 @@ mod msd_alloc;
 mod msd_integrators;
 mod msd_world;
 mod patch;
+mod pinch;

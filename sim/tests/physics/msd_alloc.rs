@@ -8,7 +8,7 @@ use lop_sim::contact::{ForceLaw, ToolSphere};
 use lop_sim::mesh::read_mesh;
 use lop_sim::model::ToolContact;
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
-use lop_sim::patch::{PatchPoint, ToolPatch};
+use lop_sim::patch::{PatchPoint, PatchTool, ToolPatch};
 
 use lop_test_support::alloc;
 use lop_test_support::fixtures::mesh_path;
@@ -84,6 +84,7 @@ fn step_with_a_patch_is_allocation_free_after_the_first_step() {
                 weights: [1.0, 0.0, 0.0],
                 normal: scale(d, 1.0 / l),
                 reach: r,
+                tool: 0,
             })
         })
         .collect();
@@ -100,8 +101,10 @@ fn step_with_a_patch_is_allocation_free_after_the_first_step() {
         candidates: &[],
         anchor: None,
         patch: Some(ToolPatch {
-            device: tool.center,
-            stiffness: tool.stiffness,
+            tools: &[PatchTool {
+                device: tool.center,
+                stiffness: tool.stiffness,
+            }],
             points: &points,
         }),
     };

@@ -437,7 +437,7 @@ fn tool_load_is_carried_by_the_supports_with_every_integrator() {
             assert!(steps < 600, "{integrator:?} did not settle under the tool");
         }
         let body = &world.bodies[b];
-        let on_tissue = body.last_contact.force_on_tissue;
+        let on_tissue = body.contacts[0].force_on_tissue;
         assert!(
             on_tissue[1] < -0.05,
             "{integrator:?}: tool load {on_tissue:?}"
@@ -535,7 +535,7 @@ fn stiff_tool_on_milligram_nodes_is_stable() {
             "{integrator:?} still moving: {}",
             body.model.max_speed()
         );
-        let f = body.last_contact.force_on_tissue;
+        let f = body.contacts[0].force_on_tissue;
         assert!(f[1] < -1e-4, "{integrator:?}: tool load {f:?}");
         forces.push(f);
     }

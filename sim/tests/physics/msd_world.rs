@@ -82,7 +82,7 @@ fn tool_load_is_carried_by_the_supports() {
         world.step_body(b, Some(&tool)).unwrap();
     }
     let body = &world.bodies[b];
-    let on_tissue = body.last_contact.force_on_tissue;
+    let on_tissue = body.contacts[0].force_on_tissue;
     assert!(body.model.max_speed() < 1e-5);
     assert!(on_tissue[1] < -0.05, "tool load {on_tissue:?}");
     let r = support_reaction(&mesh, body.model.positions(), 700.0);

@@ -89,7 +89,7 @@ fn press_world(
             .step_body_coupled(0, Some(&tool), probe.coupling())
             .unwrap();
         let body = &world.bodies[0];
-        let sink = body.last_contact.proxy.map_or(0.0, |p| {
+        let sink = body.contacts[0].proxy.map_or(0.0, |p| {
             closest_on_surface(body.model.positions(), &body.mesh.surface, p)
                 .map_or(0.0, |hit| R - hit.signed_distance())
         });
@@ -97,7 +97,7 @@ fn press_world(
             sink,
             depth: dot(sub(god.proxy, sub(surface, scale(dir, R))), dir),
             hand: hand_force(&god, ForceLaw::Linear, k_tool, 0.0, [0.0; 3]),
-            tissue: world.bodies[0].last_contact.force_on_tissue,
+            tissue: world.bodies[0].contacts[0].force_on_tissue,
         });
     }
     (out, world)
@@ -503,12 +503,12 @@ fn cautery_heats_under_the_pressing_patch() {
         };
         let round = Round {
             drop_lag: false,
-            ..Round::to((step + 1) as f64 * 1e-3, 4).with_tool(Some(tool))
+            ..Round::to((step + 1) as f64 * 1e-3, 4).with_tools(std::slice::from_ref(&tool))
         };
         world.round(&round, || 0);
     }
     assert!(
-        world.bodies[0].last_contact.proxy.is_some(),
+        world.bodies[0].contacts[0].proxy.is_some(),
         "the patch holds the tool"
     );
     let t = world.heat().unwrap().bodies()[0].temperatures();
