@@ -133,7 +133,7 @@ fn omni_laws(scene: &lop_config::Scene) -> ToolLaws {
 fn haptic_ticks(scene_name: &str, script_name: &str, seconds: f64) -> Result<Row> {
     let scene = shipped_scene(scene_name)?;
     let script = script_of(&scene, script_name)?;
-    let workspace = scene.workspace.transform();
+    let workspace = scene.tool().workspace.transform();
     let laws = omni_laws(&scene);
     let loaded = lop_scene::load(scene)?;
     let mut world = loaded.world;
@@ -386,7 +386,7 @@ fn pin_to_cpu(cpu: usize) {
 fn collision_steps(scene_name: &str, steps: usize) -> Result<Row> {
     let scene = shipped_scene(scene_name)?;
     let script = script_of(&scene, "poke")?;
-    let workspace = scene.workspace.transform();
+    let workspace = scene.tool().workspace.transform();
     let laws = omni_laws(&scene);
     let loaded = lop_scene::load(scene)?;
     let mut world = loaded.world;
@@ -412,9 +412,14 @@ fn collision_steps(scene_name: &str, steps: usize) -> Result<Row> {
         // One round: detection and the contact springs (timed in the report), then the
         // bodies' steps (the springs' solve is part of them).
         let clock = Instant::now();
-        rounds.advance(&mut world, t, std::slice::from_ref(&tool), &[], false, || {
-            clock.elapsed().as_nanos() as u64
-        });
+        rounds.advance(
+            &mut world,
+            t,
+            std::slice::from_ref(&tool),
+            &[],
+            false,
+            || clock.elapsed().as_nanos() as u64,
+        );
         let report = world.last_round();
         std::hint::black_box(report.collisions);
         hist.saturating_record(report.collision_ns.max(1));
@@ -429,7 +434,7 @@ fn collision_steps(scene_name: &str, steps: usize) -> Result<Row> {
 /// One heat step per body (cautery on the first body's surface) and for the whole scene.
 fn heat_steps(scene_name: &str, steps: usize) -> Result<Vec<Row>> {
     let scene = shipped_scene(scene_name)?;
-    let power = scene.tool.heat_power;
+    let power = scene.tool().heat_power;
     let loaded = lop_scene::load(scene.clone())?;
     let mut heat = lop_scene::heat_world(&scene, &loaded.world)?;
     let mut rows = Vec::new();

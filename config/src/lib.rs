@@ -119,6 +119,15 @@
 //! | `damping` | float | `0` | N·s/m on the penetration speed (>= 0) |
 //! | `max_force` | float | `3.0` | N, force clamp for this scene (> 0); the daemon clamps to the smallest of this, `haptic.max_force_n` and the device's limit |
 //! | `heat_power` | float | `20` | W delivered by the cautery button (>= 0), spread over the touched surface triangle's nodes by the contact point's barycentric weights (see `[heat]`) |
+//! | `name` | string | `"tool"` (the N-th of several: `"toolN"`) | shown in logs and by viewers; unique in the scene |
+//! | `workspace` | table | the scene's `[workspace]` | this tool's device mapping, same keys as `[workspace]` |
+//! | `mock_script` | string | none (the first tool: `[device] mock_script`) | the script a scripted device (`mock`, `hand`) driving this tool plays when the command line names none, relative to the scene file |
+//!
+//! **Several tools** (two hands, a grasper beside a hook): write `[[tool]]` tables instead of one
+//! `[tool]`, one per tool in the order devices are given to them (`lopd run --device A --device
+//! B`: the first device drives the first tool), at most four, each with the keys above. The
+//! deformation process gathers every tool's contact patch in the same round, so tissue pinched
+//! between two tools pushes back on both.
 //!
 //! Stiffness felt at the stylus is `stiffness × workspace.scale`. A Phantom Omni renders about
 //! 0.7 N/mm stably; the shipped scenes use 300 N/m at scale ≤ 2, i.e. ≤ 0.6 N/mm.

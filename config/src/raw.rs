@@ -16,8 +16,9 @@ use crate::scene::Importance;
 pub(crate) struct RawScene {
     #[serde(default)]
     pub scene: RawSceneMeta,
-    /// `None` when the scene has no `[tool]` section (the default tool).
-    pub tool: Option<RawTool>,
+    /// `None` when the scene has no `[tool]` section (the default tool); one `[tool]` table or
+    /// several `[[tool]]` tables.
+    pub tool: Option<RawTools>,
     #[serde(default)]
     pub workspace: RawWorkspace,
     #[serde(default)]
@@ -73,12 +74,47 @@ pub(crate) struct RawSceneMeta {
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct RawTool {
+    pub name: Option<String>,
+    pub mock_script: Option<String>,
+    pub workspace: Option<RawWorkspace>,
     pub radius: Option<f64>,
     pub force_law: Option<ForceLaw>,
     pub stiffness: Option<f64>,
     pub damping: Option<f64>,
     pub max_force: Option<f64>,
     pub heat_power: Option<f64>,
+}
+
+/// The scene's tools as written: one `[tool]` table, or an array of `[[tool]]` tables.
+#[derive(Debug)]
+pub(crate) enum RawTools {
+    One(RawTool),
+    Many(Vec<RawTool>),
+}
+
+impl<'de> Deserialize<'de> for RawTools {
+    /// A table is one tool, an array of tables several; each table is read as a [`RawTool`]
+    /// (unknown keys refused), an error naming the table's place in the array.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<RawTools, D::Error> {
+        use serde::de::Error;
+        match toml::Value::deserialize(d)? {
+            toml::Value::Array(tables) => tables
+                .into_iter()
+                .enumerate()
+                .map(|(i, t)| {
+                    RawTool::deserialize(t).map_err(|e| D::Error::custom(format!("tool[{i}]: {e}")))
+                })
+                .collect::<Result<Vec<_>, _>>()
+                .map(RawTools::Many),
+            t @ toml::Value::Table(_) => RawTool::deserialize(t)
+                .map(RawTools::One)
+                .map_err(|e| D::Error::custom(format!("tool: {e}"))),
+            other => Err(D::Error::custom(format!(
+                "tool must be a [tool] table or [[tool]] tables, not a {}",
+                other.type_str()
+            ))),
+        }
+    }
 }
 
 #[derive(Debug, Default, Deserialize)]

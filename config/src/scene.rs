@@ -17,14 +17,13 @@ use crate::check::Check;
 use crate::error::ConfigError;
 use crate::raw::RawScene;
 use crate::source::{KeyPath, Source};
-use crate::WorkspaceMap;
 
 pub use body::{BodySpec, GcParams, HeatParams, Importance};
 pub use fix::{parse_selector, selector_toml};
 pub use sections::{CollisionSpec, DeviceDefaults, HeatSpec, LopSpec, Rates, ToolSpec};
 use validate::{
     check_name, validate_collision, validate_device, validate_heat, validate_lop, validate_rates,
-    validate_tool, validate_workspace,
+    validate_tools,
 };
 use validate_body::validate_body;
 
@@ -41,10 +40,10 @@ pub struct Scene {
     pub gravity: [f64; 3],
     /// The bodies, in file order (at least one).
     pub bodies: Vec<BodySpec>,
-    /// The tool (god-object) and its force law.
-    pub tool: ToolSpec,
-    /// Device-to-scene workspace map.
-    pub workspace: WorkspaceMap,
+    /// The tools (god-objects), in file order (at least one, at most
+    /// [`lop_sim::world::MAX_TOOLS`]): each with its force law, its device's workspace map and
+    /// its default script.
+    pub tools: Vec<ToolSpec>,
     /// Loop rates.
     pub rates: Rates,
     /// Device defaults for this scene.
@@ -58,6 +57,22 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// The first tool: a scene's only tool, or the one a single device drives.
+    pub fn tool(&self) -> &ToolSpec {
+        &self.tools[0]
+    }
+
+    /// The script a scripted device driving tool `tool` plays when none is named: the tool's
+    /// own, for the first tool else `[device] mock_script`.
+    pub fn tool_script(&self, tool: usize) -> Option<&Path> {
+        let own = self.tools.get(tool)?.mock_script.as_deref();
+        own.or(if tool == 0 {
+            self.device.mock_script.as_deref()
+        } else {
+            None
+        })
+    }
+
     /// The body called `name`, if any.
     pub fn body(&self, name: &str) -> Option<&BodySpec> {
         self.bodies.iter().find(|b| b.name == name)
@@ -100,8 +115,7 @@ fn validate_scene(src: &Source<'_>, raw: RawScene) -> Result<Scene, ConfigError>
         "gravity",
     )?;
 
-    let tool = validate_tool(&c, raw.tool)?;
-    let workspace = validate_workspace(&c, raw.workspace)?;
+    let tools = validate_tools(&c, raw.tool, raw.workspace, &dir)?;
     let rates = validate_rates(&c, raw.rates)?;
     let device = validate_device(&c, raw.device, &dir)?;
     let lop = validate_lop(&c, raw.lop)?;
@@ -140,8 +154,7 @@ fn validate_scene(src: &Source<'_>, raw: RawScene) -> Result<Scene, ConfigError>
         path: abs,
         gravity,
         bodies,
-        tool,
-        workspace,
+        tools,
         rates,
         device,
         lop,

@@ -378,8 +378,8 @@ fn load_common(a: &CommonArgs) -> Result<(Scene, DaemonConfig, ServiceNames, Opt
 fn device_script(script: Option<&str>, scene: &Scene) -> Result<Option<(MockScript, PathBuf)>> {
     let path = match script {
         Some(s) => bad(resolve_script(s))?,
-        None => match &scene.device.mock_script {
-            Some(p) => p.clone(),
+        None => match scene.tool_script(0) {
+            Some(p) => p.to_path_buf(),
             None => return Ok(None),
         },
     };

@@ -223,18 +223,18 @@ pub fn run(device: &mut dyn HapticDevice, task: ServoTask<'_>) -> Result<HapticS
 /// A warning when the scene's tool spring, as felt at the device, is stiffer than the device's
 /// nominal maximum (the stylus would buzz). Linear force law only.
 pub fn stiffness_warning(scene: &Scene, limits: &DeviceLimits) -> Option<String> {
-    if scene.tool.force_law != ForceLaw::Linear {
+    if scene.tool().force_law != ForceLaw::Linear {
         return None;
     }
     // 1 mm at the device is 1e-3 · scale m in the scene; forces are not scaled.
-    let scale = scene.workspace.transform().scale;
-    let at_device = scene.tool.stiffness * 1e-3 * scale;
+    let scale = scene.tool().workspace.transform().scale;
+    let at_device = scene.tool().stiffness * 1e-3 * scale;
     (at_device > limits.max_stiffness_n_per_mm).then(|| {
         format!(
             "the tool spring ({} N/m in the scene, workspace scale {scale}) is {at_device:.3} N/mm \
              at the device, above its nominal maximum {:.3} N/mm: expect buzzing; lower [tool] \
              stiffness or the workspace scale",
-            scene.tool.stiffness, limits.max_stiffness_n_per_mm
+            scene.tool().stiffness, limits.max_stiffness_n_per_mm
         )
     })
 }

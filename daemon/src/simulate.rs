@@ -106,7 +106,7 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
     std::fs::create_dir_all(&opts.out)
         .with_context(|| format!("creating {}", opts.out.display()))?;
     let script = ToolSource::load(opts.script.as_deref(), opts.replay.as_deref())?;
-    let workspace = opts.scene.workspace.transform();
+    let workspace = opts.scene.tool().workspace.transform();
     let laws = ToolLaws::new(
         &opts.scene,
         DeviceClamp {

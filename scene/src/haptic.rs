@@ -8,18 +8,31 @@ use lop_sim::haptic::PipelineSettings;
 
 use crate::{DeviceClamp, ToolLaws};
 
-/// The pipeline settings of `scene` on a device with `limits` under `config`.
+/// The pipeline settings of `scene`'s first tool on a device with `limits` under `config`.
 pub fn pipeline_settings(
     config: &DaemonConfig,
     scene: &Scene,
     limits: &DeviceLimits,
 ) -> PipelineSettings {
+    tool_pipeline_settings(config, scene, 0, limits)
+}
+
+/// The pipeline settings of `scene`'s tool `tool` (the first for an index past the last) on
+/// the device that drives it, with `limits`, under `config`.
+pub fn tool_pipeline_settings(
+    config: &DaemonConfig,
+    scene: &Scene,
+    tool: usize,
+    limits: &DeviceLimits,
+) -> PipelineSettings {
+    let spec = scene.tools.get(tool).unwrap_or(scene.tool());
     let rate = scene.rates.haptic_hz;
     let h = &config.haptic;
     // The one tool law per body, clamped to what the device renders (the deformation process
     // receives the same stiffness with every tool state).
-    let laws = ToolLaws::new(
+    let laws = ToolLaws::of_tool(
         scene,
+        tool,
         DeviceClamp {
             max_stiffness_n_per_mm: limits.max_stiffness_n_per_mm,
         },
@@ -27,13 +40,10 @@ pub fn pipeline_settings(
     PipelineSettings {
         rate_hz: rate,
         ramp_ticks: ((h.ramp_ms * 1e-3 * rate).round() as u32).max(1),
-        max_force: h
-            .max_force_n
-            .min(scene.tool.max_force)
-            .min(limits.max_force_n),
+        max_force: h.max_force_n.min(spec.max_force).min(limits.max_force_n),
         max_continuous_force: limits.max_continuous_force_n,
         max_step: h.max_force_step_n,
-        workspace: scene.workspace.transform(),
+        workspace: spec.workspace.transform(),
         workspace_min_mm: limits.workspace_min_mm,
         workspace_max_mm: limits.workspace_max_mm,
         tool: laws.tool,

@@ -26,7 +26,7 @@ mod haptic;
 mod place;
 mod rounds;
 pub mod session;
-pub use haptic::pipeline_settings;
+pub use haptic::{pipeline_settings, tool_pipeline_settings};
 pub use place::{place_bodies, place_body};
 pub use rounds::{Rounds, TickTool, MAX_CATCH_UP};
 pub use session::{OfflineSession, ToolSource};
@@ -197,31 +197,39 @@ impl ToolLaws {
         }
     }
 
-    /// The laws of `scene` on a device that renders at most `clamp`.
+    /// The laws of `scene`'s first tool on a device that renders at most `clamp`.
     pub fn new(scene: &Scene, clamp: DeviceClamp) -> ToolLaws {
+        ToolLaws::of_tool(scene, 0, clamp)
+    }
+
+    /// The laws of `scene`'s tool `tool` (the first for an index past the last) on a device
+    /// that renders at most `clamp`. A body's `tool_stiffness` replaces every tool's own
+    /// stiffness against it.
+    pub fn of_tool(scene: &Scene, tool: usize, clamp: DeviceClamp) -> ToolLaws {
+        let spec = scene.tools.get(tool).unwrap_or(scene.tool());
         let m = clamp.max_stiffness_n_per_mm;
         let k_max = if m.is_finite() && m > 0.0 {
-            m / (1e-3 * scene.workspace.scale)
+            m / (1e-3 * spec.workspace.scale)
         } else {
             f64::INFINITY
         };
-        let clamp_k = |k: f64| match scene.tool.force_law {
+        let clamp_k = |k: f64| match spec.force_law {
             ForceLaw::Linear => k.min(k_max),
             ForceLaw::Quadratic => k,
         };
         let law = |k: f64| ToolSphere {
             stiffness: clamp_k(k),
-            ..tool_sphere(&scene.tool, [0.0; 3])
+            ..tool_sphere(spec, [0.0; 3])
         };
         ToolLaws {
-            tool: law(scene.tool.stiffness),
+            tool: law(spec.stiffness),
             bodies: scene
                 .bodies
                 .iter()
-                .map(|b| law(b.tool_stiffness.unwrap_or(scene.tool.stiffness)))
+                .map(|b| law(b.tool_stiffness.unwrap_or(spec.stiffness)))
                 .collect(),
-            damping: scene.tool.damping,
-            heat_power: scene.tool.heat_power,
+            damping: spec.damping,
+            heat_power: spec.heat_power,
         }
     }
 

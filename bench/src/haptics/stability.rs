@@ -185,7 +185,7 @@ fn press_script() -> Result<MockScript> {
 /// The scene with the liver's modulus, step period (s) and the tool's stiffness set.
 fn scene_with(base: &Scene, young: f64, tool: f64, period: f64) -> Result<Scene> {
     let mut scene = base.clone();
-    scene.tool.stiffness = tool;
+    scene.tools[0].stiffness = tool;
     let body = scene
         .bodies
         .iter_mut()
@@ -239,7 +239,7 @@ fn run_case(
     period: f64,
 ) -> Result<(StabilityRun, Vec<TickRecord>)> {
     let scene = scene_with(base, young, tool, period)?;
-    let scale = scene.workspace.scale;
+    let scale = scene.tool().workspace.scale;
     let stylus_n_per_mm = tool * 1e-3 * scale;
     let beyond_device = stylus_n_per_mm > device_max_n_per_mm() * (1.0 + 1e-9);
     let mut limits = MockDevice::omni_limits();
@@ -424,7 +424,7 @@ pub fn run_map(quick: bool, out: &Path) -> Result<StabilityReport> {
         .and_then(|b| b.fem.as_ref())
         .map_or(1e-3, |f| f.dt);
     let script = press_script()?;
-    let max_scene = device_max_n_per_mm() / (1e-3 * base.workspace.scale);
+    let max_scene = device_max_n_per_mm() / (1e-3 * base.tool().workspace.scale);
     let (grips, youngs, factors): (&[Grip], Vec<f64>, &[f64]) = if quick {
         (&[Grip::Firm], vec![nominal_young, 1e5], &[1.0, 4.0])
     } else {
@@ -654,7 +654,7 @@ fn period_sweep(
         "\nPart 3b: the same press with the liver stepping every 1 to 10 ms (frames that far \
          apart, the local model extrapolating over their age), {:.1} kPa, {:.3} N/mm",
         young * 1e-3,
-        tool * 1e-3 * base.workspace.scale
+        tool * 1e-3 * base.tool().workspace.scale
     );
     println!(
         "{:<24} {:>9} {:>3} {:>8} {:>8} {:>9} {:>11} {:>11} {:>8} {:>10}",

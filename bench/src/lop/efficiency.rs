@@ -436,7 +436,7 @@ fn run_one(
         }
         None => None,
     };
-    let workspace = scene.workspace.transform();
+    let workspace = scene.tool().workspace.transform();
     let laws = ToolLaws::new(
         &scene,
         DeviceClamp {

@@ -200,7 +200,7 @@ pub fn run(a: SoakArgs) -> Result<()> {
     let haptic = lop_config::DaemonConfig::default().haptic;
     let clamp = haptic
         .max_force_n
-        .min(scene.tool.max_force)
+        .min(scene.tool().max_force)
         .min(MockDevice::omni_limits().max_force_n);
     let ramp_ticks = ((haptic.ramp_ms * 1e-3 * rate).round() as u64).max(1);
     let plan = Schedule::draw(a.seed, seconds, rate);
@@ -248,7 +248,7 @@ pub fn run(a: SoakArgs) -> Result<()> {
         ramp_ticks,
         stale_ms: haptic.stale_frame_ms,
         max_step_n: haptic.max_force_step_n,
-        tool_stiffness: scene.tool.stiffness,
+        tool_stiffness: scene.tool().stiffness,
         rate_hz: rate,
         script_parts: soak_script
             .parts

@@ -4,6 +4,7 @@
 
 use std::path::PathBuf;
 
+use crate::WorkspaceMap;
 use lop_sim::contact::ForceLaw;
 use lop_sim::lop::StartLevel;
 
@@ -82,9 +83,12 @@ impl Default for LopSpec {
     }
 }
 
-/// The tool: a sphere driven by the device, rendered as a god-object.
+/// A tool: a sphere driven by a device, rendered as a god-object.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ToolSpec {
+    /// Name (unique in the scene, non-empty): `tool` for a scene's only or first tool unless
+    /// named, `toolN` for the N-th.
+    pub name: String,
     /// Tip radius, m (> 0).
     pub radius: f64,
     /// Force law.
@@ -97,11 +101,21 @@ pub struct ToolSpec {
     pub max_force: f64,
     /// Cautery heating power, W (>= 0).
     pub heat_power: f64,
+    /// How this tool's device maps into the scene: its `[tool.workspace]`, else the scene's
+    /// `[workspace]`.
+    pub workspace: WorkspaceMap,
+    /// The script a scripted device (mock, hand) driving this tool plays when none is named;
+    /// resolved against the scene file's directory. The first tool falls back to
+    /// `[device] mock_script`.
+    pub mock_script: Option<PathBuf>,
 }
 
 impl Default for ToolSpec {
     fn default() -> Self {
         ToolSpec {
+            name: "tool".to_owned(),
+            workspace: WorkspaceMap::default(),
+            mock_script: None,
             radius: 0.003,
             force_law: ForceLaw::Linear,
             stiffness: 300.0,

@@ -5,11 +5,14 @@ use std::path::Path;
 
 use crate::check::Check;
 use crate::error::ConfigError;
-use crate::raw::{RawCollision, RawDevice, RawHeat, RawLop, RawRates, RawTool, RawWorkspace};
+use crate::raw::{
+    RawCollision, RawDevice, RawHeat, RawLop, RawRates, RawTool, RawTools, RawWorkspace,
+};
 use crate::source::KeyPath;
 use crate::WorkspaceMap;
 
 use lop_sim::contact::ForceLaw;
+use lop_sim::world::MAX_TOOLS;
 
 use super::{CollisionSpec, DeviceDefaults, HeatSpec, LopSpec, Rates, ToolSpec};
 
@@ -127,18 +130,64 @@ pub(super) fn check_name(
     Ok(())
 }
 
-/// The tool. Without a `[tool]` section the scene gets the default tool; a `[tool]` section
+/// The tools: without a `[tool]` section the scene gets one default tool; one `[tool]` table
+/// is one tool; `[[tool]]` tables are several, in order (at most [`MAX_TOOLS`]). Each table
 /// must state `radius` and `stiffness` itself: they decide what the hand feels, and a default
-/// stiffness in N/m would be meaningless for the quadratic law (N/m²).
-pub(super) fn validate_tool(
+/// stiffness in N/m would be meaningless for the quadratic law (N/m²). A tool maps its device
+/// with its own `[tool.workspace]` (`workspace` in a `[[tool]]` table), else with the scene's
+/// `[workspace]`; it plays its own `mock_script` on a scripted device, the first tool else
+/// `[device] mock_script`.
+pub(super) fn validate_tools(
     c: &Check<'_, '_>,
-    raw: Option<RawTool>,
-) -> Result<ToolSpec, ConfigError> {
-    let k = KeyPath::top("tool");
-    let d = ToolSpec::default();
-    let Some(raw) = raw else {
-        return Ok(d);
+    raw: Option<RawTools>,
+    workspace: RawWorkspace,
+    dir: &Path,
+) -> Result<Vec<ToolSpec>, ConfigError> {
+    let shared = validate_workspace(c, &KeyPath::top("workspace"), workspace)?;
+    let (raws, many) = match raw {
+        None => {
+            return Ok(vec![ToolSpec {
+                workspace: shared,
+                ..ToolSpec::default()
+            }])
+        }
+        Some(RawTools::One(t)) => (vec![t], false),
+        Some(RawTools::Many(v)) => (v, true),
     };
+    let top = KeyPath::top("tool");
+    if raws.is_empty() || raws.len() > MAX_TOOLS {
+        return Err(c.invalid(
+            &top,
+            format!("{} tables", raws.len()),
+            format!("a scene has 1 to {MAX_TOOLS} tools"),
+        ));
+    }
+    let mut tools: Vec<ToolSpec> = Vec::with_capacity(raws.len());
+    for (i, raw) in raws.into_iter().enumerate() {
+        let k = if many { top.index(i) } else { top.clone() };
+        let tool = validate_tool(c, &k, raw, &shared, dir, i)?;
+        if let Some(first) = tools.iter().position(|t| t.name == tool.name) {
+            return Err(c.invalid(
+                &k.key("name"),
+                format!("{:?}", tool.name),
+                format!("duplicate tool name: tool[{first}] already has it; names must be unique"),
+            ));
+        }
+        tools.push(tool);
+    }
+    Ok(tools)
+}
+
+/// One tool table at `k`, the `index`-th.
+fn validate_tool(
+    c: &Check<'_, '_>,
+    k: &KeyPath,
+    raw: RawTool,
+    shared: &WorkspaceMap,
+    dir: &Path,
+    index: usize,
+) -> Result<ToolSpec, ConfigError> {
+    let d = ToolSpec::default();
     let force_law = raw.force_law.unwrap_or(d.force_law);
     let unit = match force_law {
         ForceLaw::Linear => "tool stiffness (N/m, linear law)",
@@ -149,10 +198,16 @@ pub(super) fn validate_tool(
             c.invalid(
                 &k.key(key),
                 "(missing)",
-                format!("a [tool] section must give the {what}"),
+                format!("a [tool] table must give the {what}"),
             )
         })
     };
+    let name = match raw.name {
+        Some(n) => n,
+        None if index == 0 => d.name.clone(),
+        None => format!("tool{}", index + 1),
+    };
+    check_name(c, &k.key("name"), &name, "tool name")?;
     let radius = c.positive(
         &k.key("radius"),
         required("radius", raw.radius, "tool radius (m)")?,
@@ -163,7 +218,23 @@ pub(super) fn validate_tool(
         required("stiffness", raw.stiffness, unit)?,
         unit,
     )?;
+    let workspace = match raw.workspace {
+        Some(w) => validate_workspace(c, &k.key("workspace"), w)?,
+        None => shared.clone(),
+    };
+    let mock_script = match raw.mock_script {
+        None => None,
+        Some(s) if s.trim().is_empty() => {
+            return Err(c.invalid(
+                &k.key("mock_script"),
+                "\"\"",
+                "mock_script must be a path (relative to the scene file) or be left out",
+            ));
+        }
+        Some(s) => Some(dir.join(s)),
+    };
     Ok(ToolSpec {
+        name,
         radius,
         force_law,
         stiffness,
@@ -182,14 +253,16 @@ pub(super) fn validate_tool(
             raw.heat_power.unwrap_or(d.heat_power),
             "tool heat_power (W)",
         )?,
+        workspace,
+        mock_script,
     })
 }
 
-pub(super) fn validate_workspace(
+fn validate_workspace(
     c: &Check<'_, '_>,
+    k: &KeyPath,
     raw: RawWorkspace,
 ) -> Result<WorkspaceMap, ConfigError> {
-    let k = KeyPath::top("workspace");
     let d = WorkspaceMap::default();
     Ok(WorkspaceMap {
         scale: c.positive(

@@ -275,11 +275,11 @@ fn workspace_round_trip_with_rotation() {
 #[test]
 fn defaults_apply_when_tables_are_absent() {
     let scene = parse_scene(GOOD, &scene_path()).unwrap();
-    assert_eq!(scene.tool, ToolSpec::default());
-    assert_eq!(scene.tool.force_law, ForceLaw::Linear);
-    assert_eq!(scene.tool.heat_power, 20.0);
+    assert_eq!(scene.tool(), &ToolSpec::default());
+    assert_eq!(scene.tool().force_law, ForceLaw::Linear);
+    assert_eq!(scene.tool().heat_power, 20.0);
     assert_eq!(scene.rates, Rates::default());
-    assert_eq!(scene.workspace, WorkspaceMap::default());
+    assert_eq!(scene.tool().workspace, WorkspaceMap::default());
     assert_eq!(scene.device.mock_script, None);
     let a = &scene.bodies[0];
     assert_eq!(a.importance, Importance::Important);

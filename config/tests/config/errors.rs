@@ -488,5 +488,5 @@ fn tool_radius_and_stiffness_missing_zero_negative_or_nan() {
     }
     // Without a [tool] section the scene gets the default tool.
     let scene = lop_config::parse_scene(GOOD, &scene_path()).unwrap();
-    assert_eq!(scene.tool, lop_config::ToolSpec::default());
+    assert_eq!(scene.tool(), &lop_config::ToolSpec::default());
 }

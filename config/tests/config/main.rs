@@ -20,3 +20,4 @@ mod fix_selectors;
 mod fuzz_config;
 mod shipped;
 mod tissue_library;
+mod tools;

@@ -17,7 +17,7 @@ fn shipped(name: &str) -> Scene {
 }
 
 fn assert_omni_safe_tool(scene: &Scene) {
-    let t = &scene.tool;
+    let t = &scene.tool();
     assert_eq!(t.radius, 0.003);
     assert_eq!(t.force_law, ForceLaw::Linear);
     assert_eq!(t.stiffness, 300.0);
@@ -25,7 +25,7 @@ fn assert_omni_safe_tool(scene: &Scene) {
     assert_eq!(t.max_force, 3.0);
     assert_eq!(t.heat_power, 20.0);
     // Stiffness felt at the stylus stays under the Omni's ~0.7 N/mm.
-    assert!(t.stiffness * scene.workspace.scale <= 700.0);
+    assert!(t.stiffness * scene.tool().workspace.scale <= 700.0);
 }
 
 fn assert_common(scene: &Scene, script: &str) {
@@ -63,8 +63,8 @@ fn beam() {
     assert_eq!(s.name, "beam");
     assert_common(&s, "beam-poke.toml");
     assert_eq!(s.gravity, [0.0, -9.81, 0.0]);
-    assert_eq!(s.workspace.scale, 2.0);
-    assert_eq!(s.workspace.offset, [0.2, 0.0, 0.0]);
+    assert_eq!(s.tool().workspace.scale, 2.0);
+    assert_eq!(s.tool().workspace.offset, [0.2, 0.0, 0.0]);
     assert_eq!(s.bodies.len(), 1);
     let b = &s.bodies[0];
     assert!(b.mesh.ends_with("beam"));
@@ -84,8 +84,8 @@ fn cylinders_match_table_6_1() {
     assert_eq!(s.name, "cylinders");
     assert_common(&s, "cylinders-poke.toml");
     assert_eq!(s.gravity, [0.0, -9.81, 0.0]);
-    assert_eq!(s.workspace.scale, 1.0);
-    assert_eq!(s.workspace.offset, [0.0, 0.06, 0.0]);
+    assert_eq!(s.tool().workspace.scale, 1.0);
+    assert_eq!(s.tool().workspace.offset, [0.0, 0.06, 0.0]);
     let names: Vec<&str> = s.bodies.iter().map(|b| b.name.as_str()).collect();
     assert_eq!(names, ["cylinder_a", "cylinder_b"]);
     assert_eq!(s.bodies[0].importance, Importance::Important);
@@ -115,7 +115,7 @@ fn organs_match_table_6_2() {
     assert_eq!(s.name, "organs");
     assert_common(&s, "organs-poke.toml");
     assert_eq!(s.gravity, [0.0, 0.0, 0.0]);
-    assert_eq!(s.workspace.scale, 2.0);
+    assert_eq!(s.tool().workspace.scale, 2.0);
     let names: Vec<&str> = s.bodies.iter().map(|b| b.name.as_str()).collect();
     assert_eq!(names, ["liver", "spleen", "stomach", "pancreas"]);
     for b in &s.bodies {
@@ -148,7 +148,7 @@ fn abdomen_has_real_tissue_values() {
     assert_eq!(s.gravity, [0.0, 0.0, 0.0]);
     // The same device mapping and bodies as the thesis' organs scene.
     let organs = shipped("organs");
-    assert_eq!(s.workspace, organs.workspace);
+    assert_eq!(s.tool().workspace, organs.tool().workspace);
     assert_eq!(s.lop, organs.lop);
     let names: Vec<&str> = s.bodies.iter().map(|b| b.name.as_str()).collect();
     assert_eq!(names, ["liver", "spleen", "stomach", "pancreas"]);
@@ -239,8 +239,8 @@ fn documentation_examples_are_valid() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/doc-example.toml");
     let scene = parse_scene(&blocks[0], &path).unwrap_or_else(|e| panic!("{e}"));
     let organs = shipped("organs");
-    assert_eq!(scene.tool, organs.tool);
-    assert_eq!(scene.workspace, organs.workspace);
+    assert_eq!(scene.tool(), organs.tool());
+    assert_eq!(scene.tool().workspace, organs.tool().workspace);
     assert_eq!(scene.rates, organs.rates);
     assert_eq!(scene.device, organs.device);
     let (doc_liver, liver) = (&scene.bodies[0], &organs.bodies[0]);

@@ -46,8 +46,9 @@ fn poke(scene: Scene, config: DaemonConfig, seconds: f64) -> ClosedLoopRun {
 fn the_hand_presses_the_default_scene_passively_at_the_stiffness_limit() {
     let mut scene = abdomen();
     // The device's nominal maximum at the stylus (0.7 N/mm), in the scene's units.
-    let k_max = MockDevice::omni_limits().max_stiffness_n_per_mm / (1e-3 * scene.workspace.scale);
-    scene.tool.stiffness = k_max;
+    let k_max =
+        MockDevice::omni_limits().max_stiffness_n_per_mm / (1e-3 * scene.tool().workspace.scale);
+    scene.tools[0].stiffness = k_max;
     for b in &mut scene.bodies {
         b.tool_stiffness = Some(k_max);
     }

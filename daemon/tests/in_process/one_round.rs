@@ -48,7 +48,7 @@ fn both_paths_agree(scene: &str, script_name: &str, steps: u64) {
         },
     );
     let mut rounds = Rounds::live(ToolLaws::new(&scene_file, DeviceClamp::NONE), 1_000_000);
-    let workspace = scene_file.workspace.transform();
+    let workspace = scene_file.tool().workspace.transform();
     let mut world = lop_scene::load(scene_file).unwrap().world;
     let script = MockScript::load(&script_path).unwrap();
     let mut probe = WorldProbe::new(&world, hand_laws.tool.radius);
