@@ -19,7 +19,7 @@
 //! | device → tissue latency | a device sample → the frame of the tissue that responded to it (`publish_ns − tool_stamp_ns`; the tool state carries the device sample's tick time), over the frames whose contact patch pressed a body: how late the tissue the eye sees (and the surface the hand touches next) answers the hand | bench, from the frames in contact |
 //! | touched body: frame interval | time between two frames in contact (`publish_ns` differences): the rate at which the touched body's surface reaches the haptic loop | bench, consecutive frames in contact |
 //! | deform round | wall time of the round behind each frame (`FrameHeader::step_ns`: collision, every body due, heat), every frame in the window: at the haptic rate a round longer than a millisecond delays the next frame | bench, from every frame received in the window |
-//! | touched body: step | wall time of the touched body's last step (`BodyFrame::step_ns` of `contact_body`), once per frame in contact | bench, from the frames in contact |
+//! | touched body: step | wall time of the touched body's last step (`BodyFrame::step_ns` of tool 0's `ContactFrame::body`), once per frame in contact | bench, from the frames in contact |
 //!
 //! Below the table: the periods the touched body stepped at in the frames in contact
 //! (`BodyFrame::period_us`: longer than configured where its step costs more on this machine)
@@ -493,10 +493,12 @@ fn measure(lopd: &mut Lopd, a: &LatencyArgs, period_us: u64, ct: &CtPlan) -> Res
             }
             deform_to_client.saturating_record(f.received_ns.saturating_sub(h.publish_ns));
             deform_round.saturating_record(h.step_ns);
+            // The scene's one tool: tool 0.
+            let contact_body = h.contact(0).map_or(NO_CONTACT, |c| c.body);
             let touched = f
                 .bodies()
-                .get(h.contact_body as usize)
-                .filter(|_| h.contact_body != NO_CONTACT);
+                .get(contact_body as usize)
+                .filter(|_| contact_body != NO_CONTACT);
             match touched {
                 Some(body) => {
                     if h.tool_stamp_ns != 0 {
@@ -510,11 +512,11 @@ fn measure(lopd: &mut Lopd, a: &LatencyArgs, period_us: u64, ct: &CtPlan) -> Res
                         touched_rt_min = Some(touched_rt_min.map_or(f, |m| m.min(f)));
                     }
                     if let Some((b, at)) = last_touched {
-                        if b == h.contact_body {
+                        if b == contact_body {
                             touched_interval.saturating_record(h.publish_ns.saturating_sub(at));
                         }
                     }
-                    last_touched = Some((h.contact_body, h.publish_ns));
+                    last_touched = Some((contact_body, h.publish_ns));
                 }
                 None => last_touched = None,
             }

@@ -37,6 +37,10 @@ use crate::rt;
 use crate::signals;
 use lop_scene::{Rounds, TickTool};
 
+/// The tool whose state the deformation process couples to the tissue and whose contact it
+/// writes in each frame (`FrameHeader::contacts`): its index in the scene's tool list. A scene
+/// has one tool, so frames carry `tool_count` 1.
+const TOOL: usize = 0;
 /// A tool state older than this is ignored (the haptic process is gone or restarting), ns.
 const TOOL_STALE_NS: u64 = 100_000_000;
 /// A tool state older than this makes the deformation process close the tool blackboard, ns.
@@ -85,7 +89,9 @@ struct ToolInput {
 fn open_tool_input(node: &Node<ipc::Service>, names: &ServiceNames) -> Option<ToolInput> {
     let board = services::tool_board_reader(node, names).ok()?;
     let reader = board.reader_builder().create().ok()?;
-    let entry = reader.entry::<ToolState>(&services::TOOL_LATEST_KEY).ok()?;
+    let entry = reader
+        .entry::<ToolState>(&services::tool_latest_key(TOOL))
+        .ok()?;
     Some(ToolInput {
         _board: board,
         _reader: reader,
@@ -451,23 +457,23 @@ impl DeformLoop {
         header.tool_read_ns = tool_read;
         header.step_ns = world_step_ns;
         header.node_count = self.node_count as u32;
-        let (body, proxy, local) = contact.unwrap_or((NO_CONTACT, [0.0; 3], None));
-        (header.contact_body, header.contact_proxy) = (body, proxy);
+        header.tool_count = 1;
         header._pad2 = 0;
-        let m = local.unwrap_or_default();
-        header.contact_force = m.force;
-        header.contact_device = m.device;
-        for (dst, row) in header
-            .contact_stiffness
-            .chunks_exact_mut(3)
-            .zip(&m.stiffness)
-        {
-            dst.copy_from_slice(row);
+        header.contacts = [ContactFrame::default(); MAX_TOOLS];
+        if let Some((body, proxy, local)) = contact {
+            let c = &mut header.contacts[TOOL];
+            (c.body, c.proxy) = (body, proxy);
+            if let Some(m) = local {
+                c.force = m.force;
+                c.device = m.device;
+                for (dst, row) in c.stiffness.chunks_exact_mut(3).zip(&m.stiffness) {
+                    dst.copy_from_slice(row);
+                }
+                c.drift = m.drift;
+                c.horizon = m.horizon;
+                c.local = 1;
+            }
         }
-        header.contact_drift = m.drift;
-        header.contact_horizon = m.horizon;
-        header.contact_local = u32::from(local.is_some());
-        header._pad3 = 0;
         for (i, b) in world.bodies.iter().enumerate() {
             let bf = &mut header.bodies[i];
             let (lo, hi) = bounds(b.model.positions());

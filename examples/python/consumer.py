@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
 """A third-party renderer's first step: read lop's scene from shared memory, in Python.
 
-Opens PREFIX/scene/topology and PREFIX/scene/frame read-only with the `iceoryx2` package from
-PyPI (exactly the version lopd uses: 0.10.0; `pip install iceoryx2==0.10.0`), maps the payloads
-with ctypes structures that mirror docs/ipc.md (and ipc/include/lop_ipc.h), and prints a few
-frames. No lop code is linked or imported.
+Opens PREFIX/scene/topology, PREFIX/scene/frame and PREFIX/tool read-only with the `iceoryx2`
+package from PyPI (exactly the version lopd uses: 0.10.0; `pip install iceoryx2==0.10.0`), maps
+the payloads with ctypes structures that mirror docs/ipc.md (and ipc/include/lop_ipc.h), and
+prints a few frames with each tool's contact, then the newest state of each tool. No lop code is
+linked or imported.
 
     python3 examples/python/consumer.py --prefix lop --frames 5
 
@@ -22,8 +23,10 @@ import time
 
 import iceoryx2 as iox2
 
-CONTRACT_VERSION = 9
+CONTRACT_VERSION = 10
 MAX_BODIES = 16
+MAX_TOOLS = 4
+NO_CONTACT = 0xFFFFFFFF
 BODY_NAME_LEN = 32
 # uint32 words per render vertex in the topology payload: 4 node indices, 4 float32 weights.
 RENDER_VERTEX_WORDS = 8
@@ -51,6 +54,47 @@ class BodyFrame(ctypes.Structure):
         return "lop::BodyFrame"
 
 
+class ToolState(ctypes.Structure):
+    _fields_ = [
+        ("contract_version", ctypes.c_uint32),
+        ("flags", ctypes.c_uint32),
+        ("sequence", ctypes.c_uint64),
+        ("stamp_ns", ctypes.c_uint64),
+        ("device_position", ctypes.c_double * 3),
+        ("proxy_position", ctypes.c_double * 3),
+        ("force", ctypes.c_double * 3),
+        ("tool_radius", ctypes.c_double),
+        ("contact_barycentric", ctypes.c_double * 3),
+        ("buttons", ctypes.c_uint32),
+        ("contact_body", ctypes.c_int32),
+        ("contact_triangle", ctypes.c_uint32),
+        ("tool", ctypes.c_uint32),
+        ("topology_id", ctypes.c_uint64),
+        ("tool_stiffness", ctypes.c_double),
+    ]
+
+    @staticmethod
+    def type_name() -> str:
+        return "lop::ToolState"
+
+
+class ContactFrame(ctypes.Structure):
+    _fields_ = [
+        ("proxy", ctypes.c_double * 3),
+        ("force", ctypes.c_double * 3),
+        ("device", ctypes.c_double * 3),
+        ("stiffness", ctypes.c_double * 9),
+        ("drift", ctypes.c_double * 3),
+        ("horizon", ctypes.c_double),
+        ("body", ctypes.c_uint32),
+        ("local", ctypes.c_uint32),
+    ]
+
+    @staticmethod
+    def type_name() -> str:
+        return "lop::ContactFrame"
+
+
 class FrameHeader(ctypes.Structure):
     _fields_ = [
         ("contract_version", ctypes.c_uint32),
@@ -65,16 +109,9 @@ class FrameHeader(ctypes.Structure):
         ("node_count", ctypes.c_uint32),
         ("_pad", ctypes.c_uint32),
         ("bodies", BodyFrame * MAX_BODIES),
-        ("contact_proxy", ctypes.c_double * 3),
-        ("contact_body", ctypes.c_uint32),
+        ("tool_count", ctypes.c_uint32),
         ("_pad2", ctypes.c_uint32),
-        ("contact_force", ctypes.c_double * 3),
-        ("contact_device", ctypes.c_double * 3),
-        ("contact_stiffness", ctypes.c_double * 9),
-        ("contact_drift", ctypes.c_double * 3),
-        ("contact_horizon", ctypes.c_double),
-        ("contact_local", ctypes.c_uint32),
-        ("_pad3", ctypes.c_uint32),
+        ("contacts", ContactFrame * MAX_TOOLS),
     ]
 
     @staticmethod
@@ -140,24 +177,28 @@ class TopologyHeader(ctypes.Structure):
 
 
 # The sizes every reader must agree on (docs/ipc.md).
-assert ctypes.sizeof(FrameHeader) == 1160 and ctypes.alignment(FrameHeader) == 8
+assert ctypes.sizeof(ToolState) == 160 and ctypes.alignment(ToolState) == 8
+assert ctypes.sizeof(ContactFrame) == 184
+assert ctypes.sizeof(FrameHeader) == 1712 and ctypes.alignment(FrameHeader) == 8
+assert FrameHeader.contacts.offset == 976
 assert ctypes.sizeof(NodeSample) == 20
 assert ctypes.sizeof(TopologyHeader) == 1448
 
 
-def open_retry(node, name, payload, header, timeout):
-    """Opens an existing service (never creates one), retrying while lopd starts."""
+def open_retry(node, name, payload, header, timeout, required=True):
+    """Opens an existing service (never creates one), retrying while lopd starts. `header` None:
+    the service has no user header (Rust's `()`). Not `required`: None if it does not appear."""
     deadline = time.monotonic() + timeout
     while True:
         try:
-            return (
-                node.service_builder(iox2.ServiceName.new(name))
-                .publish_subscribe(payload)
-                .user_header(header)
-                .open()
-            )
+            builder = node.service_builder(iox2.ServiceName.new(name)).publish_subscribe(payload)
+            if header is not None:
+                builder = builder.user_header(header)
+            return builder.open()
         except Exception as e:  # the binding raises its own *OpenError types
             if time.monotonic() > deadline:
+                if not required:
+                    return None
                 sys.exit(f"consumer: cannot open {name!r} within {timeout} s: {e}")
             time.sleep(0.05)
 
@@ -170,6 +211,46 @@ def receive(subscriber, timeout, what):
             return sample
         time.sleep(0.002)
     sys.exit(f"consumer: no {what} within {timeout} s")
+
+
+def contacts_text(h, bodies):
+    """Each tool's contact patch in a frame: the body it pressed, where, and whether the frame
+    carries its local model."""
+    out = []
+    for t in range(min(h.tool_count, MAX_TOOLS)):
+        c = h.contacts[t]
+        if c.body == NO_CONTACT:
+            out.append(f"tool {t}: no contact")
+            continue
+        name = bodies[c.body].name_str() if c.body < len(bodies) else f"body {c.body}"
+        out.append(
+            f"tool {t}: {name} at ({c.proxy[0]:.4f}, {c.proxy[1]:.4f}, {c.proxy[2]:.4f}) m"
+            + (", local model" if c.local == 1 else "")
+        )
+    return "; ".join(out) if out else "no tools"
+
+
+def newest_tool_states(node, prefix, timeout):
+    """The newest state of each tool (by ToolState.tool) received within `timeout`; empty when
+    no haptic process publishes."""
+    service = open_retry(node, f"{prefix}/tool", ToolState, None, timeout, required=False)
+    if service is None:
+        return {}
+    subscriber = service.subscriber_builder().create()
+    newest = {}
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        sample = subscriber.receive()
+        if sample is None:
+            if newest:
+                break
+            time.sleep(0.002)
+            continue
+        s = sample.payload().contents
+        if s.contract_version == CONTRACT_VERSION and s.tool < MAX_TOOLS:
+            newest[s.tool] = ToolState.from_buffer_copy(s)
+        del sample
+    return newest
 
 
 def element_count(slice_, element_type, expected):
@@ -248,10 +329,22 @@ def main() -> None:
         print(
             f"frame {h.sequence}: t {h.sim_time:.3f} s, {n} nodes, finite {finite}, "
             f"{bodies[0].name_str()} node 0 at ({first.position[0]:.4f}, {first.position[1]:.4f}, "
-            f"{first.position[2]:.4f}) m {first.temperature:.1f} C; {models}"
+            f"{first.position[2]:.4f}) m {first.temperature:.1f} C; {models}; "
+            + contacts_text(h, bodies)
         )
         got += 1
         del sample
+    tools = newest_tool_states(node, args.prefix, min(args.timeout, 5.0))
+    if not tools:
+        print("tool states: none (no haptic process publishes)")
+    for t, s in sorted(tools.items()):
+        body = bodies[s.contact_body].name_str() if 0 <= s.contact_body < len(bodies) else "none"
+        force = math.sqrt(sum(c * c for c in s.force))
+        print(
+            f"tool {t}: tick {s.sequence}, device at ({s.device_position[0]:.4f}, "
+            f"{s.device_position[1]:.4f}, {s.device_position[2]:.4f}) m, force {force:.3f} N, "
+            f"touching {body}"
+        )
     print(
         f"OK frames={got} nodes={th.node_count} bodies={th.body_count} "
         f"render_vertices={th.render_vertex_count} finite={all_finite}"

@@ -20,10 +20,12 @@
 extern "C" {
 #endif
 
-#define LOP_CONTRACT_VERSION 9u
+#define LOP_CONTRACT_VERSION 10u
 /* uint32_t words per render vertex in the topology payload: 4 node indices, 4 float weights. */
 #define LOP_RENDER_VERTEX_WORDS 8
 #define LOP_MAX_BODIES 16
+/* Most tools a scene may hold (one per haptic device). */
+#define LOP_MAX_TOOLS 4
 #define LOP_BODY_NAME_LEN 32
 #define LOP_MAX_SUBSCRIBERS 16
 #define LOP_TOOL_BUFFER 64
@@ -57,7 +59,8 @@ extern "C" {
 #define LOP_RT_FLAG_PINNED  (1u << 1)
 #define LOP_RT_FLAG_MLOCKED (1u << 2)
 
-/* "lop::ToolState", service PREFIX/tool. 160 bytes, align 8. */
+/* "lop::ToolState", service PREFIX/tool (every tool's states, told apart by .tool). 160 bytes,
+ * align 8. */
 typedef struct lop_ToolState {
     uint32_t contract_version;
     uint32_t flags;
@@ -71,7 +74,7 @@ typedef struct lop_ToolState {
     uint32_t buttons;
     int32_t contact_body;
     uint32_t contact_triangle;
-    uint32_t _pad;
+    uint32_t tool;            /* the tool's index in the scene's tool list (0: the only one) */
     uint64_t topology_id;
     double tool_stiffness;
 } lop_ToolState;
@@ -92,7 +95,22 @@ typedef struct lop_BodyFrame {
     float real_time_factor;   /* simulated over wall time in the last second; 0: not yet */
 } lop_BodyFrame;
 
-/* "lop::FrameHeader", user header of PREFIX/scene/frame. 1160 bytes, align 8. */
+/* "lop::ContactFrame", one tool's contact patch inside FrameHeader. 184 bytes, align 8. */
+typedef struct lop_ContactFrame {
+    double proxy[3];          /* the tool's contact patch balanced here, m */
+    /* The patch's local model, valid when local is 1: the force on the tissue follows
+       F + K (c - device) + drift * min(t, horizon) between frames. */
+    double force[3];          /* N, on the tissue */
+    double device[3];         /* m, the device position the step balanced against */
+    double stiffness[9];      /* dF/dc, row-major, N/m */
+    double drift[3];          /* N/s, with the device held */
+    double horizon;           /* s, how long the drift may be extrapolated */
+    uint32_t body;            /* the body the patch pressed, or LOP_NO_CONTACT */
+    uint32_t local;           /* 1: force ... horizon are valid */
+} lop_ContactFrame;
+
+/* "lop::FrameHeader", user header of PREFIX/scene/frame. 1712 bytes, align 8.
+ * tool_stamp_ns / tool_read_ns are the first tool's (tool 0). */
 typedef struct lop_FrameHeader {
     uint32_t contract_version;
     uint32_t body_count;
@@ -106,18 +124,9 @@ typedef struct lop_FrameHeader {
     uint32_t node_count;
     uint32_t _pad;
     lop_BodyFrame bodies[LOP_MAX_BODIES];
-    double contact_proxy[3];  /* the tool's contact patch balanced here, m */
-    uint32_t contact_body;    /* the body it pressed, or LOP_NO_CONTACT */
+    uint32_t tool_count;      /* contacts[0 .. tool_count) are meaningful */
     uint32_t _pad2;
-    /* The patch's local model, valid when contact_local is 1: the force on the tissue
-       follows F + K (c - contact_device) + drift * min(t, horizon) between frames. */
-    double contact_force[3];      /* N, on the tissue */
-    double contact_device[3];     /* m, the device position the step balanced against */
-    double contact_stiffness[9];  /* dF/dc, row-major, N/m */
-    double contact_drift[3];      /* N/s, with the device held */
-    double contact_horizon;       /* s, how long the drift may be extrapolated */
-    uint32_t contact_local;       /* 1: the fields above are valid */
-    uint32_t _pad3;
+    lop_ContactFrame contacts[LOP_MAX_TOOLS]; /* indexed by ToolState.tool */
 } lop_FrameHeader;
 
 #define LOP_NO_CONTACT 0xFFFFFFFFu
@@ -272,6 +281,7 @@ LOP_ASSERT(sizeof(lop_ToolState) == 160, "ToolState size");
 LOP_ASSERT(offsetof(lop_ToolState, device_position) == 24, "ToolState.device_position");
 LOP_ASSERT(offsetof(lop_ToolState, proxy_position) == 48, "ToolState.proxy_position");
 LOP_ASSERT(offsetof(lop_ToolState, buttons) == 128, "ToolState.buttons");
+LOP_ASSERT(offsetof(lop_ToolState, tool) == 140, "ToolState.tool");
 LOP_ASSERT(offsetof(lop_ToolState, topology_id) == 144, "ToolState.topology_id");
 LOP_ASSERT(offsetof(lop_ToolState, tool_stiffness) == 152, "ToolState.tool_stiffness");
 LOP_ASSERT(sizeof(lop_BodyFrame) == 56, "BodyFrame size");
@@ -279,10 +289,14 @@ LOP_ASSERT(offsetof(lop_BodyFrame, model) == 40, "BodyFrame.model");
 LOP_ASSERT(offsetof(lop_BodyFrame, switches) == 44, "BodyFrame.switches");
 LOP_ASSERT(offsetof(lop_BodyFrame, period_us) == 48, "BodyFrame.period_us");
 LOP_ASSERT(offsetof(lop_BodyFrame, real_time_factor) == 52, "BodyFrame.real_time_factor");
-LOP_ASSERT(sizeof(lop_FrameHeader) == 72 + 56 * LOP_MAX_BODIES + 192, "FrameHeader size");
-LOP_ASSERT(offsetof(lop_FrameHeader, contact_force) == 104 + 56 * LOP_MAX_BODIES, "FrameHeader.contact_force");
-LOP_ASSERT(offsetof(lop_FrameHeader, contact_local) == 256 + 56 * LOP_MAX_BODIES, "FrameHeader.contact_local");
-LOP_ASSERT(offsetof(lop_FrameHeader, contact_body) == 96 + 56 * LOP_MAX_BODIES, "FrameHeader.contact_body");
+LOP_ASSERT(sizeof(lop_ContactFrame) == 184, "ContactFrame size");
+LOP_ASSERT(offsetof(lop_ContactFrame, stiffness) == 72, "ContactFrame.stiffness");
+LOP_ASSERT(offsetof(lop_ContactFrame, horizon) == 168, "ContactFrame.horizon");
+LOP_ASSERT(offsetof(lop_ContactFrame, body) == 176, "ContactFrame.body");
+LOP_ASSERT(offsetof(lop_ContactFrame, local) == 180, "ContactFrame.local");
+LOP_ASSERT(sizeof(lop_FrameHeader) == 80 + 56 * LOP_MAX_BODIES + 184 * LOP_MAX_TOOLS, "FrameHeader size");
+LOP_ASSERT(offsetof(lop_FrameHeader, tool_count) == 72 + 56 * LOP_MAX_BODIES, "FrameHeader.tool_count");
+LOP_ASSERT(offsetof(lop_FrameHeader, contacts) == 80 + 56 * LOP_MAX_BODIES, "FrameHeader.contacts");
 LOP_ASSERT(offsetof(lop_FrameHeader, node_count) == 64, "FrameHeader.node_count");
 LOP_ASSERT(offsetof(lop_FrameHeader, bodies) == 72, "FrameHeader.bodies");
 LOP_ASSERT(sizeof(lop_NodeSample) == 20, "NodeSample size");

@@ -29,6 +29,15 @@ pub use services::{ServiceNames, SERVICE_PREFIX_DEFAULT};
 pub use types::*;
 
 /// Version of the payload layouts (2: `BodyFrame::switches`; 3: `NodeSample::flags` with
-/// burned tissue, `TOOL_FLAG_GRAB` / `TOOL_FLAG_HEAT`; 4: `ToolState::tool_stiffness`; 5: `FrameHeader::contact_proxy` / `contact_body`; 6: `HapticTelemetry::window_frame_age_contact` / `total_frame_age_contact`; 7: the patch's local model, `FrameHeader::contact_force` … `contact_local`; 8: render surfaces in the topology, `BodyTopology::render_*`, `TopologyHeader::render_triangle_count` / `render_vertex_count`). Bumped whenever a type in [`types`] changes shape or meaning;
-/// every payload carries it so a reader can refuse data it does not understand.
-pub const CONTRACT_VERSION: u32 = 9;
+/// burned tissue, `TOOL_FLAG_GRAB` / `TOOL_FLAG_HEAT`; 4: `ToolState::tool_stiffness`;
+/// 5: `FrameHeader::contact_proxy` / `contact_body`;
+/// 6: `HapticTelemetry::window_frame_age_contact` / `total_frame_age_contact`;
+/// 7: the patch's local model, `FrameHeader::contact_force` … `contact_local`;
+/// 8: render surfaces in the topology, `BodyTopology::render_*`,
+/// `TopologyHeader::render_triangle_count` / `render_vertex_count`;
+/// 9: each body's pace, `BodyFrame::period_us` / `real_time_factor`;
+/// 10: several tools: `ToolState::tool`, `FrameHeader::tool_count` / `contacts`
+/// ([`ContactFrame`], in place of the `contact_*` fields), a tool blackboard entry per tool).
+/// Bumped whenever a type in [`types`] changes shape or meaning; every payload carries it so a
+/// reader can refuse data it does not understand.
+pub const CONTRACT_VERSION: u32 = 10;

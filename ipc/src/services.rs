@@ -3,7 +3,7 @@
 //! | service                  | pattern         | payload                         | written by        |
 //! |--------------------------|-----------------|---------------------------------|-------------------|
 //! | `PREFIX/tool`            | publish–subscribe | [`ToolState`]                 | haptic (1 kHz)    |
-//! | `PREFIX/tool/latest`     | blackboard, key 0 | [`ToolState`]                 | haptic RT thread  |
+//! | `PREFIX/tool/latest`     | blackboard, a key per tool | [`ToolState`]        | haptic RT thread  |
 //! | `PREFIX/scene/topology`  | publish–subscribe | `[u32]` + [`TopologyHeader`]  | deform (per load) |
 //! | `PREFIX/scene/frame`     | publish–subscribe | `[NodeSample]` + [`FrameHeader`] | deform (per step) |
 //! | `PREFIX/telemetry/haptic`| publish–subscribe | [`HapticTelemetry`]           | haptic (~4 Hz)    |
@@ -39,8 +39,12 @@ pub const FRAME_BUFFER: usize = 4;
 /// Telemetry samples a subscriber may have queued.
 pub const TELEMETRY_BUFFER: usize = 16;
 
-/// The blackboard key under which the newest tool state is stored.
-pub const TOOL_LATEST_KEY: u32 = 0;
+/// The key of the tool blackboard's entry holding the newest state of tool `tool` (its index
+/// in the scene's tool list, `ToolState::tool`): the index itself. The blackboard has an entry
+/// for each of `0..MAX_TOOLS`; a key beyond names none, and opening its entry fails.
+pub const fn tool_latest_key(tool: usize) -> u32 {
+    tool as u32
+}
 
 /// The full service names for one prefix.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -339,24 +343,35 @@ pub fn frame_ready_service(
         .map_err(ice("open or create event service", name))
 }
 
-/// The blackboard holding the newest tool state, for the daemon's processes only.
+/// The blackboard holding the newest state of each tool (one entry per tool, keyed by
+/// [`tool_latest_key`]), for the daemon's processes only.
 pub type ToolBoard = iceoryx2::service::port_factory::blackboard::PortFactory<ipc::Service, u32>;
 
-/// Creates (haptic process) the tool blackboard, or opens it if a previous haptic process left it
-/// open through a reader.
+/// Creates (haptic process) the tool blackboard with an entry per tool, keys `0..MAX_TOOLS`
+/// ([`tool_latest_key`]), or opens it if a previous haptic process left it open through a
+/// reader. The iceoryx2 blackboard sizes itself by the entries added here (it has no entry
+/// limit to set); `max_readers` counts reader ports, and one reader reads every entry.
 pub fn tool_board_owner(
     node: &Node<ipc::Service>,
     names: &ServiceNames,
 ) -> Result<ToolBoard, IpcError> {
     let name = &names.tool_latest;
     let sn = service_name(name)?;
-    match node
-        .service_builder(&sn)
-        .blackboard_creator::<u32>()
-        .max_readers(4)
-        .add::<ToolState>(TOOL_LATEST_KEY, ToolState::default())
-        .create()
-    {
+    let creator = (0..MAX_TOOLS).fold(
+        node.service_builder(&sn)
+            .blackboard_creator::<u32>()
+            .max_readers(4),
+        |creator, tool| {
+            creator.add::<ToolState>(
+                tool_latest_key(tool),
+                ToolState {
+                    tool: tool as u32,
+                    ..ToolState::default()
+                },
+            )
+        },
+    );
+    match creator.create() {
         Ok(board) => Ok(board),
         Err(_) => node
             .service_builder(&sn)

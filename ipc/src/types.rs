@@ -11,6 +11,8 @@ use iceoryx2::prelude::ZeroCopySend;
 
 /// Most bodies a scene may hold. Fixed so headers stay heap-free.
 pub const MAX_BODIES: usize = 16;
+/// Most tools a scene may hold (one per haptic device). Fixed so headers stay heap-free.
+pub const MAX_TOOLS: usize = 4;
 /// Bytes of a body name, NUL-padded UTF-8.
 pub const BODY_NAME_LEN: usize = 32;
 
@@ -29,11 +31,13 @@ pub const TOOL_FLAG_GRAB: u32 = 1 << 4;
 /// cauterised.
 pub const TOOL_FLAG_HEAT: u32 = 1 << 5;
 /// `ToolState::flags` bit: the force this tick came from the frame's local model of the
-/// contact patch (`FrameHeader::contact_local`), not from the surface alone.
+/// contact patch (`ContactFrame::local` of this tool in `FrameHeader::contacts`), not from the
+/// surface alone.
 pub const TOOL_FLAG_LOCAL_MODEL: u32 = 1 << 6;
 
-/// The haptic loop's state after one tick: where the hand is, what it touches, what it feels.
-/// Written every tick (1 kHz) to `PREFIX/tool` (publish–subscribe, for viewers) and to the
+/// One tool's haptic loop state after one tick: where the hand is, what it touches, what it
+/// feels. Written every tick (1 kHz) to `PREFIX/tool` (publish–subscribe, for viewers; the
+/// states of every tool share it, told apart by `tool`) and to the tool's entry of the
 /// blackboard `PREFIX/tool/latest` (for the deformation process).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
@@ -63,8 +67,9 @@ pub struct ToolState {
     pub contact_body: i32,
     /// Index of the touched triangle in the topology's global triangle list (valid with contact).
     pub contact_triangle: u32,
-    /// Padding, zero.
-    pub _pad: u32,
+    /// The tool's index in the scene's tool list, below [`MAX_TOOLS`] (0 in a scene with one
+    /// tool).
+    pub tool: u32,
     /// `TopologyHeader::topology_id` the contact indices refer to.
     pub topology_id: u64,
     /// Stiffness of the tool law the hand feels against `contact_body` (N/m for the linear law,
@@ -165,9 +170,10 @@ pub struct FrameHeader {
     pub sim_time: f64,
     /// When the frame was published.
     pub publish_ns: u64,
-    /// `ToolState::stamp_ns` of the newest tool state the step used (0 if none yet).
+    /// `ToolState::stamp_ns` of the newest state of the first tool (tool 0) the step used (0 if
+    /// none yet).
     pub tool_stamp_ns: u64,
-    /// When the deformation process read that tool state.
+    /// When the deformation process read that state of the first tool (tool 0).
     pub tool_read_ns: u64,
     /// Wall time of the whole world step (all bodies, contact), ns.
     pub step_ns: u64,
@@ -177,38 +183,19 @@ pub struct FrameHeader {
     pub _pad: u32,
     /// Per-body state; the first `body_count` are valid.
     pub bodies: [BodyFrame; MAX_BODIES],
-    /// Where this step balanced the tool's contact patch (the tool sphere's centre, resting on
-    /// the tissue and held by the tool spring), m; valid when `contact_body` is a body index.
-    /// The haptic loop rests its god-object there, so the hand feels what the tissue received.
-    pub contact_proxy: [f64; 3],
-    /// The body the patch pressed, or [`NO_CONTACT`].
-    pub contact_body: u32,
+    /// Tools in the scene: `contacts[..tool_count]` are meaningful; a reader ignores the rest.
+    pub tool_count: u32,
     /// Padding, zero.
     pub _pad2: u32,
-    /// The local model of the patch, for the haptic loop between frames (valid when
-    /// `contact_local` is 1): the force the tissue received this step, N.
-    pub contact_force: [f64; 3],
-    /// The device position (tool centre) the step balanced the patch against, m.
-    pub contact_device: [f64; 3],
-    /// `∂contact_force / ∂contact_device`, row-major 3 × 3, N/m: the tool spring in series
-    /// with the tissue at the patch over one step. Symmetric, never stiffer than the tool.
-    pub contact_stiffness: [f64; 9],
-    /// The patch's free motion: how fast the force changes with the device held, N/s.
-    pub contact_drift: [f64; 3],
-    /// How long a reader may extrapolate `contact_drift`, s (the touched body's step).
-    pub contact_horizon: f64,
-    /// 1: the `contact_force` … `contact_horizon` fields hold the local model of the patch
-    /// on `contact_body`; 0: this frame has none (render against the surface).
-    pub contact_local: u32,
-    /// Padding, zero.
-    pub _pad3: u32,
+    /// Per tool, indexed by `ToolState::tool`: the contact patch this step balanced for it.
+    pub contacts: [ContactFrame; MAX_TOOLS],
 }
 
-/// `FrameHeader::contact_body` when no contact patch was pressed this step.
+/// `ContactFrame::body` when no contact patch was pressed this step.
 pub const NO_CONTACT: u32 = u32::MAX;
 
 impl Default for FrameHeader {
-    /// Zeros, and no contact patch.
+    /// Zeros, no tool, and no contact patch.
     fn default() -> FrameHeader {
         FrameHeader {
             contract_version: 0,
@@ -223,16 +210,64 @@ impl Default for FrameHeader {
             node_count: 0,
             _pad: 0,
             bodies: [BodyFrame::default(); MAX_BODIES],
-            contact_proxy: [0.0; 3],
-            contact_body: NO_CONTACT,
+            tool_count: 0,
             _pad2: 0,
-            contact_force: [0.0; 3],
-            contact_device: [0.0; 3],
-            contact_stiffness: [0.0; 9],
-            contact_drift: [0.0; 3],
-            contact_horizon: 0.0,
-            contact_local: 0,
-            _pad3: 0,
+            contacts: [ContactFrame::default(); MAX_TOOLS],
+        }
+    }
+}
+
+impl FrameHeader {
+    /// The contact of tool `tool` this step: `None` for a tool beyond `tool_count` (or
+    /// [`MAX_TOOLS`]). Its `body` is [`NO_CONTACT`] when the tool pressed no patch.
+    pub fn contact(&self, tool: usize) -> Option<&ContactFrame> {
+        self.contacts
+            .get(tool)
+            .filter(|_| tool < self.tool_count as usize)
+    }
+}
+
+/// One tool's contact patch in a frame (`FrameHeader::contacts`): where the step balanced it,
+/// and its local model, which the haptic loop renders between frames.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("lop::ContactFrame")]
+pub struct ContactFrame {
+    /// Where this step balanced the tool's contact patch (the tool sphere's centre, resting on
+    /// the tissue and held by the tool spring), m; valid when `body` is a body index.
+    /// The haptic loop rests its god-object there, so the hand feels what the tissue received.
+    pub proxy: [f64; 3],
+    /// The local model of the patch, for the haptic loop between frames (valid when `local`
+    /// is 1): the force the tissue received this step, N.
+    pub force: [f64; 3],
+    /// The device position (tool centre) the step balanced the patch against, m.
+    pub device: [f64; 3],
+    /// `∂force / ∂device`, row-major 3 × 3, N/m: the tool spring in series with the tissue at
+    /// the patch over one step. Symmetric, never stiffer than the tool.
+    pub stiffness: [f64; 9],
+    /// The patch's free motion: how fast the force changes with the device held, N/s.
+    pub drift: [f64; 3],
+    /// How long a reader may extrapolate `drift`, s (the touched body's step).
+    pub horizon: f64,
+    /// The body the patch pressed, or [`NO_CONTACT`].
+    pub body: u32,
+    /// 1: the `force` … `horizon` fields hold the local model of the patch on `body`; 0: this
+    /// frame has none for this tool (render against the surface).
+    pub local: u32,
+}
+
+impl Default for ContactFrame {
+    /// Zeros, and no contact patch.
+    fn default() -> ContactFrame {
+        ContactFrame {
+            proxy: [0.0; 3],
+            force: [0.0; 3],
+            device: [0.0; 3],
+            stiffness: [0.0; 9],
+            drift: [0.0; 3],
+            horizon: 0.0,
+            body: NO_CONTACT,
+            local: 0,
         }
     }
 }

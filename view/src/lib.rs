@@ -4,8 +4,8 @@
 //! mappings:
 //! - the **hub** attaches to `PREFIX/…` through [`lop_client::Attachment`] (retrying while the
 //!   daemon starts, re-attaching when frames stop for [`REATTACH_AFTER`]), takes the newest
-//!   frame, tool state and haptic telemetry, and encodes them once into [`wire`] messages held
-//!   as "the latest"; it never waits on a browser;
+//!   frame, the newest state of each tool and haptic telemetry, and encodes them once into
+//!   [`wire`] messages held as "the latest"; it never waits on a browser;
 //! - the **server**, one event-loop thread (the one that calls [`serve`]) running every
 //!   connection as a task: it serves the page (`web/`, embedded in the binary) or speaks
 //!   WebSocket: it sends the topology on connect and whenever its id changes, then the newest
@@ -472,8 +472,8 @@ fn hub(shared: &Shared) {
             }
         };
         let mut last_frame = Instant::now();
-        let mut tools = Vec::new();
-        let mut tool = None;
+        let mut received = Vec::new();
+        let mut tools = wire::LatestTools::default();
         let mut topology: Option<Topology> = None;
         loop {
             if let Ok(Some(t)) = att.poll_topology() {
@@ -490,10 +490,10 @@ fn hub(shared: &Shared) {
                     ));
                 }
             }
-            tools.clear();
-            att.tool_states(&mut tools);
-            if let Some(t) = tools.last() {
-                tool = Some(*t);
+            received.clear();
+            att.tool_states(&mut received);
+            for t in &received {
+                tools.update(t);
             }
             if let Some(tel) = att.telemetry() {
                 jitter_history.push(&tel);
@@ -505,7 +505,7 @@ fn hub(shared: &Shared) {
                 Ok(Some(f)) => {
                     last_frame = Instant::now();
                     frame_counter += 1;
-                    let bytes = wire::frame_binary(&f, topology.as_ref(), tool.as_ref());
+                    let bytes = wire::frame_binary(&f, topology.as_ref(), &tools);
                     let mut latest = shared.latest.lock().expect("hub lock");
                     latest.frame = Some((frame_counter, bytes::Bytes::from(bytes)));
                     latest.connected = true;

@@ -19,12 +19,13 @@
 //! Binary messages start with a `u32` kind:
 //! - `1` triangles: `u32 1, u32 triangle_count`, then `3 × triangle_count` `u32` vertex
 //!   indices (as drawn: nodes, then render vertices);
-//! - `2` frame: a 64-byte header (`u32 2, u32 node_count, u32 body_count, u32 tool_flags`
-//!   (bit 31: a tool state is present, low bits `TOOL_FLAG_*`), `f32 sim_time, f32 frame_age_ms`
-//!   (publish → viewer receive), `f32 device[3], f32 proxy[3], f32 tool_radius, f32 force[3]`),
-//!   then per body 10 × 4 bytes (`u32 model, u32 state, u32 switches, u32 resets,
-//!   f32 kinetic_energy, f32 max_speed, f32 step_ms, f32 period_ms, f32 real_time_factor,
-//!   u32 0`), then `f32 position[3 × N]`,
+//! - `2` frame: a 24-byte header (`u32 2, u32 node_count, u32 body_count, u32 tool_count,
+//!   f32 sim_time, f32 frame_age_ms` (publish → viewer receive)), then per tool with a state
+//!   (the newest state of each `ToolState::tool` index, in index order; none before the first)
+//!   12 × 4 bytes (`u32 tool, u32 flags` (`TOOL_FLAG_*`), `f32 device[3], f32 proxy[3],
+//!   f32 tool_radius, f32 force[3]`), then per body 10 × 4 bytes (`u32 model, u32 state,
+//!   u32 switches, u32 resets, f32 kinetic_energy, f32 max_speed, f32 step_ms, f32 period_ms,
+//!   f32 real_time_factor, u32 0`), then `f32 position[3 × N]`,
 //!   `f32 temperature[N]`, `u8 flags[N]` (`NODE_FLAG_*`) padded to 4 bytes, over the `N` drawn
 //!   vertices: a render vertex's position and temperature are blended from its four nodes by
 //!   its weights here, its flags are its heaviest node's.
@@ -42,11 +43,37 @@ pub const KIND_TRIANGLES: u32 = 1;
 /// Binary message kind: frame.
 pub const KIND_FRAME: u32 = 2;
 /// Bytes of a frame message's header.
-pub const FRAME_HEADER_BYTES: usize = 64;
+pub const FRAME_HEADER_BYTES: usize = 24;
+/// Bytes per tool in a frame message.
+pub const FRAME_TOOL_BYTES: usize = 48;
 /// Bytes per body in a frame message.
 pub const FRAME_BODY_BYTES: usize = 40;
-/// `tool_flags` bit: a tool state is present.
-pub const TOOL_PRESENT: u32 = 1 << 31;
+
+/// The newest state of each tool, by its index in the scene's tool list (`ToolState::tool`),
+/// as the frame message carries them.
+#[derive(Debug, Clone, Default)]
+pub struct LatestTools {
+    states: [Option<ToolState>; MAX_TOOLS],
+}
+
+impl LatestTools {
+    /// Keeps `s` as the newest state of its tool. A state naming a tool beyond [`MAX_TOOLS`]
+    /// is not the contract's and is dropped (false).
+    pub fn update(&mut self, s: &ToolState) -> bool {
+        match self.states.get_mut(s.tool as usize) {
+            Some(slot) => {
+                *slot = Some(*s);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// The tools with a state, in index order.
+    pub fn states(&self) -> impl Iterator<Item = &ToolState> {
+        self.states.iter().flatten()
+    }
+}
 
 /// The topology's JSON description.
 pub fn topology_json(t: &Topology, prefix: &str) -> String {
@@ -123,30 +150,42 @@ fn f32s(out: &mut Vec<u8>, v: &[f32]) {
 }
 
 /// The frame message, over the frame's nodes and `topology`'s render vertices (none without a
-/// topology, or when the frame belongs to another).
-pub fn frame_binary(f: &Frame, topology: Option<&Topology>, tool: Option<&ToolState>) -> Vec<u8> {
+/// topology, or when the frame belongs to another), with the newest state of each tool.
+pub fn frame_binary(f: &Frame, topology: Option<&Topology>, tools: &LatestTools) -> Vec<u8> {
     let render: &[RenderVertex] = match topology {
         Some(t) if t.header.topology_id == f.header.topology_id => &t.render_vertices,
         _ => &[],
     };
     let n = f.nodes.len() + render.len();
     let bodies = f.bodies();
-    let mut out =
-        Vec::with_capacity(FRAME_HEADER_BYTES + bodies.len() * FRAME_BODY_BYTES + n * 17 + 4);
+    let tool_count = tools.states().count();
+    let mut out = Vec::with_capacity(
+        FRAME_HEADER_BYTES
+            + tool_count * FRAME_TOOL_BYTES
+            + bodies.len() * FRAME_BODY_BYTES
+            + n * 17
+            + 4,
+    );
     out.extend_from_slice(&KIND_FRAME.to_le_bytes());
     out.extend_from_slice(&(n as u32).to_le_bytes());
     out.extend_from_slice(&(bodies.len() as u32).to_le_bytes());
-    let flags = tool.map_or(0, |t| TOOL_PRESENT | (t.flags & !TOOL_PRESENT));
-    out.extend_from_slice(&flags.to_le_bytes());
+    out.extend_from_slice(&(tool_count as u32).to_le_bytes());
     let age_ms = f.received_ns.saturating_sub(f.header.publish_ns) as f64 * 1e-6;
     f32s(&mut out, &[f.header.sim_time as f32, age_ms as f32]);
-    let t = tool.copied().unwrap_or_default();
-    let p = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32];
-    f32s(&mut out, &p(t.device_position));
-    f32s(&mut out, &p(t.proxy_position));
-    f32s(&mut out, &[t.tool_radius as f32]);
-    f32s(&mut out, &p(t.force));
     debug_assert_eq!(out.len(), FRAME_HEADER_BYTES);
+    let p = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32];
+    for t in tools.states() {
+        out.extend_from_slice(&t.tool.to_le_bytes());
+        out.extend_from_slice(&t.flags.to_le_bytes());
+        f32s(&mut out, &p(t.device_position));
+        f32s(&mut out, &p(t.proxy_position));
+        f32s(&mut out, &[t.tool_radius as f32]);
+        f32s(&mut out, &p(t.force));
+    }
+    debug_assert_eq!(
+        out.len(),
+        FRAME_HEADER_BYTES + tool_count * FRAME_TOOL_BYTES
+    );
     for b in bodies {
         for v in [b.model as u32, b.state as u32, b.switches, b.resets] {
             out.extend_from_slice(&v.to_le_bytes());

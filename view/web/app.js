@@ -135,14 +135,16 @@ function onTriangles(dv) {
 }
 function onFrame(ab) {
   const dv = new DataView(ab);
-  const n = dv.getUint32(4, true), nb = dv.getUint32(8, true), toolFlags = dv.getUint32(12, true);
+  const n = dv.getUint32(4, true), nb = dv.getUint32(8, true), nt = dv.getUint32(12, true);
   const f32 = (o) => dv.getFloat32(o, true);
   const v3 = (o) => [f32(o), f32(o + 4), f32(o + 8)];
-  const f = {
-    n, toolFlags, simTime: f32(16), ageMs: f32(20), device: v3(24), proxy: v3(36),
-    radius: f32(48), force: v3(52), bodies: [],
-  };
-  let o = 64;
+  const f = { n, simTime: f32(16), ageMs: f32(20), tools: [], bodies: [] };
+  let o = 24;
+  // The newest state of each tool, in tool order.
+  for (let i = 0; i < nt; i++, o += 48) {
+    f.tools.push({ tool: dv.getUint32(o, true), flags: dv.getUint32(o + 4, true),
+      device: v3(o + 8), proxy: v3(o + 20), radius: f32(o + 32), force: v3(o + 36) });
+  }
   for (let i = 0; i < nb; i++, o += 40) {
     f.bodies.push({ model: dv.getUint32(o, true), state: dv.getUint32(o + 4, true),
       switches: dv.getUint32(o + 8, true), resets: dv.getUint32(o + 12, true),
@@ -304,29 +306,38 @@ function draw() {
   gl.uniform3f(loc.offset, 0, 0, 0); gl.uniform1f(loc.scale, 1); gl.uniform1f(loc.alpha, 1);
   gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, buf.idx);
   gl.drawElements(gl.TRIANGLES, tris.length, indexType, 0);
-  // God-object (cyan, solid) and the device's tool tip (grey, translucent).
-  if (frame.toolFlags & 0x80000000) {
-    const r = Math.max(frame.radius, 1e-4);
+  // Each tool: its god-object (cyan, solid) and its device's tool tip (grey, translucent).
+  if (frame.tools.length) {
     attr(loc.pos, buf.spos, null); attr(loc.nrm, buf.snrm, null);
     gl.disableVertexAttribArray(loc.col);
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, buf.sidx);
-    gl.uniform1f(loc.scale, r);
-    gl.vertexAttrib3f(loc.col, 0.2, 0.85, 0.9);
-    gl.uniform3f(loc.offset, ...frame.proxy);
-    gl.drawElements(gl.TRIANGLES, sphere.count, gl.UNSIGNED_SHORT, 0);
-    gl.enable(gl.BLEND); gl.blendFunc(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA); gl.depthMask(false);
-    gl.vertexAttrib3f(loc.col, 0.8, 0.8, 0.8);
-    gl.uniform1f(loc.alpha, 0.45);
-    gl.uniform3f(loc.offset, ...frame.device);
-    gl.drawElements(gl.TRIANGLES, sphere.count, gl.UNSIGNED_SHORT, 0);
-    gl.disable(gl.BLEND); gl.depthMask(true);
+    for (const t of frame.tools) drawTool(t);
   }
   const now = performance.now();
   if (now - fpsT0 > 1000) { fpsShown = frames * 1000 / (now - fpsT0); frames = 0; fpsT0 = now; }
-  const f = frame.force, fn = Math.hypot(...f);
   $("hud").textContent = `t ${frame.simTime.toFixed(2)} s · ${fpsShown.toFixed(0)} frames/s · ` +
-    `frame age ${frame.ageMs.toFixed(1)} ms · force ${fn.toFixed(2)} N` +
-    `${frame.toolFlags & 1 ? " · contact" : ""}${frame.toolFlags & 16 ? " · grab" : ""}${frame.toolFlags & 32 ? " · heat" : ""}`;
+    `frame age ${frame.ageMs.toFixed(1)} ms · ` + toolsText(frame.tools);
+}
+// One tool sphere: the god-object, then the device's tip over it.
+function drawTool(t) {
+  gl.uniform1f(loc.scale, Math.max(t.radius, 1e-4));
+  gl.vertexAttrib3f(loc.col, 0.2, 0.85, 0.9);
+  gl.uniform1f(loc.alpha, 1);
+  gl.uniform3f(loc.offset, ...t.proxy);
+  gl.drawElements(gl.TRIANGLES, sphere.count, gl.UNSIGNED_SHORT, 0);
+  gl.enable(gl.BLEND); gl.blendFunc(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA); gl.depthMask(false);
+  gl.vertexAttrib3f(loc.col, 0.8, 0.8, 0.8);
+  gl.uniform1f(loc.alpha, 0.45);
+  gl.uniform3f(loc.offset, ...t.device);
+  gl.drawElements(gl.TRIANGLES, sphere.count, gl.UNSIGNED_SHORT, 0);
+  gl.disable(gl.BLEND); gl.depthMask(true);
+}
+// The force and state of each tool (with one tool, or none, without its index).
+function toolsText(tools) {
+  const one = (t) => `force ${Math.hypot(...t.force).toFixed(2)} N` +
+    `${t.flags & 1 ? " · contact" : ""}${t.flags & 16 ? " · grab" : ""}${t.flags & 32 ? " · heat" : ""}`;
+  if (tools.length <= 1) return one(tools[0] || { force: [0, 0, 0], flags: 0 });
+  return tools.map((t) => `tool ${t.tool}: ${one(t)}`).join(" · ");
 }
 
 // ---- input -------------------------------------------------------------------------------

@@ -46,21 +46,22 @@ fn body_stamp(bf: &BodyFrame) -> u64 {
     h
 }
 
-/// The local model a frame carries for the patch it balanced: the body and the model; `None`
-/// when the frame has none.
-pub fn frame_local(h: &FrameHeader) -> Option<(usize, LocalModel)> {
-    if h.contact_local != 1 || h.contact_body == NO_CONTACT {
+/// The local model a frame carries for the patch it balanced for tool `tool` (its index in
+/// the scene's tool list): the body and the model; `None` when the frame has none for it.
+pub fn frame_local(h: &FrameHeader, tool: usize) -> Option<(usize, LocalModel)> {
+    let c = h.contact(tool)?;
+    if c.local != 1 || c.body == NO_CONTACT {
         return None;
     }
-    let k = &h.contact_stiffness;
+    let k = &c.stiffness;
     Some((
-        h.contact_body as usize,
+        c.body as usize,
         LocalModel {
-            device: h.contact_device,
-            force: h.contact_force,
+            device: c.device,
+            force: c.force,
             stiffness: [[k[0], k[1], k[2]], [k[3], k[4], k[5]], [k[6], k[7], k[8]]],
-            drift: h.contact_drift,
-            horizon: h.contact_horizon,
+            drift: c.drift,
+            horizon: c.horizon,
         },
     ))
 }
@@ -107,9 +108,10 @@ impl ContactIndex {
     /// their positions are copied in (a few µs for an organ, so only bodies whose frame bounds
     /// are within [`REACH`] of the device or the god-object are, and only once per frame), the
     /// others are left out of the queries until they come within reach. The god-object is
-    /// carried along with the tissue. False when the frame is not of this index's topology:
-    /// then nothing is touched (and a stale frame ramps the force down anyway).
-    fn refresh(&mut self, frame: &FrameSample, device: Option<[f64; 3]>) -> bool {
+    /// carried along with the tissue, and rests where the frame balanced tool `tool`'s contact
+    /// patch. False when the frame is not of this index's topology: then nothing is touched
+    /// (and a stale frame ramps the force down anyway).
+    fn refresh(&mut self, frame: &FrameSample, device: Option<[f64; 3]>, tool: usize) -> bool {
         let fh = frame.user_header();
         let nodes = frame.payload();
         if fh.topology_id != self.topology_id
@@ -144,9 +146,11 @@ impl ContactIndex {
         } else if new_frame || moved {
             self.god.follow_surface(&self.set);
             // The press balanced as a contact patch: rest the proxy where the tissue put it.
-            let b = fh.contact_body as usize;
-            if new_frame && fh.contact_body != NO_CONTACT && b < count {
-                self.god.rest_at(&self.set, b, fh.contact_proxy);
+            if let Some(c) = fh.contact(tool).filter(|_| new_frame) {
+                let b = c.body as usize;
+                if c.body != NO_CONTACT && b < count {
+                    self.god.rest_at(&self.set, b, c.proxy);
+                }
             }
         }
         true
@@ -159,6 +163,9 @@ pub(crate) struct LiveSurfaces<'a> {
     pub(crate) frame: Option<&'a FrameSample>,
     /// Render with the frame's local model.
     pub(crate) local_model: bool,
+    /// The loop's tool: its index in the scene's tool list, which picks its contact in a
+    /// frame.
+    pub(crate) tool: usize,
     /// When the tick woke, ns (the local model's age is counted from its step's tool read).
     pub(crate) wake_ns: u64,
 }
@@ -166,7 +173,7 @@ pub(crate) struct LiveSurfaces<'a> {
 impl ContactSurfaces for LiveSurfaces<'_> {
     fn refresh(&mut self, tip: Option<[f64; 3]>) -> bool {
         match (self.index.as_deref_mut(), self.frame) {
-            (Some(ix), Some(frame)) => ix.refresh(frame, tip),
+            (Some(ix), Some(frame)) => ix.refresh(frame, tip, self.tool),
             _ => false,
         }
     }
@@ -180,7 +187,7 @@ impl ContactSurfaces for LiveSurfaces<'_> {
     fn local_model(&self) -> Option<(usize, LocalModel, f64)> {
         let frame = self.frame.filter(|_| self.local_model)?;
         let h = frame.user_header();
-        let (body, model) = frame_local(h)?;
+        let (body, model) = frame_local(h, self.tool)?;
         let elapsed = self.wake_ns.saturating_sub(h.tool_read_ns) as f64 * 1e-9;
         Some((body, model, elapsed))
     }

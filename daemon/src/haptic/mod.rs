@@ -54,6 +54,10 @@ const TOOL_RING: usize = 512;
 /// Everything the loop needs that is decided before it starts.
 #[derive(Debug, Clone)]
 pub struct HapticSettings {
+    /// The tool this loop drives: its index in the scene's tool list (0, a scene's one tool).
+    /// It names the loop's tool states (`ToolState::tool`), its tool blackboard entry
+    /// ([`services::tool_latest_key`]) and its contact in a frame (`FrameHeader::contacts`).
+    pub tool: usize,
     /// The tick itself ([`lop_scene::pipeline_settings`]).
     pub pipeline: PipelineSettings,
     /// Frames older than this ramp the force to zero, ns.
@@ -69,6 +73,7 @@ impl HapticSettings {
     pub fn new(config: &DaemonConfig, scene: &Scene, limits: DeviceLimits) -> HapticSettings {
         let h = &config.haptic;
         HapticSettings {
+            tool: 0,
             pipeline: lop_scene::pipeline_settings(config, scene, &limits),
             stale_ns: (h.stale_frame_ms * 1e6) as u64,
             spin_ns: (h.spin_us * 1e3) as u64,
@@ -124,7 +129,7 @@ pub struct TickOutcome {
     pub fatal: Option<lop_drivers::DeviceError>,
 }
 
-/// The tool blackboard's writer and its entry of the newest tool state.
+/// The tool blackboard's writer and its entry of the newest state of the loop's tool.
 type ToolWriter = iceoryx2::port::writer::Writer<ipc::Service, u32>;
 type ToolEntry = EntryHandleMut<ipc::Service, u32, ToolState>;
 
@@ -132,15 +137,16 @@ type ToolEntry = EntryHandleMut<ipc::Service, u32, ToolState>;
 const TOOL_BOARD_WAIT: Duration = Duration::from_secs(3);
 
 /// The tool blackboard (created, or opened if it exists), its writer and the entry of the
-/// newest tool state. A haptic process killed while writing leaves the entry marked as held:
-/// the iceoryx2 0.10 blackboard does not release a dead writer's entry handle, even once the
-/// dead node is cleaned up, so the entry cannot be had while the service lives. The service
-/// goes when its readers close it — the deformation process does once the tool state is older
-/// than 150 ms (`deform::TOOL_DROP_NS`) — so a restarted process lets go of it too and tries
-/// again, for up to [`TOOL_BOARD_WAIT`], before it gives up with the cause.
+/// newest state of tool `tool`. A haptic process killed while writing leaves the entry marked
+/// as held: the iceoryx2 0.10 blackboard does not release a dead writer's entry handle, even
+/// once the dead node is cleaned up, so the entry cannot be had while the service lives. The
+/// service goes when its readers close it — the deformation process does once the tool state
+/// is older than 150 ms (`deform::TOOL_DROP_NS`) — so a restarted process lets go of it too
+/// and tries again, for up to [`TOOL_BOARD_WAIT`], before it gives up with the cause.
 fn tool_board_writer(
     node: &Node<ipc::Service>,
     names: &ServiceNames,
+    tool: usize,
 ) -> Result<(ToolBoard, ToolWriter, ToolEntry)> {
     let start = std::time::Instant::now();
     let mut waited = false;
@@ -151,7 +157,7 @@ fn tool_board_writer(
             .writer_builder()
             .create()
             .context("tool blackboard writer (is another lopd haptic running with this prefix?)")?;
-        match writer.entry::<ToolState>(&services::TOOL_LATEST_KEY) {
+        match writer.entry::<ToolState>(&services::tool_latest_key(tool)) {
             Ok(entry) => {
                 if waited {
                     tracing::info!(
@@ -194,11 +200,16 @@ impl HapticLoop {
         tool_ring: rtrb::Producer<ToolState>,
         telemetry: TelemetryTx,
     ) -> Result<HapticLoop> {
+        anyhow::ensure!(
+            settings.tool < MAX_TOOLS,
+            "haptic loop: tool {} is beyond the contract's {MAX_TOOLS} tools",
+            settings.tool
+        );
         let node = services::node("lopd-haptic-rt")?;
         services::cleanup_dead_nodes(&node);
         let frame_feed = FrameFeed::start(names, settings.frames)?;
         let index_feed = IndexFeed::start(names, settings.pipeline.tool.radius)?;
-        let (board, writer, tool_entry) = tool_board_writer(&node, names)?;
+        let (board, writer, tool_entry) = tool_board_writer(&node, names, settings.tool)?;
         let rate = settings.pipeline.rate_hz.round() as u64;
         Ok(HapticLoop {
             pipeline: HapticPipeline::new(settings.pipeline.clone()),
@@ -300,6 +311,7 @@ impl HapticLoop {
             stamp_ns: wake_ns,
             tool_radius: self.settings.pipeline.tool.radius,
             contact_body: -1,
+            tool: self.settings.tool as u32,
             ..Default::default()
         };
         let mut fatal = None;
@@ -344,6 +356,7 @@ impl HapticLoop {
             index: self.index.current(),
             frame: self.frame.current().map(|f| &*f),
             local_model: self.settings.pipeline.local_model,
+            tool: self.settings.tool,
             wake_ns,
         };
         let out = self

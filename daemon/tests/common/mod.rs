@@ -111,8 +111,8 @@ impl DeformSide {
     }
 
     /// A frame at rest that carries `local`: a contact patch on a body balanced with its proxy
-    /// at a point, and its local model, as `lopd deform` publishes them
-    /// (`FrameHeader::contact_*`).
+    /// at a point, and its local model, as `lopd deform` publishes them for the scene's one
+    /// tool (`FrameHeader::contacts[0]`, `tool_count` 1).
     #[allow(dead_code)]
     pub fn publish_frame_local(
         &self,
@@ -129,17 +129,20 @@ impl DeformSide {
         h.node_count = self.nodes.len() as u32;
         h.publish_ns = clock::monotonic_ns();
         h.tool_read_ns = h.publish_ns;
+        h.tool_count = 1;
+        h.contacts = [ContactFrame::default(); MAX_TOOLS];
         if let Some((body, proxy, m)) = local {
-            h.contact_body = body;
-            h.contact_proxy = proxy;
-            h.contact_force = m.force;
-            h.contact_device = m.device;
-            for (dst, row) in h.contact_stiffness.chunks_exact_mut(3).zip(&m.stiffness) {
+            let c = &mut h.contacts[0];
+            c.body = body;
+            c.proxy = proxy;
+            c.force = m.force;
+            c.device = m.device;
+            for (dst, row) in c.stiffness.chunks_exact_mut(3).zip(&m.stiffness) {
                 dst.copy_from_slice(row);
             }
-            h.contact_drift = m.drift;
-            h.contact_horizon = m.horizon;
-            h.contact_local = 1;
+            c.drift = m.drift;
+            c.horizon = m.horizon;
+            c.local = 1;
         }
         for (bf, (lo, hi)) in h.bodies.iter_mut().zip(&self.bounds) {
             bf.aabb_min = *lo;

@@ -36,13 +36,13 @@ fn c_header_matches_the_rust_layouts() {
     layout!(rust, body;
         ToolState { contract_version, flags, sequence, stamp_ns, device_position, proxy_position,
             force, tool_radius, contact_barycentric, buttons, contact_body, contact_triangle,
-            _pad, topology_id, tool_stiffness }
+            tool, topology_id, tool_stiffness }
         BodyFrame { aabb_min, aabb_max, kinetic_energy, max_speed, step_ns, resets, model, state,
             _pad, switches, period_us, real_time_factor }
+        ContactFrame { proxy, force, device, stiffness, drift, horizon, body, local }
         FrameHeader { contract_version, body_count, topology_id, sequence, sim_time, publish_ns,
-            tool_stamp_ns, tool_read_ns, step_ns, node_count, _pad, bodies, contact_proxy,
-            contact_body, _pad2, contact_force, contact_device, contact_stiffness, contact_drift,
-            contact_horizon, contact_local, _pad3 }
+            tool_stamp_ns, tool_read_ns, step_ns, node_count, _pad, bodies, tool_count, _pad2,
+            contacts }
         NodeSample { position, temperature, flags }
         BodyTopology { name, node_offset, node_count, triangle_offset, triangle_count,
             tet_offset, tet_count, color, importance, _pad, render_vertex_offset,
@@ -64,6 +64,10 @@ fn c_header_matches_the_rust_layouts() {
     rust.insert("CONTRACT_VERSION".into(), CONTRACT_VERSION as usize);
     body.push_str("  printf(\"MAX_BODIES %d\\n\", LOP_MAX_BODIES);\n");
     rust.insert("MAX_BODIES".into(), MAX_BODIES);
+    body.push_str("  printf(\"MAX_TOOLS %d\\n\", LOP_MAX_TOOLS);\n");
+    rust.insert("MAX_TOOLS".into(), MAX_TOOLS);
+    body.push_str("  printf(\"NO_CONTACT %u\\n\", LOP_NO_CONTACT);\n");
+    rust.insert("NO_CONTACT".into(), NO_CONTACT as usize);
     body.push_str("  printf(\"MAX_SUBSCRIBERS %d\\n\", LOP_MAX_SUBSCRIBERS);\n");
     rust.insert("MAX_SUBSCRIBERS".into(), services::MAX_SUBSCRIBERS);
     body.push_str("  printf(\"CONTROL_OP_RESUME %u\\n\", LOP_CONTROL_OP_RESUME);\n");

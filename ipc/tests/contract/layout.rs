@@ -9,8 +9,8 @@ use iceoryx2::prelude::ZeroCopySend;
 use lop_ipc::*;
 
 #[test]
-fn contract_version_is_nine() {
-    assert_eq!(CONTRACT_VERSION, 9);
+fn contract_version_is_ten() {
+    assert_eq!(CONTRACT_VERSION, 10);
 }
 
 #[test]
@@ -29,7 +29,7 @@ fn tool_state_layout() {
     assert_eq!(offset_of!(ToolState, buttons), 128);
     assert_eq!(offset_of!(ToolState, contact_body), 132);
     assert_eq!(offset_of!(ToolState, contact_triangle), 136);
-    assert_eq!(offset_of!(ToolState, _pad), 140);
+    assert_eq!(offset_of!(ToolState, tool), 140);
     assert_eq!(offset_of!(ToolState, topology_id), 144);
     assert_eq!(offset_of!(ToolState, tool_stiffness), 152);
 }
@@ -50,7 +50,23 @@ fn frame_layout() {
     assert_eq!(offset_of!(BodyFrame, period_us), 48);
     assert_eq!(offset_of!(BodyFrame, real_time_factor), 52);
 
-    assert_eq!(size_of::<FrameHeader>(), 72 + 56 * MAX_BODIES + 192);
+    assert_eq!(MAX_TOOLS, 4);
+    assert_eq!(size_of::<ContactFrame>(), 184);
+    assert_eq!(align_of::<ContactFrame>(), 8);
+    assert_eq!(offset_of!(ContactFrame, proxy), 0);
+    assert_eq!(offset_of!(ContactFrame, force), 24);
+    assert_eq!(offset_of!(ContactFrame, device), 48);
+    assert_eq!(offset_of!(ContactFrame, stiffness), 72);
+    assert_eq!(offset_of!(ContactFrame, drift), 144);
+    assert_eq!(offset_of!(ContactFrame, horizon), 168);
+    assert_eq!(offset_of!(ContactFrame, body), 176);
+    assert_eq!(offset_of!(ContactFrame, local), 180);
+
+    assert_eq!(
+        size_of::<FrameHeader>(),
+        80 + 56 * MAX_BODIES + 184 * MAX_TOOLS
+    );
+    assert_eq!(size_of::<FrameHeader>(), 1712);
     assert_eq!(align_of::<FrameHeader>(), 8);
     assert_eq!(offset_of!(FrameHeader, contract_version), 0);
     assert_eq!(offset_of!(FrameHeader, body_count), 4);
@@ -62,38 +78,41 @@ fn frame_layout() {
     assert_eq!(offset_of!(FrameHeader, tool_read_ns), 48);
     assert_eq!(offset_of!(FrameHeader, step_ns), 56);
     assert_eq!(offset_of!(FrameHeader, node_count), 64);
+    assert_eq!(offset_of!(FrameHeader, _pad), 68);
     assert_eq!(offset_of!(FrameHeader, bodies), 72);
-    assert_eq!(offset_of!(FrameHeader, contact_proxy), 72 + 56 * MAX_BODIES);
-    assert_eq!(offset_of!(FrameHeader, contact_body), 96 + 56 * MAX_BODIES);
-    assert_eq!(
-        offset_of!(FrameHeader, contact_force),
-        104 + 56 * MAX_BODIES
-    );
-    assert_eq!(
-        offset_of!(FrameHeader, contact_device),
-        128 + 56 * MAX_BODIES
-    );
-    assert_eq!(
-        offset_of!(FrameHeader, contact_stiffness),
-        152 + 56 * MAX_BODIES
-    );
-    assert_eq!(
-        offset_of!(FrameHeader, contact_drift),
-        224 + 56 * MAX_BODIES
-    );
-    assert_eq!(
-        offset_of!(FrameHeader, contact_horizon),
-        248 + 56 * MAX_BODIES
-    );
-    assert_eq!(
-        offset_of!(FrameHeader, contact_local),
-        256 + 56 * MAX_BODIES
-    );
+    assert_eq!(offset_of!(FrameHeader, tool_count), 72 + 56 * MAX_BODIES);
+    assert_eq!(offset_of!(FrameHeader, _pad2), 76 + 56 * MAX_BODIES);
+    assert_eq!(offset_of!(FrameHeader, contacts), 80 + 56 * MAX_BODIES);
+    assert_eq!(offset_of!(FrameHeader, contacts), 976);
 
     assert_eq!(size_of::<NodeSample>(), 20);
     assert_eq!(align_of::<NodeSample>(), 4);
     assert_eq!(offset_of!(NodeSample, temperature), 12);
     assert_eq!(offset_of!(NodeSample, flags), 16);
+}
+
+#[test]
+fn a_default_frame_has_no_tool_and_no_contact() {
+    let h = FrameHeader::default();
+    assert_eq!(h.tool_count, 0);
+    assert!(h.contacts.iter().all(|c| *c == ContactFrame::default()));
+    assert_eq!(ContactFrame::default().body, NO_CONTACT);
+    assert_eq!(ContactFrame::default().local, 0);
+    // Only the first `tool_count` contacts are the frame's.
+    assert!(h.contact(0).is_none());
+    let h = FrameHeader { tool_count: 1, ..h };
+    assert_eq!(h.contact(0), Some(&h.contacts[0]));
+    assert!(h.contact(1).is_none());
+    assert!(h.contact(MAX_TOOLS).is_none());
+}
+
+#[test]
+fn tool_blackboard_keys_are_the_tool_indices() {
+    assert_eq!(services::tool_latest_key(0), 0);
+    assert_eq!(
+        services::tool_latest_key(MAX_TOOLS - 1),
+        MAX_TOOLS as u32 - 1
+    );
 }
 
 #[test]
@@ -149,6 +168,7 @@ fn type_names_are_language_neutral() {
     unsafe {
         assert_eq!(ToolState::type_name(), "lop::ToolState");
         assert_eq!(FrameHeader::type_name(), "lop::FrameHeader");
+        assert_eq!(ContactFrame::type_name(), "lop::ContactFrame");
         assert_eq!(NodeSample::type_name(), "lop::NodeSample");
         assert_eq!(TopologyHeader::type_name(), "lop::TopologyHeader");
         assert_eq!(HapticTelemetry::type_name(), "lop::HapticTelemetry");

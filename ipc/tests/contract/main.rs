@@ -4,3 +4,4 @@
 
 mod c_header;
 mod layout;
+mod tool_board;

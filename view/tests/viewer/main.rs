@@ -11,6 +11,7 @@
 mod common;
 
 mod access;
+mod frame_wire;
 mod fuzz_wire;
 mod run_view;
 mod websocket;

@@ -10,7 +10,9 @@ use std::time::{Duration, Instant};
 
 use common::Viewer;
 use lop_system_tests::{unique_prefix, Daemon};
-use lop_view::wire::{FRAME_BODY_BYTES, FRAME_HEADER_BYTES, KIND_FRAME, KIND_TRIANGLES};
+use lop_view::wire::{
+    FRAME_BODY_BYTES, FRAME_HEADER_BYTES, FRAME_TOOL_BYTES, KIND_FRAME, KIND_TRIANGLES,
+};
 use tungstenite::stream::MaybeTlsStream;
 use tungstenite::{Message, WebSocket};
 
@@ -115,13 +117,20 @@ fn websocket_streams_frames_forwards_control_and_survives_a_daemon_restart() {
     });
     assert_eq!(u32_at(&frame, 4) as usize, nodes);
     assert_eq!(u32_at(&frame, 8), 4);
-    let expected = FRAME_HEADER_BYTES + 4 * FRAME_BODY_BYTES + nodes * 16 + nodes.div_ceil(4) * 4;
+    // The scene's one tool, once the haptic loop has published a state: tool 0.
+    let tools = u32_at(&frame, 12) as usize;
+    assert!(tools <= 1, "{tools} tools");
+    if tools == 1 {
+        assert_eq!(u32_at(&frame, FRAME_HEADER_BYTES), 0, "tool index");
+    }
+    let bodies0 = FRAME_HEADER_BYTES + tools * FRAME_TOOL_BYTES;
+    let expected = bodies0 + 4 * FRAME_BODY_BYTES + nodes * 16 + nodes.div_ceil(4) * 4;
     assert_eq!(frame.len(), expected);
     // Every body carries the period of its next step (its model's: the cage's 20 ms, or the
     // precise model's 1 ms or, on a machine too slow for it, longer) and a real-time factor in
     // [0, 2).
     for k in 0..4 {
-        let rec = FRAME_HEADER_BYTES + k * FRAME_BODY_BYTES;
+        let rec = bodies0 + k * FRAME_BODY_BYTES;
         let f = |o: usize| f32::from_le_bytes(frame[rec + o..rec + o + 4].try_into().unwrap());
         assert!(
             f(28) > 0.0 && f(28) <= 100.0,
@@ -134,7 +143,7 @@ fn websocket_streams_frames_forwards_control_and_survives_a_daemon_restart() {
             f(32)
         );
     }
-    let pos0 = FRAME_HEADER_BYTES + 4 * FRAME_BODY_BYTES;
+    let pos0 = bodies0 + 4 * FRAME_BODY_BYTES;
     let temps = &frame[pos0 + 12 * nodes..pos0 + 16 * nodes];
     let t0 = f32::from_le_bytes(temps[..4].try_into().unwrap());
     assert!((20.0..=100.0).contains(&t0), "temperature {t0}");
