@@ -1,9 +1,14 @@
 //! `lopd haptic` as a whole process: [`HapticProcess::builder`] takes the validated scene,
-//! config and the opened device, [`HapticProcessBuilder::run`] starts the device, locks memory,
-//! derives the loop's settings (the scene's one tool law per body, clamped to the device),
-//! chooses the recording wrapper once, starts the publisher thread and runs the loop on the
-//! pacing the device asks for (a timed real-time thread, or the device's own servo callback),
-//! then stops everything, zero force first.
+//! config and the opened devices (one per tool of the scene, in order),
+//! [`HapticProcessBuilder::run`] starts them, locks memory, derives the loop's settings (each
+//! tool's law per body, clamped to its device), chooses the recording wrapper once, starts the
+//! publisher thread and runs the loop on the pacing the devices ask for (a timed real-time
+//! thread, or the device's own servo callback), then stops everything, zero force first.
+//!
+//! Several devices run in the one timed loop. A device whose vendor's servo callback is the
+//! clock (OpenHaptics) runs alone for now: two OpenHaptics devices on one scheduler, or one
+//! beside another kind, are refused with that reason. Recording the device stream
+//! (`--record`) takes one device.
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -94,24 +99,22 @@ impl Device {
 pub struct HapticProcess;
 
 impl HapticProcess {
-    /// A haptic process for `scene` under `config` on the opened `device`; `device_spec` is
-    /// the `--device` text, kept in recordings.
+    /// A haptic process for `scene` under `config` on the opened `devices`, the `t`-th driving
+    /// the scene's tool `t`, each with its `--device` text (kept in recordings and logs).
     pub fn builder(
         scene: Scene,
         config: DaemonConfig,
         names: ServiceNames,
-        device: Device,
-        device_spec: &str,
+        devices: Vec<(Device, String)>,
     ) -> HapticProcessBuilder {
         HapticProcessBuilder {
             scene,
             config,
             names,
-            device,
-            device_spec: device_spec.to_string(),
+            devices,
             duration: None,
             record: None,
-            force_log: None,
+            force_log: Vec::new(),
         }
     }
 }
@@ -121,11 +124,10 @@ pub struct HapticProcessBuilder {
     scene: Scene,
     config: DaemonConfig,
     names: ServiceNames,
-    device: Device,
-    device_spec: String,
+    devices: Vec<(Device, String)>,
     duration: Option<Duration>,
     record: Option<PathBuf>,
-    force_log: Option<PathBuf>,
+    force_log: Vec<PathBuf>,
 }
 
 impl HapticProcessBuilder {
@@ -141,9 +143,10 @@ impl HapticProcessBuilder {
         self
     }
 
-    /// Write the mock's rendered forces to this CSV at the end (`--force-log`).
-    pub fn force_log(mut self, path: Option<PathBuf>) -> Self {
-        self.force_log = path;
+    /// Write each scripted device's rendered forces to these CSVs at the end, one per device
+    /// in order (`--force-log`).
+    pub fn force_log(mut self, paths: Vec<PathBuf>) -> Self {
+        self.force_log = paths;
         self
     }
 
@@ -153,51 +156,91 @@ impl HapticProcessBuilder {
             scene,
             config,
             names,
-            mut device,
-            device_spec,
+            devices,
             duration,
             record,
             force_log,
         } = self;
-        device.as_dyn().start().context("starting the device")?;
+        let (mut devices, specs): (Vec<Device>, Vec<String>) = devices.into_iter().unzip();
+        if devices.is_empty() || devices.len() > scene.tools.len() {
+            bail!(
+                "{} devices for the {} tool(s) of the scene: give one per tool",
+                devices.len(),
+                scene.tools.len()
+            );
+        }
+        let pacing = devices[0].as_ref_dyn().pacing();
+        if devices.len() > 1 {
+            if let Some(k) = devices
+                .iter()
+                .position(|d| d.as_ref_dyn().pacing() == Pacing::DeviceClock)
+            {
+                bail!(
+                    "--device {}: a device whose servo callback is the clock (OpenHaptics) runs \
+                     alone; several devices run on the loop's own clock (mock, hand, replay, dhd)",
+                    specs[k]
+                );
+            }
+            if record.is_some() {
+                bail!("--record takes one device; this run has {}", devices.len());
+            }
+        }
+        if force_log.len() > devices.len() {
+            bail!(
+                "{} --force-log files for {} device(s): give at most one per device",
+                force_log.len(),
+                devices.len()
+            );
+        }
+        for (d, spec) in devices.iter_mut().zip(&specs) {
+            d.as_dyn()
+                .start()
+                .with_context(|| format!("starting the device {spec}"))?;
+        }
         if config.haptic.lock_memory {
             match rt::lock_memory() {
                 Ok(()) => MEMORY_LOCKED.store(true, Ordering::Relaxed),
                 Err(e) => tracing::warn!("memory not locked: {e}"),
             }
         }
-        let limits = device.as_ref_dyn().limits();
-        let settings = HapticSettings::new(&config, &scene, limits);
+        let all_limits: Vec<_> = devices.iter().map(|d| d.as_ref_dyn().limits()).collect();
+        let limits = all_limits[0];
+        let settings = HapticSettings::for_devices(&config, &scene, &all_limits);
         let max_ticks =
-            duration.map(|d| (d.as_secs_f64() * settings.pipeline.rate_hz).round() as u64);
+            duration.map(|d| (d.as_secs_f64() * settings.pipeline().rate_hz).round() as u64);
         let rt_request = RtRequest {
             core: rt::haptic_core(&config.haptic),
             priority: config.haptic.rt_priority,
         };
-        let pacing = device.as_ref_dyn().pacing();
-        if let Some(w) = servo::stiffness_warning(&scene, &limits) {
-            tracing::warn!("{w}");
+        for (t, l) in all_limits.iter().enumerate() {
+            if let Some(w) = servo::stiffness_warning(&scene, t, l) {
+                tracing::warn!("{w}");
+            }
         }
-        tracing::info!(
-            "haptic loop: {} Hz on {}{}, force clamp {:.2} N, stale limit {} ms",
-            settings.pipeline.rate_hz,
-            device.as_ref_dyn().name(),
-            if pacing == Pacing::DeviceClock {
-                " (the device's servo callback is the clock)"
-            } else {
-                ""
-            },
-            settings.pipeline.max_force,
-            settings.stale_ns / 1_000_000
-        );
+        for ((t, d), p) in devices.iter().enumerate().zip(&settings.tools) {
+            tracing::info!(
+                "haptic loop: {} Hz, tool {:?} on {}{}, force clamp {:.2} N, stale limit {} ms",
+                p.rate_hz,
+                scene.tools[t].name,
+                d.as_ref_dyn().name(),
+                if pacing == Pacing::DeviceClock {
+                    " (the device's servo callback is the clock)"
+                } else {
+                    ""
+                },
+                p.max_force,
+                settings.stale_ns / 1_000_000
+            );
+        }
+        let device_spec = &specs[0];
         let (mut tap, writer) = match &record {
             Some(path) => {
                 let header = record::header(
-                    settings.pipeline.rate_hz,
+                    settings.pipeline().rate_hz,
                     limits,
                     &scene.name,
                     &scene.path,
-                    &device_spec,
+                    device_spec,
                 );
                 let (tap, writer) = record::start(path, &header)?;
                 tracing::info!("recording the device stream to {}", writer.path().display());
@@ -221,22 +264,22 @@ impl HapticProcessBuilder {
                         .name("lop-haptic-rt".into())
                         .stack_size(1 << 20)
                         .spawn_scoped(scope, || {
-                            // The recording wrapper, chosen once for the whole run.
+                            // The recording wrapper (one device), chosen once for the run.
                             let mut recorded;
-                            let dev: &mut dyn HapticDevice = match tap.as_mut() {
+                            let mut devs: Vec<&mut dyn HapticDevice> = match tap.as_mut() {
                                 Some(tap) => {
                                     recorded = Recorded {
-                                        device: device.as_dyn(),
+                                        device: devices[0].as_dyn(),
                                         tap,
                                     };
-                                    &mut recorded
+                                    vec![&mut recorded]
                                 }
-                                None => device.as_dyn(),
+                                None => devices.iter_mut().map(Device::as_dyn).collect(),
                             };
                             haptic::run_loop(
                                 &names,
                                 settings,
-                                dev,
+                                &mut devs,
                                 &rt_request,
                                 &signals::STOP,
                                 max_ticks,
@@ -272,12 +315,14 @@ impl HapticProcessBuilder {
                     tel_tx,
                     tap.as_mut(),
                 );
-                servo::run(device.as_dyn(), task)
+                servo::run(devices[0].as_dyn(), task)
             }
         };
         done.store(true, Ordering::Release);
         let _ = publisher.join();
-        device.as_dyn().stop();
+        for d in &mut devices {
+            d.as_dyn().stop();
+        }
         if let Some(writer) = writer {
             let path = writer.path().to_path_buf();
             let records = writer.finish()?;
@@ -292,54 +337,28 @@ impl HapticProcessBuilder {
                 }
             );
         }
-        if let Device::OpenHaptics(o) = &device {
-            let s = o.stats();
-            if s.clamped_forces + s.non_finite_forces + s.recoverable_errors > 0 {
-                tracing::info!(
-                    "device: {} forces clamped to its peak, {} non-finite refused, {} force errors",
-                    s.clamped_forces,
-                    s.non_finite_forces,
-                    s.recoverable_errors
-                );
-            }
-        }
-        if let Device::ForceDimension(f) = &device {
-            let s = f.stats();
-            if s.clamped_forces + s.non_finite_forces + s.saturated_forces > 0
-                || s.velocity_unavailable > 0
-                || s.last_error_code != 0
-            {
-                let last = match s.last_error_code {
-                    0 => String::new(),
-                    code => format!(
-                        "; last DHD error: {} ({code})",
-                        lop_drivers::forcedimension::ffi::error_name(code)
-                    ),
-                };
-                tracing::info!(
-                    "device: {} forces clamped to its peak, {} non-finite refused, {} saturated by \
-                     the SDK, {} reads without a velocity estimate yet{last}",
-                    s.clamped_forces,
-                    s.non_finite_forces,
-                    s.saturated_forces,
-                    s.velocity_unavailable
-                );
-            }
+        for device in &devices {
+            report_counters(device);
         }
         let summary = result?;
-        if let Some(path) = &force_log {
+        for (device, path) in devices.iter().zip(&force_log) {
             device
                 .write_force_csv(path)
                 .with_context(|| format!("writing {}", path.display()))?;
         }
-        let last = device.last_force();
+        let last: Vec<String> = devices
+            .iter()
+            .filter_map(Device::last_force)
+            .map(|f| format!("[{}, {}, {}] N", f[0], f[1], f[2]))
+            .collect();
         tracing::info!(
             "haptic loop stopped after {} ticks, {} overruns{}{}",
             summary.ticks,
             summary.overruns,
-            match last {
-                Some(f) => format!("; last force written [{}, {}, {}] N", f[0], f[1], f[2]),
-                None => String::new(),
+            if last.is_empty() {
+                String::new()
+            } else {
+                format!("; last force written {}", last.join(", "))
             },
             if summary.ring_drops > 0 {
                 format!("; {} tool states not published", summary.ring_drops)
@@ -351,5 +370,43 @@ impl HapticProcessBuilder {
             bail!("device error stopped the haptic loop: {e}");
         }
         Ok(())
+    }
+}
+
+/// Logs a vendor device's counters at exit (forces clamped, refused, errors), if any.
+fn report_counters(device: &Device) {
+    if let Device::OpenHaptics(o) = device {
+        let s = o.stats();
+        if s.clamped_forces + s.non_finite_forces + s.recoverable_errors > 0 {
+            tracing::info!(
+                "device: {} forces clamped to its peak, {} non-finite refused, {} force errors",
+                s.clamped_forces,
+                s.non_finite_forces,
+                s.recoverable_errors
+            );
+        }
+    }
+    if let Device::ForceDimension(f) = device {
+        let s = f.stats();
+        if s.clamped_forces + s.non_finite_forces + s.saturated_forces > 0
+            || s.velocity_unavailable > 0
+            || s.last_error_code != 0
+        {
+            let last = match s.last_error_code {
+                0 => String::new(),
+                code => format!(
+                    "; last DHD error: {} ({code})",
+                    lop_drivers::forcedimension::ffi::error_name(code)
+                ),
+            };
+            tracing::info!(
+                "device: {} forces clamped to its peak, {} non-finite refused, {} saturated by \
+                 the SDK, {} reads without a velocity estimate yet{last}",
+                s.clamped_forces,
+                s.non_finite_forces,
+                s.saturated_forces,
+                s.velocity_unavailable
+            );
+        }
     }
 }

@@ -225,12 +225,15 @@ struct CommonArgs {
 struct HapticArgs {
     #[command(flatten)]
     common: CommonArgs,
-    /// mock[:SCRIPT] | hand[:SCRIPT] | replay:PATH | openhaptics[:NAME] | dhd[:ID]
-    #[arg(long, default_value = "mock")]
-    device: String,
-    /// Write every force the device received as CSV at exit (mock and hand devices).
-    #[arg(long)]
-    force_log: Option<PathBuf>,
+    /// mock[:SCRIPT] | hand[:SCRIPT] | replay:PATH | openhaptics[:NAME] | dhd[:ID]; repeatable,
+    /// one per tool in the scene's order (a tool without one gets `mock`, playing the tool's
+    /// script). Default: `mock`.
+    #[arg(long, value_name = "DEVICE")]
+    device: Vec<String>,
+    /// Write every force the device received as CSV at exit (mock and hand devices);
+    /// repeatable, one file per device in the order of --device.
+    #[arg(long, value_name = "PATH")]
+    force_log: Vec<PathBuf>,
     /// Record the device stream (poses, buttons, ticks, times) for `--device replay:PATH`.
     /// An existing file is never overwritten: the recording takes the first free `NAME-N.EXT`.
     #[arg(long)]
@@ -373,12 +376,39 @@ fn load_common(a: &CommonArgs) -> Result<(Scene, DaemonConfig, ServiceNames, Opt
     Ok((scene, config, names, duration))
 }
 
-/// The script a scripted device (`mock`, `hand`) plays: the one named, else the scene's default,
-/// else `None` (hold still at the device origin).
-fn device_script(script: Option<&str>, scene: &Scene) -> Result<Option<(MockScript, PathBuf)>> {
+/// The device of every tool of `scene`: the `--device` values in order, then `mock` for the
+/// tools left (each playing its tool's script). More devices than tools is bad input.
+fn tool_devices(given: &[String], scene: &Scene) -> Result<Vec<(DeviceSpec, String)>> {
+    if given.len() > scene.tools.len() {
+        bad(Err(anyhow::anyhow!(
+            "{} --device options for the {} tool(s) of scene {:?} ({}): give at most one per tool",
+            given.len(),
+            scene.tools.len(),
+            scene.name,
+            scene.path.display()
+        )))?;
+    }
+    (0..scene.tools.len())
+        .map(|t| {
+            let text = given.get(t).map_or("mock", String::as_str);
+            let spec: DeviceSpec = bad(text
+                .parse()
+                .map_err(|e| anyhow::anyhow!("--device {text:?}: {e}")))?;
+            Ok((spec, text.to_string()))
+        })
+        .collect()
+}
+
+/// The script a scripted device (`mock`, `hand`) driving tool `tool` plays: the one named,
+/// else the tool's default in the scene, else `None` (hold still at the device origin).
+fn device_script(
+    script: Option<&str>,
+    scene: &Scene,
+    tool: usize,
+) -> Result<Option<(MockScript, PathBuf)>> {
     let path = match script {
         Some(s) => bad(resolve_script(s))?,
-        None => match scene.tool_script(0) {
+        None => match scene.tool_script(tool) {
             Some(p) => p.to_path_buf(),
             None => return Ok(None),
         },
@@ -387,12 +417,22 @@ fn device_script(script: Option<&str>, scene: &Scene) -> Result<Option<(MockScri
     Ok(Some((script, path)))
 }
 
-fn open_device(spec: &DeviceSpec, scene: &Scene, config: &DaemonConfig) -> Result<Device> {
+/// Opens the device `spec` for tool `tool` of `scene`.
+fn open_device(
+    spec: &DeviceSpec,
+    scene: &Scene,
+    tool: usize,
+    config: &DaemonConfig,
+) -> Result<Device> {
     match spec {
         DeviceSpec::Mock { script } => {
-            let script = match device_script(script.as_deref(), scene)? {
+            let script = match device_script(script.as_deref(), scene, tool)? {
                 Some((script, path)) => {
-                    tracing::info!("mock device playing {}", path.display());
+                    tracing::info!(
+                        "mock device of tool {:?} playing {}",
+                        scene.tools[tool].name,
+                        path.display()
+                    );
                     script
                 }
                 None => MockScript::stationary([0.0, 0.0, 0.0]),
@@ -403,7 +443,7 @@ fn open_device(spec: &DeviceSpec, scene: &Scene, config: &DaemonConfig) -> Resul
             )))
         }
         DeviceSpec::Hand { script } => {
-            let script = match device_script(script.as_deref(), scene)? {
+            let script = match device_script(script.as_deref(), scene, tool)? {
                 Some((script, path)) => {
                     tracing::info!(
                         "simulated hand following {}{}",
@@ -459,8 +499,9 @@ fn cmd_run(a: RunArgs) -> Result<i32> {
     let (scene, config, _names, duration) = load_common(&a.haptic.common)?;
     // The meshes read and every fixed-node selector picks nodes (cheap: no models built).
     bad(lop_scene::place_bodies(&scene))?;
-    let spec: DeviceSpec = bad(a.haptic.device.parse())?;
-    drop(open_device(&spec, &scene, &config)?);
+    for (t, (spec, _)) in tool_devices(&a.haptic.device, &scene)?.iter().enumerate() {
+        drop(open_device(spec, &scene, t, &config)?);
+    }
     let view_token = a.view_token.clone().or_else(|| {
         std::env::var(supervisor::VIEW_TOKEN_ENV)
             .ok()
@@ -480,7 +521,7 @@ fn cmd_run(a: RunArgs) -> Result<i32> {
     }
     supervisor::run(supervisor::RunOptions {
         scene: scene.path.clone(),
-        device: a.haptic.device.clone(),
+        devices: a.haptic.device.clone(),
         duration,
         prefix: a.haptic.common.prefix.clone(),
         config: a.haptic.common.config.clone(),
@@ -496,9 +537,11 @@ fn cmd_run(a: RunArgs) -> Result<i32> {
 
 fn cmd_haptic(a: HapticArgs) -> Result<()> {
     let (scene, config, names, duration) = load_common(&a.common)?;
-    let spec: DeviceSpec = bad(a.device.parse())?;
-    let device = open_device(&spec, &scene, &config)?;
-    HapticProcess::builder(scene, config, names, device, &a.device)
+    let mut devices = Vec::new();
+    for (t, (spec, text)) in tool_devices(&a.device, &scene)?.into_iter().enumerate() {
+        devices.push((open_device(&spec, &scene, t, &config)?, text));
+    }
+    HapticProcess::builder(scene, config, names, devices)
         .duration(duration)
         .record(a.record)
         .force_log(a.force_log)
@@ -527,7 +570,7 @@ fn cmd_simulate(a: SimulateArgs) -> Result<()> {
         match bad(d.parse::<DeviceSpec>())? {
             DeviceSpec::Mock { script: Some(name) } => script = Some(bad(resolve_script(&name))?),
             DeviceSpec::Hand { script: name } => {
-                let Some((script, path)) = device_script(name.as_deref(), &scene)? else {
+                let Some((script, path)) = device_script(name.as_deref(), &scene, 0)? else {
                     bad(Err(anyhow::anyhow!(
                         "--device hand: the scene has no default script; name one (hand:SCRIPT)"
                     )))?

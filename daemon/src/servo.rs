@@ -110,8 +110,15 @@ impl<'a> ServoTask<'a> {
         // Whether to record was decided once, in `new`; the wrapper itself is a value on this
         // callback's stack because the vendor lends the device for one callback at a time.
         let outcome = match self.record.as_deref_mut() {
-            Some(tap) => hl.tick(&mut Recorded { device, tap }, clock.now_ns, deadline),
-            None => hl.tick(device, clock.now_ns, deadline),
+            Some(tap) => hl.tick(
+                &mut [&mut Recorded {
+                    device: &mut *device,
+                    tap,
+                }],
+                clock.now_ns,
+                deadline,
+            ),
+            None => hl.tick(&mut [&mut *device], clock.now_ns, deadline),
         };
         if let Some(e) = outcome.fatal {
             self.fatal = Some(e);
@@ -220,21 +227,22 @@ pub fn run(device: &mut dyn HapticDevice, task: ServoTask<'_>) -> Result<HapticS
     cell.0.summary(run)
 }
 
-/// A warning when the scene's tool spring, as felt at the device, is stiffer than the device's
+/// A warning when tool `tool`'s spring, as felt at its device, is stiffer than the device's
 /// nominal maximum (the stylus would buzz). Linear force law only.
-pub fn stiffness_warning(scene: &Scene, limits: &DeviceLimits) -> Option<String> {
-    if scene.tool().force_law != ForceLaw::Linear {
+pub fn stiffness_warning(scene: &Scene, tool: usize, limits: &DeviceLimits) -> Option<String> {
+    let spec = scene.tools.get(tool)?;
+    if spec.force_law != ForceLaw::Linear {
         return None;
     }
     // 1 mm at the device is 1e-3 · scale m in the scene; forces are not scaled.
-    let scale = scene.tool().workspace.transform().scale;
-    let at_device = scene.tool().stiffness * 1e-3 * scale;
+    let scale = spec.workspace.transform().scale;
+    let at_device = spec.stiffness * 1e-3 * scale;
     (at_device > limits.max_stiffness_n_per_mm).then(|| {
         format!(
             "the tool spring ({} N/m in the scene, workspace scale {scale}) is {at_device:.3} N/mm \
              at the device, above its nominal maximum {:.3} N/mm: expect buzzing; lower [tool] \
              stiffness or the workspace scale",
-            scene.tool().stiffness, limits.max_stiffness_n_per_mm
+            spec.stiffness, limits.max_stiffness_n_per_mm
         )
     })
 }

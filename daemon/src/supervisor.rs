@@ -35,16 +35,17 @@ use crate::status::StatusMonitor;
 pub struct RunOptions {
     /// Resolved scene file.
     pub scene: PathBuf,
-    /// `--device` as given (already validated).
-    pub device: String,
+    /// `--device` as given, one per tool in order (already validated; empty: each tool's
+    /// mock).
+    pub devices: Vec<String>,
     /// Stop after this long.
     pub duration: Option<Duration>,
     /// Service prefix.
     pub prefix: String,
     /// `--config`.
     pub config: Option<PathBuf>,
-    /// `--force-log`, passed to the haptic process.
-    pub force_log: Option<PathBuf>,
+    /// `--force-log`, one per device, passed to the haptic process.
+    pub force_log: Vec<PathBuf>,
     /// `--record`, passed to the haptic process (a restarted one records to `NAME-N.EXT`).
     pub record: Option<PathBuf>,
     /// Status line interval.
@@ -222,8 +223,10 @@ pub fn run(opts: RunOptions) -> Result<i32> {
         common.extend(["--config".to_string(), c.display().to_string()]);
     }
     let mut haptic_args = common.clone();
-    haptic_args.extend(["--device".to_string(), opts.device.clone()]);
-    if let Some(f) = &opts.force_log {
+    for d in &opts.devices {
+        haptic_args.extend(["--device".to_string(), d.clone()]);
+    }
+    for f in &opts.force_log {
         haptic_args.extend(["--force-log".to_string(), f.display().to_string()]);
     }
     if let Some(r) = &opts.record {

@@ -30,7 +30,7 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
     let mut device = MockDevice::new(script, MockDevice::omni_limits());
     device.start().unwrap();
     let settings = HapticSettings::new(&DaemonConfig::default(), &scene_file, device.limits());
-    let hl_tool_stiffness = settings.pipeline.tool.stiffness;
+    let hl_tool_stiffness = settings.pipeline().tool.stiffness;
     let loaded = scene::load(scene_file).unwrap();
 
     // The deformation side, played by this test: topology once, frames as the loop runs.
@@ -48,13 +48,13 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
     assert!(hl.await_frame(0, WAIT), "frame 0 never arrived");
     for _ in 0..100 {
         let now = clock::monotonic_ns();
-        hl.tick(&mut device, now, now);
+        hl.tick(&mut [&mut device], now, now);
     }
     let mut waited = 0;
     while !hl.contact_ready() && waited < 10_000 {
         std::thread::sleep(std::time::Duration::from_millis(1));
         let now = clock::monotonic_ns();
-        hl.tick(&mut device, now, now);
+        hl.tick(&mut [&mut device], now, now);
         waited += 1;
     }
     assert!(hl.contact_ready(), "no contact index after 10 s");
@@ -84,30 +84,30 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
             );
         }
         let now = clock::monotonic_ns();
-        let out = counted(|| hl.tick(&mut device, now, now));
-        if out.state.flags & TOOL_FLAG_CONTACT != 0 {
+        let out = counted(|| hl.tick(&mut [&mut device], now, now));
+        if out.state().flags & TOOL_FLAG_CONTACT != 0 {
             contact_ticks += 1;
         }
-        if out.state.flags & TOOL_FLAG_LOCAL_MODEL != 0 {
+        if out.state().flags & TOOL_FLAG_LOCAL_MODEL != 0 {
             local_ticks += 1;
         }
         // Frames come at 100 Hz, the force is rendered at 1 kHz: it stays smooth — no step
         // larger than the per-tick limit beyond what the tool spring explains of the device's
         // move this tick, contact onset (from zero force) included.
-        let f = out.state.force;
+        let f = out.state().force;
         let step = ((f[0] - last_force[0]).powi(2)
             + (f[1] - last_force[1]).powi(2)
             + (f[2] - last_force[2]).powi(2))
         .sqrt();
-        let p = out.state.device_position;
+        let p = out.state().device_position;
         let moved = last_device.map_or(0.0, |q| {
             ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
         });
-        let k = out.state.tool_stiffness.max(hl_tool_stiffness);
+        let k = out.state().tool_stiffness.max(hl_tool_stiffness);
         largest_excess = largest_excess.max(step - k * moved);
         last_force = f;
         last_device = Some(p);
-        last_state = Some(out.state);
+        last_state = Some(*out.state());
         while tool_rx.pop().is_ok() {}
         while tel_rx.pop().is_some() {}
     }
@@ -167,4 +167,76 @@ fn a_full_return_ring_neither_allocates_nor_frees_on_the_tick() {
     }
     assert_eq!(returned, vec![0, 1, 2]);
     assert_eq!(slot.current().map(|v| v[0]), Some(3));
+}
+
+/// Two devices in one loop (a second tool 30 mm along the liver, the same poke): the tick of
+/// both allocates nothing either, and both tools press.
+#[test]
+fn a_tick_of_two_devices_allocates_nothing() {
+    let prefix = format!("rtalloc2-{}", std::process::id());
+    let names = ServiceNames::new(&prefix).unwrap();
+    let mut scene_file = load_scene(&resolve_scene("organs").unwrap()).unwrap();
+    let mut right = scene_file.tool().clone();
+    right.name = "right".into();
+    right.workspace.offset[0] += 0.03;
+    scene_file.tools.push(right);
+    let script = || MockScript::load(&resolve_script("organs-poke").unwrap()).unwrap();
+    let mut left = MockDevice::new(script(), MockDevice::omni_limits());
+    let mut right = MockDevice::new(script(), MockDevice::omni_limits());
+    left.start().unwrap();
+    right.start().unwrap();
+    let settings = HapticSettings::for_devices(
+        &DaemonConfig::default(),
+        &scene_file,
+        &[left.limits(), right.limits()],
+    );
+    let loaded = scene::load(scene_file).unwrap();
+    let deform = DeformSide::new("rtalloc2-deform", &names, &loaded);
+    let ((tool_tx, mut tool_rx), (tel_tx, mut tel_rx)) = rings(&settings).unwrap();
+    let mut hl = HapticLoop::new(&names, settings, tool_tx, tel_tx).unwrap();
+    assert_eq!(hl.tool_count(), 2);
+    deform.publish_topology();
+    deform.publish_frame(0);
+    assert!(hl.await_frame(0, WAIT), "frame 0 never arrived");
+    let mut waited = 0;
+    while !hl.contact_ready() && waited < 10_000 {
+        std::thread::sleep(std::time::Duration::from_millis(1));
+        let now = clock::monotonic_ns();
+        hl.tick(&mut [&mut left, &mut right], now, now);
+        waited += 1;
+    }
+    assert!(hl.contact_ready(), "no contact index after 10 s");
+    alloc::reset();
+    let mut contact_ticks = [0; 2];
+    for i in 0..5_000u64 {
+        if i % 10 == 0 {
+            deform.publish_frame(i / 10 + 1);
+            assert!(hl.await_frame(i / 10 + 1, WAIT));
+        }
+        let now = clock::monotonic_ns();
+        let out = counted(|| hl.tick(&mut [&mut left, &mut right], now, now));
+        assert_eq!(out.tools, 2);
+        for (k, s) in out.states[..2].iter().enumerate() {
+            assert_eq!(s.tool, k as u32);
+            if s.flags & TOOL_FLAG_CONTACT != 0 {
+                contact_ticks[k] += 1;
+            }
+        }
+        while tool_rx.pop().is_ok() {}
+        while tel_rx.pop().is_some() {}
+    }
+    assert_eq!(
+        allocations(),
+        0,
+        "heap allocations on a tick of two devices"
+    );
+    assert_eq!(
+        alloc::deallocations(),
+        0,
+        "heap frees on a tick of two devices"
+    );
+    assert!(
+        contact_ticks.iter().all(|&n| n > 500),
+        "both tools must press: {contact_ticks:?}"
+    );
 }

@@ -17,7 +17,7 @@ fn shipped(name: &str) -> Scene {
 }
 
 fn assert_omni_safe_tool(scene: &Scene) {
-    let t = &scene.tool();
+    let t = scene.tool();
     assert_eq!(t.radius, 0.003);
     assert_eq!(t.force_law, ForceLaw::Linear);
     assert_eq!(t.stiffness, 300.0);

@@ -1,21 +1,29 @@
-//! `lopd haptic`: the hard-real-time 1 kHz loop that owns the device.
+//! `lopd haptic`: the hard-real-time 1 kHz loop that owns the devices, one per tool of the
+//! scene.
 //!
 //! Life of the process, copper-style: `new` (allocate everything: iceoryx2 ports, histograms,
 //! rings) → `start` (lock memory, pin, `SCHED_FIFO`, pre-fault the stack) → `tick` × N (no
 //! allocation, no lock, no formatting; the only syscalls are the deadline sleep and the device)
 //! → stop (zero force first, on every path, panics included).
 //!
-//! One tick: read the device → take the newest contact index and frame → the haptic pipeline
+//! One tick: read every device → take the newest frame → per tool, its newest contact index
+//! and its haptic pipeline
 //! ([`lop_sim::haptic::HapticPipeline`]: validate, the newest surface around the tool, the
 //! god-object, the force from the frame's local model or the force law, passivity, safety —
-//! the same value the offline closed loop drives) → write the device → the tool state to the
+//! the same value the offline closed loop drives) → write every device its own force → each
+//! tool's state to its entry of the
 //! blackboard (for `lopd deform`, which applies the opposite force to the tissue at the
 //! god-object's anchor) and to a lock-free ring (drained by a normal thread that publishes
 //! `PREFIX/tool` for viewers) → timing into preallocated histograms. This module is the
 //! pipeline's live adapter: shared memory, the deadline and the statistics.
 //!
+//! Several tools (two hands) run in the one loop and the one tick: every device is read before
+//! any force is computed and every force is written in the same tick, so the hands feel the
+//! same frame. Each tool has its own god-object, contact index, pipeline and tool state; the
+//! frame, the deadline and the statistics are shared (the tick's compute covers every tool).
+//!
 //! The surfaces' index (adjacency, hierarchies, the god-object's buffers) is sized by the
-//! topology, so it is built off the RT thread: a helper thread subscribes to the topology,
+//! topology, so it is built off the RT thread: per tool, a helper thread subscribes to the topology,
 //! builds the index for each new one and hands it over through a lock-free ring; the RT thread
 //! swaps it in and hands the old one back to be freed there. Frames come the same way, from a
 //! thread that receives them from shared memory (so the RT thread never maps a publisher's
@@ -54,12 +62,11 @@ const TOOL_RING: usize = 512;
 /// Everything the loop needs that is decided before it starts.
 #[derive(Debug, Clone)]
 pub struct HapticSettings {
-    /// The tool this loop drives: its index in the scene's tool list (0, a scene's one tool).
-    /// It names the loop's tool states (`ToolState::tool`), its tool blackboard entry
-    /// ([`services::tool_latest_key`]) and its contact in a frame (`FrameHeader::contacts`).
-    pub tool: usize,
-    /// The tick itself ([`lop_scene::pipeline_settings`]).
-    pub pipeline: PipelineSettings,
+    /// Per tool, in the scene's order (tool `t` is driven by the `t`-th device): the tick
+    /// itself ([`lop_scene::tool_pipeline_settings`]). The index names the tool's states
+    /// (`ToolState::tool`), its tool blackboard entry ([`services::tool_latest_key`]) and its
+    /// contact in a frame (`FrameHeader::contacts`). At least one, at most [`MAX_TOOLS`].
+    pub tools: Vec<PipelineSettings>,
     /// Frames older than this ramp the force to zero, ns.
     pub stale_ns: u64,
     /// Busy-wait before each deadline, ns.
@@ -69,12 +76,26 @@ pub struct HapticSettings {
 }
 
 impl HapticSettings {
-    /// Derives the settings from the daemon config, the scene and the device.
+    /// Derives the settings from the daemon config, the scene and the one device (driving
+    /// the scene's first tool).
     pub fn new(config: &DaemonConfig, scene: &Scene, limits: DeviceLimits) -> HapticSettings {
+        HapticSettings::for_devices(config, scene, &[limits])
+    }
+
+    /// Derives the settings from the daemon config, the scene and the devices, the `t`-th
+    /// driving the scene's tool `t`.
+    pub fn for_devices(
+        config: &DaemonConfig,
+        scene: &Scene,
+        limits: &[DeviceLimits],
+    ) -> HapticSettings {
         let h = &config.haptic;
         HapticSettings {
-            tool: 0,
-            pipeline: lop_scene::pipeline_settings(config, scene, &limits),
+            tools: limits
+                .iter()
+                .enumerate()
+                .map(|(t, l)| lop_scene::tool_pipeline_settings(config, scene, t, l))
+                .collect(),
             stale_ns: (h.stale_frame_ms * 1e6) as u64,
             spin_ns: (h.spin_us * 1e3) as u64,
             // The loop's core, one priority below it: it runs while the loop sleeps.
@@ -85,24 +106,38 @@ impl HapticSettings {
         }
     }
 
-    /// Tick period, ns.
-    pub fn period_ns(&self) -> u64 {
-        (1e9 / self.pipeline.rate_hz).round() as u64
+    /// The first tool's pipeline settings (the rate and the clamp of a one-device loop).
+    pub fn pipeline(&self) -> &PipelineSettings {
+        &self.tools[0]
     }
+
+    /// Tick period, ns (every tool ticks at the scene's haptic rate).
+    pub fn period_ns(&self) -> u64 {
+        (1e9 / self.pipeline().rate_hz).round() as u64
+    }
+}
+
+/// One tool of the loop: its tick, its surfaces and god-object, its tool state's entry.
+struct ToolLoop {
+    /// The tick itself: validate, surface, god-object, force, passivity, safety.
+    pipeline: HapticPipeline,
+    /// Its settings' radius and local-model switch, read every tick.
+    radius: f64,
+    local_model: bool,
+    index_feed: IndexFeed,
+    index: IndexSlot<ContactIndex>,
+    entry: ToolEntry,
 }
 
 /// The haptic loop's state. Built on the RT thread (iceoryx2 ports are not `Send`).
 pub struct HapticLoop {
     settings: HapticSettings,
-    /// The tick itself: validate, surface, god-object, force, passivity, safety.
-    pipeline: HapticPipeline,
+    /// Per tool, in the scene's order.
+    tools: Vec<ToolLoop>,
     _node: Node<ipc::Service>,
     frame_feed: FrameFeed,
-    index_feed: IndexFeed,
-    index: IndexSlot<ContactIndex>,
     _board: ToolBoard,
     _writer: ToolWriter,
-    tool_entry: ToolEntry,
     frame: IndexSlot<FrameCopy>,
     tool_ring: rtrb::Producer<ToolState>,
     telemetry: TelemetryTx,
@@ -123,8 +158,10 @@ pub struct HapticLoop {
 /// What a tick hands back to the caller (for the pacing loop and tests).
 #[derive(Debug, Clone, Copy)]
 pub struct TickOutcome {
-    /// The state published this tick.
-    pub state: ToolState,
+    /// The states published this tick, one per tool (the first `tools`).
+    pub states: [ToolState; MAX_TOOLS],
+    /// Tools ticked.
+    pub tools: usize,
     /// A device error that makes continuing unsafe.
     pub fatal: Option<lop_drivers::DeviceError>,
 }
@@ -132,6 +169,13 @@ pub struct TickOutcome {
 /// The tool blackboard's writer and its entry of the newest state of the loop's tool.
 type ToolWriter = iceoryx2::port::writer::Writer<ipc::Service, u32>;
 type ToolEntry = EntryHandleMut<ipc::Service, u32, ToolState>;
+
+impl TickOutcome {
+    /// The first tool's state (a one-device loop's).
+    pub fn state(&self) -> &ToolState {
+        &self.states[0]
+    }
+}
 
 /// How long a starting haptic process waits for the tool blackboard's entry to be free.
 const TOOL_BOARD_WAIT: Duration = Duration::from_secs(3);
@@ -146,8 +190,8 @@ const TOOL_BOARD_WAIT: Duration = Duration::from_secs(3);
 fn tool_board_writer(
     node: &Node<ipc::Service>,
     names: &ServiceNames,
-    tool: usize,
-) -> Result<(ToolBoard, ToolWriter, ToolEntry)> {
+    tools: usize,
+) -> Result<(ToolBoard, ToolWriter, Vec<ToolEntry>)> {
     let start = std::time::Instant::now();
     let mut waited = false;
     loop {
@@ -157,8 +201,11 @@ fn tool_board_writer(
             .writer_builder()
             .create()
             .context("tool blackboard writer (is another lopd haptic running with this prefix?)")?;
-        match writer.entry::<ToolState>(&services::tool_latest_key(tool)) {
-            Ok(entry) => {
+        let entries: std::result::Result<Vec<ToolEntry>, _> = (0..tools)
+            .map(|t| writer.entry::<ToolState>(&services::tool_latest_key(t)))
+            .collect();
+        match entries {
+            Ok(entries) => {
                 if waited {
                     tracing::info!(
                         "tool blackboard made anew after {:.0} ms (the last haptic process \
@@ -166,7 +213,7 @@ fn tool_board_writer(
                         start.elapsed().as_secs_f64() * 1e3
                     );
                 }
-                return Ok((board, writer, entry));
+                return Ok((board, writer, entries));
             }
             Err(e) if start.elapsed() < TOOL_BOARD_WAIT => {
                 if !waited {
@@ -200,27 +247,34 @@ impl HapticLoop {
         tool_ring: rtrb::Producer<ToolState>,
         telemetry: TelemetryTx,
     ) -> Result<HapticLoop> {
+        let count = settings.tools.len();
         anyhow::ensure!(
-            settings.tool < MAX_TOOLS,
-            "haptic loop: tool {} is beyond the contract's {MAX_TOOLS} tools",
-            settings.tool
+            (1..=MAX_TOOLS).contains(&count),
+            "haptic loop: {count} tools; the contract carries 1 to {MAX_TOOLS}"
         );
         let node = services::node("lopd-haptic-rt")?;
         services::cleanup_dead_nodes(&node);
         let frame_feed = FrameFeed::start(names, settings.frames)?;
-        let index_feed = IndexFeed::start(names, settings.pipeline.tool.radius)?;
-        let (board, writer, tool_entry) = tool_board_writer(&node, names, settings.tool)?;
-        let rate = settings.pipeline.rate_hz.round() as u64;
+        let (board, writer, entries) = tool_board_writer(&node, names, count)?;
+        let mut tools = Vec::with_capacity(count);
+        for (pipeline, entry) in settings.tools.iter().zip(entries) {
+            tools.push(ToolLoop {
+                pipeline: HapticPipeline::new(pipeline.clone()),
+                radius: pipeline.tool.radius,
+                local_model: pipeline.local_model,
+                index_feed: IndexFeed::start(names, pipeline.tool.radius)?,
+                index: IndexSlot::default(),
+                entry,
+            });
+        }
+        let rate = settings.pipeline().rate_hz.round() as u64;
         Ok(HapticLoop {
-            pipeline: HapticPipeline::new(settings.pipeline.clone()),
             settings,
+            tools,
             _node: node,
             frame_feed,
-            index_feed,
-            index: IndexSlot::default(),
             _board: board,
             _writer: writer,
-            tool_entry,
             frame: IndexSlot::default(),
             tool_ring,
             telemetry,
@@ -249,10 +303,15 @@ impl HapticLoop {
         self.overruns += 1;
     }
 
-    /// Whether the contact index of a topology has arrived from its thread (until then the
-    /// loop renders no contact).
+    /// Whether every tool's contact index of a topology has arrived from its thread (until
+    /// then a tool renders no contact).
     pub fn contact_ready(&self) -> bool {
-        self.index.is_ready()
+        self.tools.iter().all(|t| t.index.is_ready())
+    }
+
+    /// Tools the loop drives.
+    pub fn tool_count(&self) -> usize {
+        self.tools.len()
     }
 
     /// Waits, sleeping, until the frame thread has handed over the frame of `sequence`, and
@@ -287,50 +346,47 @@ impl HapticLoop {
         self.ring_drops
     }
 
-    /// One haptic tick. `wake_ns` is when the loop woke, `deadline_ns` when it should have.
-    /// Allocation-free.
+    /// One haptic tick: `devices[t]` drives tool `t` (devices beyond the tools are left alone;
+    /// tools beyond the devices render nothing). `wake_ns` is when the loop woke,
+    /// `deadline_ns` when it should have. Every device is read first, then every tool's force
+    /// is computed against the same frame, then every device is written. Allocation-free.
     pub fn tick(
         &mut self,
-        device: &mut dyn HapticDevice,
+        devices: &mut [&mut dyn HapticDevice],
         wake_ns: u64,
         deadline_ns: u64,
     ) -> TickOutcome {
+        let n = self.tools.len().min(devices.len());
         // A loop that did not tick for longer than the stale limit (its process was stopped,
-        // or the machine held it) has not driven the device meanwhile: the force starts over
-        // from zero against the surface as it is now, rather than going on from the last one.
+        // or the machine held it) has not driven the devices meanwhile: the forces start over
+        // from zero against the surface as it is now, rather than going on from the last ones.
         if self.last_wake_ns != 0
             && wake_ns.saturating_sub(self.last_wake_ns) > self.settings.stale_ns
         {
-            self.pipeline.restart_force();
+            self.tools
+                .iter_mut()
+                .for_each(|t| t.pipeline.restart_force());
         }
         self.last_wake_ns = wake_ns;
-        let t = self.tick as f64 / self.settings.pipeline.rate_hz;
-        let mut state = ToolState {
-            contract_version: CONTRACT_VERSION,
-            sequence: self.tick,
-            stamp_ns: wake_ns,
-            tool_radius: self.settings.pipeline.tool.radius,
-            contact_body: -1,
-            tool: self.settings.tool as u32,
-            ..Default::default()
-        };
+        let t = self.tick as f64 / self.settings.pipeline().rate_hz;
         let mut fatal = None;
 
-        // 1. Read the device.
-        let sample = match device.read(t) {
-            Ok(s) => Some(s),
-            Err(e) => {
-                if !e.is_recoverable() {
-                    fatal = Some(e);
+        // 1. Read every device.
+        let mut samples = [None; MAX_TOOLS];
+        for (sample, device) in samples.iter_mut().zip(devices.iter_mut()).take(n) {
+            *sample = match device.read(t) {
+                Ok(s) => Some(s),
+                Err(e) => {
+                    if !e.is_recoverable() {
+                        fatal = Some(e);
+                    }
+                    None
                 }
-                None
-            }
-        };
+            };
+        }
 
-        // 2. Take the newest contact index and frame from their threads; a retired one goes
-        // back to its thread (to be freed, or filled again).
-        self.index
-            .take_newest(&mut self.index_feed.rx, &mut self.index_feed.back);
+        // 2. Take the newest frame, and each tool's newest contact index, from their threads;
+        // a retired one goes back to its thread (to be freed, or filled again).
         self.frame
             .take_newest(&mut self.frame_feed.rx, &mut self.frame_feed.back);
         let frame_age = match self.frame.current() {
@@ -342,80 +398,110 @@ impl HapticLoop {
             self.telemetry.record(FRAME_AGE, frame_age);
         } else {
             self.stale_ticks += 1;
-            state.flags |= TOOL_FLAG_STALE_FRAME;
         }
 
-        // 3. The pipeline: validate, surface, god-object, force, passivity, safety.
-        let reading = sample.map(|s| DeviceReading {
-            position_mm: s.position_mm,
-            velocity_mm_s: s.velocity_mm_s,
-            grab: s.pressed(lop_drivers::BUTTON_GRAB),
-        });
-        let topology_id = self.index.current().map_or(0, |ix| ix.topology_id);
-        let mut surfaces = LiveSurfaces {
-            index: self.index.current(),
-            frame: self.frame.current().map(|f| &*f),
-            local_model: self.settings.pipeline.local_model,
-            tool: self.settings.tool,
-            wake_ns,
-        };
-        let out = self
-            .pipeline
-            .tick(reading, fresh, &mut surfaces, rt::now_ns);
-        if !out.valid {
-            self.device_faults += 1;
-            state.flags |= TOOL_FLAG_DEVICE_ERROR;
-        }
-        if let (Some(s), Some(p)) = (sample.filter(|_| out.valid), out.tip) {
-            state.device_position = p;
-            state.proxy_position = p;
-            state.buttons = s.buttons;
-            if let Some(g) = out.god {
-                state.proxy_position = g.proxy;
-                state.topology_id = topology_id;
+        // 3. Per tool, the pipeline: validate, surface, god-object, force, passivity, safety.
+        let mut states = [ToolState::default(); MAX_TOOLS];
+        let mut forces = [[0.0; 3]; MAX_TOOLS];
+        let mut in_contact = false;
+        let mut largest = [0.0; 3];
+        for (k, tool) in self.tools.iter_mut().enumerate().take(n) {
+            let state = &mut states[k];
+            *state = ToolState {
+                contract_version: CONTRACT_VERSION,
+                sequence: self.tick,
+                stamp_ns: wake_ns,
+                tool_radius: tool.radius,
+                contact_body: -1,
+                tool: k as u32,
+                ..Default::default()
+            };
+            if !fresh {
+                state.flags |= TOOL_FLAG_STALE_FRAME;
             }
-            if let Some(a) = out.anchor() {
-                // The proxy stays the god-object's (the deformation process gathers the patch
-                // around it, as offline).
-                state.tool_stiffness = out.stiffness;
-                state.contact_body = a.body as i32;
-                state.contact_triangle = a.triangle as u32;
-                state.contact_barycentric = a.bary;
-                if out.pressing() {
-                    state.flags |= TOOL_FLAG_CONTACT;
+            tool.index
+                .take_newest(&mut tool.index_feed.rx, &mut tool.index_feed.back);
+            let sample = samples[k];
+            let reading = sample.map(|s| DeviceReading {
+                position_mm: s.position_mm,
+                velocity_mm_s: s.velocity_mm_s,
+                grab: s.pressed(lop_drivers::BUTTON_GRAB),
+            });
+            let topology_id = tool.index.current().map_or(0, |ix| ix.topology_id);
+            let mut surfaces = LiveSurfaces {
+                index: tool.index.current(),
+                frame: self.frame.current().map(|f| &*f),
+                local_model: tool.local_model,
+                tool: k,
+                wake_ns,
+            };
+            let out = tool
+                .pipeline
+                .tick(reading, fresh, &mut surfaces, rt::now_ns);
+            if !out.valid {
+                self.device_faults += 1;
+                state.flags |= TOOL_FLAG_DEVICE_ERROR;
+            }
+            if let (Some(s), Some(p)) = (sample.filter(|_| out.valid), out.tip) {
+                state.device_position = p;
+                state.proxy_position = p;
+                state.buttons = s.buttons;
+                if let Some(g) = out.god {
+                    state.proxy_position = g.proxy;
+                    state.topology_id = topology_id;
                 }
-                if out.grabbing() {
-                    state.flags |= TOOL_FLAG_GRAB;
-                }
-                if s.pressed(lop_drivers::BUTTON_HEAT) {
-                    state.flags |= TOOL_FLAG_HEAT;
-                }
-                if out.local {
-                    state.flags |= TOOL_FLAG_LOCAL_MODEL;
+                if let Some(a) = out.anchor() {
+                    // The proxy stays the god-object's (the deformation process gathers the
+                    // patch around it, as offline).
+                    state.tool_stiffness = out.stiffness;
+                    state.contact_body = a.body as i32;
+                    state.contact_triangle = a.triangle as u32;
+                    state.contact_barycentric = a.bary;
+                    if out.pressing() {
+                        state.flags |= TOOL_FLAG_CONTACT;
+                    }
+                    if out.grabbing() {
+                        state.flags |= TOOL_FLAG_GRAB;
+                    }
+                    if s.pressed(lop_drivers::BUTTON_HEAT) {
+                        state.flags |= TOOL_FLAG_HEAT;
+                    }
+                    if out.local {
+                        state.flags |= TOOL_FLAG_LOCAL_MODEL;
+                    }
                 }
             }
+            in_contact |= state.flags & (TOOL_FLAG_CONTACT | TOOL_FLAG_GRAB) != 0;
+            if !out.healthy {
+                state.flags |= TOOL_FLAG_RAMPING;
+            }
+            state.force = out.force;
+            forces[k] = out.device_force;
+            if norm2(out.force) > norm2(largest) {
+                largest = out.force;
+            }
         }
-        if fresh && state.flags & (TOOL_FLAG_CONTACT | TOOL_FLAG_GRAB) != 0 {
+        if fresh && in_contact {
             self.telemetry.record(FRAME_AGE_CONTACT, frame_age);
         }
-        if !out.healthy {
-            state.flags |= TOOL_FLAG_RAMPING;
-        }
-        state.force = out.force;
 
-        // 4. Write the device.
-        if let Err(e) = device.write_force(out.device_force) {
-            self.device_faults += 1;
-            state.flags |= TOOL_FLAG_DEVICE_ERROR;
-            if !e.is_recoverable() {
-                fatal = Some(e);
+        // 4. Write every device its own force.
+        for (k, device) in devices.iter_mut().enumerate().take(n) {
+            if let Err(e) = device.write_force(forces[k]) {
+                self.device_faults += 1;
+                states[k].flags |= TOOL_FLAG_DEVICE_ERROR;
+                if !e.is_recoverable() {
+                    fatal = Some(e);
+                }
             }
         }
 
         // 5. Publish: blackboard for the deformation process, ring for viewers.
-        self.tool_entry.update_with_copy(state);
-        if self.tool_ring.push(state).is_err() {
-            self.ring_drops += 1;
+        for (tool, state) in self.tools.iter_mut().zip(&states).take(n) {
+            tool.entry.update_with_copy(*state);
+            if self.tool_ring.push(*state).is_err() {
+                self.ring_drops += 1;
+            }
         }
 
         // 6. Timing.
@@ -425,9 +511,13 @@ impl HapticLoop {
         self.telemetry.record(COMPUTE, done.saturating_sub(wake_ns));
         self.tick += 1;
         if self.tick.is_multiple_of(self.telemetry_every) {
-            self.emit_telemetry(done, out.force);
+            self.emit_telemetry(done, largest);
         }
-        TickOutcome { state, fatal }
+        TickOutcome {
+            states,
+            tools: n,
+            fatal,
+        }
     }
 
     /// Ends the statistics window: the counters now; the quantiles are the publisher's.
@@ -454,13 +544,23 @@ impl HapticLoop {
     }
 }
 
-/// Writes zero force when dropped, so a panic on the RT thread still leaves the device safe.
-struct ZeroForceGuard<'a>(&'a mut dyn HapticDevice);
+/// `|v|²`.
+fn norm2(v: [f64; 3]) -> f64 {
+    v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+}
 
-impl Drop for ZeroForceGuard<'_> {
+/// Writes zero force to every device when dropped (all of them first, then stops them), so a
+/// panic on the RT thread still leaves every device safe.
+struct ZeroForceGuard<'a, 'b>(&'a mut [&'b mut dyn HapticDevice]);
+
+impl Drop for ZeroForceGuard<'_, '_> {
     fn drop(&mut self) {
-        let _ = self.0.write_force([0.0; 3]);
-        self.0.stop();
+        for d in self.0.iter_mut() {
+            let _ = d.write_force([0.0; 3]);
+        }
+        for d in self.0.iter_mut() {
+            d.stop();
+        }
     }
 }
 
@@ -486,20 +586,21 @@ pub struct RtRequest {
     pub priority: u8,
 }
 
-/// Runs the loop on the calling thread until `stop` is set, `max_ticks` is reached or the device
-/// fails. The device is zeroed and stopped before this returns, and also if it panics.
+/// Runs the loop on the calling thread until `stop` is set, `max_ticks` is reached or a device
+/// fails; `devices[t]` drives tool `t`. Every device is zeroed and stopped before this
+/// returns, and also if it panics.
 #[allow(clippy::too_many_arguments)] // each is a distinct input of the loop's start-up
 pub fn run_loop(
     names: &ServiceNames,
     settings: HapticSettings,
-    device: &mut dyn HapticDevice,
+    devices: &mut [&mut dyn HapticDevice],
     rt_request: &RtRequest,
     stop: &AtomicBool,
     max_ticks: Option<u64>,
     tool_ring: rtrb::Producer<ToolState>,
     telemetry: TelemetryTx,
 ) -> Result<HapticSummary> {
-    let guard = ZeroForceGuard(device);
+    let guard = ZeroForceGuard(devices);
     let spin_ns = settings.spin_ns;
     let period = settings.period_ns();
     let mut hl = HapticLoop::new(names, settings, tool_ring, telemetry)?;
@@ -518,7 +619,7 @@ pub fn run_loop(
     let mut deadline = rt::now_ns() + period;
     while !stop.load(Ordering::Relaxed) && max_ticks.is_none_or(|m| hl.ticks() < m) {
         let wake = rt::sleep_until(deadline, spin_ns);
-        let outcome = hl.tick(&mut *guard.0, wake, deadline);
+        let outcome = hl.tick(guard.0, wake, deadline);
         if let Some(e) = outcome.fatal {
             fatal = Some(e);
             break;
@@ -597,6 +698,6 @@ pub type Ring<T> = (rtrb::Producer<T>, rtrb::Consumer<T>);
 /// Creates the channels between the RT thread and the publisher thread: the tool states' ring
 /// and the statistics windows (totals from one second after start, start-up left out).
 pub fn rings(settings: &HapticSettings) -> Result<(Ring<ToolState>, (TelemetryTx, TelemetryRx))> {
-    let warmup_ticks = settings.pipeline.rate_hz.round() as u64;
+    let warmup_ticks = settings.pipeline().rate_hz.round() as u64;
     Ok((rtrb::RingBuffer::new(TOOL_RING), telemetry(warmup_ticks)?))
 }

@@ -33,9 +33,9 @@ fn a_broken_or_missing_local_model_and_a_stopped_deformation_give_a_finite_rampe
     let config = DaemonConfig::default();
     let settings = HapticSettings::new(&config, &scene_file, device.limits());
     let (clamp, stale_ns, ramp) = (
-        settings.pipeline.max_force,
+        settings.pipeline().max_force,
         settings.stale_ns,
-        settings.pipeline.ramp_ticks,
+        settings.pipeline().ramp_ticks,
     );
     let loaded = scene::load(scene_file).unwrap();
     let deform = DeformSide::new("lmfault-deform", &names, &loaded);
@@ -45,16 +45,16 @@ fn a_broken_or_missing_local_model_and_a_stopped_deformation_give_a_finite_rampe
     let mut seq = 0;
     let mut tick = |hl: &mut HapticLoop, device: &mut MockDevice, late_ns: u64| {
         let now = clock::monotonic_ns() + late_ns;
-        let out = hl.tick(device, now, now);
+        let out = hl.tick(&mut [device], now, now);
         while tool_rx.pop().is_ok() {}
         while tel_rx.pop().is_some() {}
-        let f = out.state.force;
+        let f = out.state().force;
         assert!(f.iter().all(|c| c.is_finite()), "force {f:?}");
         assert!(
             norm(f) <= clamp + 1e-12,
             "force {f:?} over the clamp {clamp}"
         );
-        out.state
+        *out.state()
     };
     deform.publish_frame(seq);
     assert!(hl.await_frame(seq, WAIT));
