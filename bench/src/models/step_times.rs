@@ -201,7 +201,7 @@ pub(super) fn step_times(quick: bool) -> Result<(Vec<MeshRow>, Vec<StepRow>)> {
             format!("scene {}: body {} has no [body.fem]", case.scene, body.name)
         })?;
         let pressed = if case.press {
-            Some(press(&mesh, &scene.tool())?)
+            Some(press(&mesh, scene.tool())?)
         } else {
             None
         };
