@@ -1,21 +1,24 @@
 //! `lopd deform`: the deformation process, as a task ([`DeformLoop`]: `new` → `tick`). `new`
 //! loads the scene (`lop_scene`), publishes its topology once and opens the ports; each `tick`
-//! waits for its period, takes the newest tool state, serves control requests, runs one round
-//! of the world (`lop_sim::world::World::round`: collision, the bodies due at the wall clock's
-//! simulated time, each on its own `dt`, heat) and publishes a frame.
+//! waits for its period, takes the newest state of every tool, serves control requests, runs
+//! one round of the world (`lop_sim::world::World::round`: collision, the bodies due at the wall
+//! clock's simulated time, each on its own `dt`, heat) and publishes a frame.
 //!
-//! Tool coupling (force coupling, DESIGN's choice for the tissue response): the newest tool state
-//! comes from the haptic loop's blackboard. Where its god-object touches or holds a body, that
-//! body receives the opposite of the hand's force at the god-object's material point — the
-//! spring between god-object and device, integrated implicitly inside the body's step
-//! (`lop_sim::model::ToolAnchor`), so the tissue receives the force the hand feels (up to the
-//! multirate delay: the haptic loop renders against the last frame) and a stiff tool on light
-//! tissue stays stable. The grab button turns the contact into a hold that also pulls.
+//! Tool coupling (force coupling, DESIGN's choice for the tissue response): the newest state of
+//! each of the scene's tools comes from its entry of the haptic side's blackboard. Where a
+//! tool's god-object touches or holds a body, that body receives the opposite of that hand's
+//! force at the god-object's material point — the spring between god-object and device,
+//! integrated implicitly inside the body's step (`lop_sim::model::ToolAnchor`), so the tissue
+//! receives the force the hand feels (up to the multirate delay: the haptic loop renders
+//! against the last frame) and a stiff tool on light tissue stays stable. Tissue pressed by two
+//! tools is solved as one contact patch, so each hand feels the other's press through it; each
+//! tool's contact goes to its own entry of the frame (`FrameHeader::contacts`). The grab button
+//! turns a tool's contact into a hold that also pulls.
 //!
-//! Heat (thesis §5.3): with the heat button pressed while touching, the touched point receives
-//! `[tool] heat_power`; the heat model (`lop_sim::heat`, one implicit step per `[heat] dt` of
-//! simulated time) diffuses it, loses it to the air and passes it to organs that touch. Frames
-//! carry every node's temperature and its burned flag.
+//! Heat (thesis §5.3): with a tool's heat button pressed while touching, the touched point
+//! receives that tool's `heat_power`; the heat model (`lop_sim::heat`, one implicit step per
+//! `[heat] dt` of simulated time) diffuses it, loses it to the air and passes it to organs that
+//! touch. Frames carry every node's temperature and its burned flag.
 
 use std::time::Duration;
 
@@ -37,19 +40,20 @@ use crate::rt;
 use crate::signals;
 use lop_scene::{Rounds, TickTool};
 
-/// The tool whose state the deformation process couples to the tissue and whose contact it
-/// writes in each frame (`FrameHeader::contacts`): its index in the scene's tool list. A scene
-/// has one tool, so frames carry `tool_count` 1.
-const TOOL: usize = 0;
-/// A tool state older than this is ignored (the haptic process is gone or restarting), ns.
+/// A tool state older than this is ignored (the haptic process is gone or restarting, or that
+/// tool's device stopped), ns; each tool's on its own.
 const TOOL_STALE_NS: u64 = 100_000_000;
-/// A tool state older than this makes the deformation process close the tool blackboard, ns.
-/// A haptic process killed while writing leaves the blackboard's entry marked as held (the
-/// iceoryx2 0.10 blackboard does not release a dead writer's entry handle), so a restarted one
-/// cannot write it while the service lives; the service goes once its last reader closes it,
-/// and the restarted haptic process then creates it again (`haptic::HapticLoop::new` waits for
-/// that). Longer than [`TOOL_STALE_NS`], so that a late tick never closes it, and shorter than
-/// the supervisor's first restart delay (0.2 s).
+/// When the newest of the tools' states is older than this, the deformation process closes the
+/// tool blackboard, ns. A haptic process killed while writing leaves the blackboard's entries
+/// marked as held (the iceoryx2 0.10 blackboard does not release a dead writer's entry
+/// handle), so a restarted one cannot write them while the service lives; the service goes
+/// once its last reader closes it, and the restarted haptic process then creates it again
+/// (`haptic::HapticLoop::new` waits for that). One haptic process writes every tool's entry,
+/// so while any tool's state is younger the process lives and the board stays open: closing it
+/// then would only cut the live tools off the tissue until it is open again. A tool whose entry
+/// was never written (the haptic side drives fewer devices than the scene has tools) neither
+/// holds the board open nor closes it. Longer than [`TOOL_STALE_NS`], so that a late tick never
+/// closes it, and shorter than the supervisor's first restart delay (0.2 s).
 const TOOL_DROP_NS: u64 = 150_000_000;
 /// After closing a stale tool blackboard, the deformation process opens it again this much
 /// later, ns: a haptic process stopped (SIGSTOP) and continued is coupled to the tissue again
@@ -80,24 +84,68 @@ pub struct DeformOptions {
     pub duration: Option<Duration>,
 }
 
+/// The tool blackboard, open for reading.
 struct ToolInput {
     _board: ToolBoard,
     _reader: iceoryx2::port::reader::Reader<ipc::Service, u32>,
-    entry: EntryHandle<ipc::Service, u32, ToolState>,
+    /// Per tool of the scene, in its order: the entry of its newest state.
+    entries: Vec<EntryHandle<ipc::Service, u32, ToolState>>,
 }
 
-fn open_tool_input(node: &Node<ipc::Service>, names: &ServiceNames) -> Option<ToolInput> {
+/// Opens the tool blackboard and the entries of the first `tools` tools; `None` while the
+/// haptic side has not made it.
+fn open_tool_input(
+    node: &Node<ipc::Service>,
+    names: &ServiceNames,
+    tools: usize,
+) -> Option<ToolInput> {
     let board = services::tool_board_reader(node, names).ok()?;
     let reader = board.reader_builder().create().ok()?;
-    let entry = reader
-        .entry::<ToolState>(&services::tool_latest_key(TOOL))
-        .ok()?;
+    let entries = (0..tools)
+        .map(|t| {
+            reader
+                .entry::<ToolState>(&services::tool_latest_key(t))
+                .ok()
+        })
+        .collect::<Option<Vec<_>>>()?;
     Some(ToolInput {
         _board: board,
         _reader: reader,
-        entry,
+        entries,
     })
 }
+
+/// What one read of the tool blackboard found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct ToolRead {
+    /// Per tool (by index): its state, if younger than [`TOOL_STALE_NS`]; `None`: stale or
+    /// never written.
+    fresh: [Option<ToolState>; MAX_TOOLS],
+    /// The newest of the states is older than [`TOOL_DROP_NS`]: close the blackboard.
+    close: bool,
+}
+
+/// Judges the tools' `states` (by tool index, at most [`MAX_TOOLS`]) read at `read_ns`: each
+/// is fresh on its own ([`TOOL_STALE_NS`]), and the blackboard is closed only when every
+/// state ever written is older than [`TOOL_DROP_NS`] (see there why).
+fn judge_tools(states: &[ToolState], read_ns: u64) -> ToolRead {
+    let age = |s: &ToolState| read_ns.saturating_sub(s.stamp_ns);
+    let mut fresh = [None; MAX_TOOLS];
+    for (slot, s) in fresh.iter_mut().zip(states) {
+        if s.stamp_ns > 0 && age(s) < TOOL_STALE_NS {
+            *slot = Some(*s);
+        }
+    }
+    let newest = states.iter().max_by_key(|s| s.stamp_ns);
+    ToolRead {
+        fresh,
+        close: newest.is_some_and(|s| s.stamp_ns > 0 && age(s) > TOOL_DROP_NS),
+    }
+}
+
+/// A tool's contact patch of a round, as a frame carries it: the body, where the patch
+/// balanced the tool (m), and its local model for the haptic loop.
+type PatchContact = (u32, [f64; 3], Option<LocalModel>);
 
 /// A topology id that differs between loads and processes; never 0.
 fn new_topology_id() -> u64 {
@@ -112,10 +160,13 @@ fn new_topology_id() -> u64 {
 pub struct DeformLoop {
     scene: Scene,
     world: World,
-    /// The rounds, with the scene's tool laws (no device clamp): each round takes the haptic
-    /// loop's stiffness against the touched body from the tool state, so the tissue gets the
-    /// hand's spring.
+    /// The rounds, with each tool's laws from the scene (no device clamp): each round takes
+    /// the haptic loop's stiffness against the touched body from that tool's state, so the
+    /// tissue gets the hand's spring.
     rounds: Rounds,
+    /// The scene's tools (at most [`MAX_TOOLS`]): the blackboard entries read, the frames'
+    /// `tool_count`.
+    tools: usize,
     topology: TopologyHeader,
     node_offsets: Vec<usize>,
     node_count: usize,
@@ -163,7 +214,10 @@ impl DeformLoop {
         } = lop_scene::load(opts.scene.clone())?;
         // `[deform] threads` (validated against the machine's cores by lop-config).
         world.set_threads(opts.config.deform.threads);
-        let laws = ToolLaws::new(&scene, DeviceClamp::NONE);
+        let tools = scene.tools.len().min(MAX_TOOLS);
+        let laws: Vec<ToolLaws> = (0..tools)
+            .map(|t| ToolLaws::of_tool(&scene, t, DeviceClamp::NONE))
+            .collect();
         let mut header = wire_topology(&scene, &topology)?;
         let names = opts.names.clone();
         let node = services::node("lopd-deform")?;
@@ -208,9 +262,10 @@ impl DeformLoop {
         };
 
         tracing::info!(
-            "scene {:?}: {} bodies, {} nodes, {} surface triangles; topology {:#x}",
+            "scene {:?}: {} bodies, {} tool(s), {} nodes, {} surface triangles; topology {:#x}",
             scene.name,
             world.bodies.len(),
+            tools,
             node_count,
             header.triangle_count,
             header.topology_id
@@ -231,12 +286,13 @@ impl DeformLoop {
             opts.config.deform.max_period_ms,
             opts.config.deform.threads,
         );
-        let tool_input = open_tool_input(&node, &names);
+        let tool_input = open_tool_input(&node, &names, tools);
         let control = crate::control::ControlServer::new(&node, &names, &scene, &world);
         let now = rt::now_ns();
         let period = (1e9 / scene.rates.deform_max_hz).round() as u64;
         Ok(DeformLoop {
-            rounds: Rounds::live(laws, period),
+            rounds: Rounds::live(laws[0].clone(), period).with_tools(laws),
+            tools,
             step_ns: vec![0u32; world.bodies.len()],
             paces,
             meters: vec![RealTimeMeter::new(REAL_TIME_WINDOW); world.bodies.len()],
@@ -279,8 +335,8 @@ impl DeformLoop {
         self.sequence
     }
 
-    /// One iteration: waits for the next period, takes the newest tool state, serves control
-    /// requests, runs one round of the world up to the wall clock's simulated time and
+    /// One iteration: waits for the next period, takes the newest state of every tool, serves
+    /// control requests, runs one round of the world up to the wall clock's simulated time and
     /// publishes a frame if anything advanced.
     pub fn tick(&mut self) {
         self.deadline += self.period;
@@ -303,22 +359,23 @@ impl DeformLoop {
             let _ = self.topo_pub.update_connections();
             self.last_connection_update = now;
         }
-        // The newest tool state, if the haptic process is up.
+        // The newest state of every tool, if the haptic process is up.
         if self.tool_input.is_none() && now > self.tool_retry_at {
-            self.tool_input = open_tool_input(&self.node, &self.names);
+            self.tool_input = open_tool_input(&self.node, &self.names, self.tools);
             self.tool_retry_at = now + 500_000_000;
         }
-        let mut tool_stamp = 0;
         let mut tool_read = 0;
-        let mut tool_state = None;
-        if let Some(t) = &self.tool_input {
-            let state = *t.entry.get();
+        let mut fresh = [None; MAX_TOOLS];
+        if let Some(input) = &self.tool_input {
+            let mut states = [ToolState::default(); MAX_TOOLS];
+            for (s, e) in states.iter_mut().zip(&input.entries) {
+                *s = *e.get();
+            }
+            // One read time for every tool: they are read back to back.
             tool_read = rt::now_ns();
-            let age = tool_read.saturating_sub(state.stamp_ns);
-            if state.stamp_ns > 0 && age < TOOL_STALE_NS {
-                tool_stamp = state.stamp_ns;
-                tool_state = Some(state);
-            } else if state.stamp_ns > 0 && age > TOOL_DROP_NS {
+            let read = judge_tools(&states[..input.entries.len()], tool_read);
+            fresh = read.fresh;
+            if read.close {
                 // The haptic process is gone (or stopped): let go of its blackboard so that a
                 // restarted one can make it anew (`TOOL_DROP_NS`), and open it again soon: a
                 // stopped one that goes on presses the tissue again within that time.
@@ -326,25 +383,31 @@ impl DeformLoop {
                 self.tool_retry_at = now + TOOL_REOPEN_NS;
             }
         }
-        let tool = tool_state.map(|s| TickTool {
-            center: s.device_position,
-            coupling: Coupling::GodObject(god_object_hold(&s, &self.topology, &self.world)),
-            heat: s.flags & TOOL_FLAG_HEAT != 0,
-            stiffness: Some(s.tool_stiffness),
-        });
+        // The header's tool stamp is the first tool's (`FrameHeader::tool_stamp_ns`).
+        let tool_stamp = fresh[0].map_or(0, |s| s.stamp_ns);
+        // One slot per tool of the scene, by its index: a tool without a fresh state is absent
+        // (`None`: it acts on no body this round) rather than left out, so the tools after it
+        // keep their index, which the world reports each tool's contact by
+        // (`Body::contacts`) and the frame carries it under (`FrameHeader::contacts`). Not a
+        // tool at its last position without contact: its sphere near a body would still hold
+        // that body at its precise level of detail while its device is gone.
+        let mut tools = [None; MAX_TOOLS];
+        for (slot, s) in tools.iter_mut().zip(&fresh) {
+            *slot = s.map(|s| TickTool {
+                center: s.device_position,
+                coupling: Coupling::GodObject(god_object_hold(&s, &self.topology, &self.world)),
+                heat: s.flags & TOOL_FLAG_HEAT != 0,
+                stiffness: Some(s.tool_stiffness),
+            });
+        }
+        let tools = &tools[..self.tools];
 
         let sim_now = (now - self.start) as f64 * 1e-9;
         // Control requests (PREFIX/control) are served here, between rounds; paused: no
         // stepping, frames keep coming with frozen positions.
         let paused = self.control.poll(&mut self.world, sim_now);
-        self.rounds.advance(
-            &mut self.world,
-            sim_now,
-            tool.as_slice(),
-            &[],
-            paused,
-            rt::now_ns,
-        );
+        self.rounds
+            .advance_tools(&mut self.world, sim_now, tools, &[], paused, rt::now_ns);
         let report = self.world.last_round();
         for (i, r) in report.bodies.iter().enumerate() {
             if r.steps > 0 {
@@ -383,14 +446,17 @@ impl DeformLoop {
         for b in self.world.bodies.iter_mut() {
             log_switch(b);
         }
-        // The press's contact patch, balanced where the haptic loop should rest its proxy.
-        // With it, the local model the haptic loop renders between frames.
-        let contact = tool.as_ref().and_then(|t| {
-            let (b, p) = self.world.contact_proxy(0, t.coupling)?;
-            let local = self.world.contact_local(0, t.coupling).map(|(_, m)| m);
-            Some((b as u32, p, local))
-        });
-        self.publish(sim_now, tool_stamp, tool_read, world_step_ns, contact);
+        // Each tool's press's contact patch, balanced where its haptic loop should rest its
+        // proxy. With it, the local model that loop renders between frames.
+        let mut contacts: [Option<PatchContact>; MAX_TOOLS] = [None; MAX_TOOLS];
+        for (k, (slot, t)) in contacts.iter_mut().zip(tools).enumerate() {
+            *slot = t.as_ref().and_then(|t| {
+                let (b, p) = self.world.contact_proxy(k, t.coupling)?;
+                let local = self.world.contact_local(k, t.coupling).map(|(_, m)| m);
+                Some((b as u32, p, local))
+            });
+        }
+        self.publish(sim_now, tool_stamp, tool_read, world_step_ns, &contacts);
     }
 
     /// Gives each FEM body's pace the cost of the steps it just took while running FEM, and
@@ -434,14 +500,16 @@ impl DeformLoop {
         }
     }
 
-    /// Publishes the frame of the current state.
+    /// Publishes the frame of the current state: `contacts` per tool (by index), the first
+    /// tool's state's stamp `tool_stamp` (0: none fresh) and when the tools' states were read,
+    /// `tool_read` (every tool's in the same round, so the time is theirs too), ns.
     fn publish(
         &mut self,
         sim_now: f64,
         tool_stamp: u64,
         tool_read: u64,
         world_step_ns: u64,
-        contact: Option<(u32, [f64; 3], Option<LocalModel>)>,
+        contacts: &[Option<PatchContact>],
     ) {
         let world = &self.world;
         let Ok(mut sample) = self.frame_pub.loan_slice_uninit(self.node_count) else {
@@ -457,11 +525,13 @@ impl DeformLoop {
         header.tool_read_ns = tool_read;
         header.step_ns = world_step_ns;
         header.node_count = self.node_count as u32;
-        header.tool_count = 1;
+        header.tool_count = self.tools as u32;
         header._pad2 = 0;
         header.contacts = [ContactFrame::default(); MAX_TOOLS];
-        if let Some((body, proxy, local)) = contact {
-            let c = &mut header.contacts[TOOL];
+        for (c, contact) in header.contacts.iter_mut().zip(contacts) {
+            let Some((body, proxy, local)) = *contact else {
+                continue;
+            };
             (c.body, c.proxy) = (body, proxy);
             if let Some(m) = local {
                 c.force = m.force;
@@ -768,3 +838,55 @@ fn bounds(p: &[[f64; 3]]) -> ([f32; 3], [f32; 3]) {
     (lo, hi)
 }
 const _: () = assert!(lop_scene::RENDER_VERTEX_WORDS == lop_ipc::RENDER_VERTEX_WORDS);
+// A frame holds a contact for every tool a round takes.
+const _: () = assert!(lop_sim::world::MAX_TOOLS == lop_ipc::MAX_TOOLS);
+
+#[cfg(test)]
+mod tests {
+    //! The tool blackboard's read rules: each tool fresh on its own, under its own index; the
+    //! board closed only when every state ever written is older than `TOOL_DROP_NS`.
+
+    use super::*;
+
+    const NOW: u64 = 10_000_000_000;
+
+    fn stamped(stamp_ns: u64) -> ToolState {
+        ToolState {
+            stamp_ns,
+            ..ToolState::default()
+        }
+    }
+
+    #[test]
+    fn each_tool_is_fresh_on_its_own_under_its_own_index() {
+        let r = judge_tools(
+            &[stamped(NOW - TOOL_STALE_NS - 1), stamped(NOW - 1_000_000)],
+            NOW,
+        );
+        assert_eq!(r.fresh[0], None);
+        assert_eq!(r.fresh[1].map(|s| s.stamp_ns), Some(NOW - 1_000_000));
+        assert!(!r.close);
+        // Never written: not fresh.
+        assert_eq!(judge_tools(&[stamped(0)], NOW).fresh[0], None);
+    }
+
+    #[test]
+    fn the_board_closes_only_when_every_written_state_is_that_old() {
+        let gone = stamped(NOW - TOOL_DROP_NS - 1);
+        let live = stamped(NOW - 1_000_000);
+        // One haptic process writes every tool: a live tool means a live process.
+        assert!(!judge_tools(&[gone, live], NOW).close);
+        assert!(!judge_tools(&[live, gone], NOW).close);
+        // Stale but not yet that old: ignored, the board kept.
+        let stale = stamped(NOW - TOOL_STALE_NS - 1);
+        let r = judge_tools(&[gone, stale], NOW);
+        assert_eq!((r.fresh[0], r.fresh[1], r.close), (None, None, false));
+        // Every tool that old: the process is gone.
+        assert!(judge_tools(&[gone, gone], NOW).close);
+        // A tool never written neither holds the board open nor closes it alone.
+        assert!(judge_tools(&[gone, stamped(0)], NOW).close);
+        assert!(judge_tools(&[stamped(0), gone], NOW).close);
+        assert!(!judge_tools(&[stamped(0), stamped(0)], NOW).close);
+        assert!(!judge_tools(&[], NOW).close);
+    }
+}

@@ -5,3 +5,4 @@
 mod fix_selectors;
 mod live_rounds;
 mod render_surface;
+mod tool_laws;
