@@ -18,11 +18,20 @@ use lop_test_support::alloc::{self, allocations, counted, Counting};
 #[global_allocator]
 static A: Counting = Counting::armed_threads();
 
+/// The allocation counters are the process's: the tests that read them run one at a time.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// Holds [`SERIAL`] for a test (a failed test's poison is no reason to fail the next).
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 /// Longest wait for a published frame to reach the loop.
 const WAIT: std::time::Duration = std::time::Duration::from_secs(5);
 
 #[test]
 fn haptic_tick_allocates_nothing_over_10k_ticks() {
+    let _serial = serial();
     let prefix = format!("rtalloc-{}", std::process::id());
     let names = ServiceNames::new(&prefix).unwrap();
     let scene_file = load_scene(&resolve_scene("organs").unwrap()).unwrap();
@@ -138,6 +147,7 @@ fn haptic_tick_allocates_nothing_over_10k_ticks() {
 /// neither allocates nor frees.
 #[test]
 fn a_full_return_ring_neither_allocates_nor_frees_on_the_tick() {
+    let _serial = serial();
     let (mut tx, mut rx) = rtrb::RingBuffer::<Box<Vec<u8>>>::new(4);
     let (mut back, mut freed) = rtrb::RingBuffer::<Box<Vec<u8>>>::new(1);
     let mut slot = IndexSlot::default();
@@ -173,6 +183,7 @@ fn a_full_return_ring_neither_allocates_nor_frees_on_the_tick() {
 /// both allocates nothing either, and both tools press.
 #[test]
 fn a_tick_of_two_devices_allocates_nothing() {
+    let _serial = serial();
     let prefix = format!("rtalloc2-{}", std::process::id());
     let names = ServiceNames::new(&prefix).unwrap();
     let mut scene_file = load_scene(&resolve_scene("organs").unwrap()).unwrap();
