@@ -306,6 +306,7 @@ impl Parsed {
             p99_us: self.quantile_us(0.99) as f64,
             p999_us: self.quantile_us(0.999) as f64,
             max_us: max as f64,
+            devices: None,
         }
     }
 }

@@ -82,6 +82,12 @@ pub struct LatencyArgs {
     /// Sleep between two polls for frames, µs (part of the deform → client figure).
     #[arg(long, default_value_t = 150)]
     poll_us: u64,
+    /// Also run the scene with 2 up to this many devices, one tool each (the scene's first
+    /// tool copied, each copy's device mapped 30 mm further along x, all mock devices playing
+    /// the scene's script), each for the same seconds: the haptic tick's compute and jitter
+    /// per device count, beside the one device's of the same run.
+    #[arg(long, default_value_t = 1)]
+    devices: usize,
 }
 
 /// Whether and how the loop got its real-time privileges.
@@ -171,9 +177,70 @@ enum CtPlan {
 
 /// Runs the benchmark, prints the table and writes the JSON.
 pub fn run(a: LatencyArgs) -> Result<()> {
-    let (report, stopped) = measure_scene(&a)?;
+    if !(1..=lop_ipc::MAX_TOOLS).contains(&a.devices) {
+        bail!("--devices {}: 1 to {}", a.devices, lop_ipc::MAX_TOOLS);
+    }
+    let (mut report, stopped) = measure_scene(&a)?;
+    // The haptic loop's rows name the device count they were measured with.
+    for row in report.rows.iter_mut() {
+        if row.key == "haptic_jitter" || row.key == "haptic_compute" {
+            row.devices = Some(1);
+        }
+    }
+    let one = haptic_rows(&report.rows);
+    let mut more = Vec::new();
+    for n in 2..=a.devices {
+        let scene = scene_with_tools(Path::new(&report.scene_path), n)?;
+        let run = LatencyArgs {
+            scene: scene.path().display().to_string(),
+            json: None,
+            no_cyclictest: true,
+            devices: 1,
+            ..a.clone()
+        };
+        let (r, s) = measure_scene(&run)?;
+        s.with_context(|| format!("the run with {n} devices"))?;
+        for row in haptic_rows(&r.rows) {
+            more.push(row.with_devices(n as u32));
+        }
+    }
     let period_us = (1e6 / report.target_rate_hz).round().max(1.0) as u64;
     print!("{}", render(&report, period_us));
+    report.rows.extend(more.iter().cloned());
+    if !more.is_empty() {
+        println!("\nthe haptic tick with several devices (same run; one device above):");
+        println!("{}", table::header());
+        for row in one.iter().chain(&more) {
+            let label = format!("{}, {} device(s)", row.label, row.devices.unwrap_or(1));
+            println!(
+                "{}",
+                table::line(&Row {
+                    label,
+                    ..row.clone()
+                })
+            );
+        }
+        let p99 = |rows: &[Row], key: &str| {
+            rows.iter()
+                .find(|r| r.key == key)
+                .map_or(f64::NAN, |r| r.p99_us)
+        };
+        for n in 2..=a.devices {
+            let of_n: Vec<Row> = more
+                .iter()
+                .filter(|r| r.devices == Some(n as u32))
+                .cloned()
+                .collect();
+            println!(
+                "{n} devices: tick compute p99 {:.1} µs, {:.2} × one device's (target ≤ 1.5); \
+                 jitter p99 {:.1} µs against {:.1} µs",
+                p99(&of_n, "haptic_compute"),
+                p99(&of_n, "haptic_compute") / p99(&one, "haptic_compute"),
+                p99(&of_n, "haptic_jitter"),
+                p99(&one, "haptic_jitter"),
+            );
+        }
+    }
     if let Some(path) = &a.json {
         let text = serde_json::to_string_pretty(&report)?;
         std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
@@ -200,8 +267,102 @@ impl LatencyArgs {
             config,
             no_cyclictest: true,
             poll_us: 150,
+            devices: 1,
         }
     }
+}
+
+/// The haptic loop's rows of a report (`haptic_jitter`, `haptic_compute`), as measured with
+/// one device.
+fn haptic_rows(rows: &[Row]) -> Vec<Row> {
+    rows.iter()
+        .filter(|r| r.key == "haptic_jitter" || r.key == "haptic_compute")
+        .map(|r| r.clone().with_devices(1))
+        .collect()
+}
+
+/// A scene file written beside `path` (its relative paths stay valid), removed when dropped.
+struct SceneCopy(PathBuf);
+
+impl SceneCopy {
+    fn path(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for SceneCopy {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+/// The scene at `path` with `n` tools: its first tool (`[tool]`, or the default tool) and
+/// `n − 1` copies named `device2`… whose devices map 30 mm further along x each, all playing
+/// the scene's mock script. Written beside the scene so its relative paths stay valid.
+fn scene_with_tools(path: &Path, n: usize) -> Result<SceneCopy> {
+    use toml::{Table, Value};
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut scene: Table =
+        toml::from_str(&text).with_context(|| format!("{}: not a TOML table", path.display()))?;
+    let first = match scene.remove("tool") {
+        Some(Value::Table(t)) => t,
+        Some(Value::Array(a)) => match a.into_iter().next() {
+            Some(Value::Table(t)) => t,
+            _ => bail!("{}: its [[tool]] is not a table", path.display()),
+        },
+        _ => {
+            let d = lop_config::ToolSpec::default();
+            Table::from_iter([
+                ("radius".to_string(), Value::Float(d.radius)),
+                ("stiffness".to_string(), Value::Float(d.stiffness)),
+            ])
+        }
+    };
+    let workspace = match scene.get("workspace") {
+        Some(Value::Table(w)) => w.clone(),
+        _ => Table::new(),
+    };
+    let offset: Vec<f64> = match workspace.get("offset") {
+        Some(Value::Array(o)) => o
+            .iter()
+            .map(|v| {
+                v.as_float()
+                    .or(v.as_integer().map(|i| i as f64))
+                    .unwrap_or(0.0)
+            })
+            .collect(),
+        _ => vec![0.0; 3],
+    };
+    let script = scene
+        .get("device")
+        .and_then(|d| d.get("mock_script"))
+        .cloned();
+    let mut tools = vec![Value::Table(first.clone())];
+    for k in 1..n {
+        let mut t = first.clone();
+        t.insert("name".into(), Value::String(format!("device{}", k + 1)));
+        let mut w = workspace.clone();
+        let mut o = offset.clone();
+        o.resize(3, 0.0);
+        o[0] += 0.03 * k as f64;
+        w.insert(
+            "offset".into(),
+            Value::Array(o.into_iter().map(Value::Float).collect()),
+        );
+        t.insert("workspace".into(), Value::Table(w));
+        if let Some(s) = &script {
+            t.insert("mock_script".into(), s.clone());
+        }
+        tools.push(Value::Table(t));
+    }
+    scene.insert("tool".into(), Value::Array(tools));
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene");
+    let out = dir.join(format!(".{stem}-{n}-devices-{}.toml", std::process::id()));
+    std::fs::write(&out, toml::to_string(&scene)?)
+        .with_context(|| format!("writing {} (beside the scene)", out.display()))?;
+    Ok(SceneCopy(out))
 }
 
 /// One measured run of the pipeline, printed nowhere: the report, and whether the daemon then

@@ -23,6 +23,10 @@ pub struct Row {
     pub p999_us: f64,
     /// Largest sample, µs.
     pub max_us: f64,
+    /// How many devices the haptic loop drove, for the rows measured at several counts
+    /// (`lop-bench latency --devices N`: `haptic_compute`, `haptic_jitter`); absent elsewhere.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub devices: Option<u32>,
 }
 
 fn ns_to_us(ns: u64) -> f64 {
@@ -40,6 +44,7 @@ impl Row {
             p99_us: ns_to_us(p.p99),
             p999_us: ns_to_us(p.p999),
             max_us: ns_to_us(p.max),
+            devices: None,
         }
     }
 
@@ -56,6 +61,15 @@ impl Row {
             p99_us: ns_to_us(h.value_at_quantile(0.99)),
             p999_us: ns_to_us(h.value_at_quantile(0.999)),
             max_us: ns_to_us(h.max()),
+            devices: None,
+        }
+    }
+
+    /// The same row, measured with `devices` devices.
+    pub fn with_devices(self, devices: u32) -> Row {
+        Row {
+            devices: Some(devices),
+            ..self
         }
     }
 }
@@ -223,6 +237,7 @@ mod tests {
             p99_us: 10.0,
             p999_us: 123.4,
             max_us: 1234567.0,
+            devices: None,
         };
         let empty = Row::from_percentiles("e", "empty", &Percentiles::default());
         let text = render(&[r, empty]);

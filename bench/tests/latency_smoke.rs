@@ -1,5 +1,6 @@
-//! Smoke test of `lop-bench latency`: a 2 s run against the real pipeline must produce every row
-//! with samples in a sane order, and a tick count near the scene's 1 kHz. No wall-clock bound on
+//! Smoke test of `lop-bench latency`: a 2 s run against the real pipeline (and a second one with
+//! two devices, `--devices 2`) must produce every row with samples in a sane order, the haptic
+//! rows once per device count, and a tick count near the scene's 1 kHz. No wall-clock bound on
 //! anything: the rate is counted over the window by the haptic loop's own telemetry, and the
 //! tolerance is wide (±50 %) for small, noisy CI machines.
 
@@ -34,6 +35,8 @@ fn latency_two_seconds_reports_every_row() {
             "--seconds".as_ref(),
             "2".as_ref(),
             "--no-cyclictest".as_ref(),
+            "--devices".as_ref(),
+            "2".as_ref(),
             "--json".as_ref(),
             json.as_os_str(),
             "--lopd".as_ref(),
@@ -67,6 +70,15 @@ fn latency_two_seconds_reports_every_row() {
         !keys.contains(&"cyclictest"),
         "--no-cyclictest still ran it"
     );
+    // `--devices 2`: the haptic loop's rows once per device count.
+    for key in ["haptic_jitter", "haptic_compute"] {
+        let counts: Vec<u64> = rows
+            .iter()
+            .filter(|r| r["key"] == key)
+            .filter_map(|r| r["devices"].as_u64())
+            .collect();
+        assert_eq!(counts, [1, 2], "{key} per device count\n{text}");
+    }
     for r in rows {
         let key = r["key"].as_str().unwrap_or("?");
         let count = r["count"].as_u64().expect("count");

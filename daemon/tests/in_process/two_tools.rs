@@ -210,7 +210,9 @@ fn two_tools_press_one_body_from_opposite_sides_each_under_its_own_index() {
                 stopped.elapsed().as_millis()
             );
             if c1.local == 1 {
-                assert!(c1.force[0] < 0.0, "{c1:?}");
+                // Never pulling: a step where the tissue moved off the tool's sphere (it
+                // springs back once the left tool lets go) gives the patch no force at all.
+                assert!(c1.force[0] <= 0.0, "{c1:?}");
                 local += 1;
             }
             seen += 1;
