@@ -436,7 +436,7 @@ pub struct HapticTelemetry {
     pub device_faults: u64,
     /// Tick rate over the window, Hz.
     pub rate_hz: f64,
-    /// Magnitude of the last force rendered, N.
+    /// Magnitude of the last force rendered, N (with several tools, the largest of theirs).
     pub force_norm: f64,
     /// Lateness of the wake-up (wake − deadline; the loop spins to the deadline, never early).
     pub window_jitter: Percentiles,
