@@ -66,19 +66,32 @@ pub fn frame_local(h: &FrameHeader, tool: usize) -> Option<(usize, LocalModel)> 
     ))
 }
 
-/// The contact index of one topology: every body's surface and the god-object over it.
+/// The contact index of one topology: every body's surface, shared by the tools (a body's
+/// positions are copied in once per frame whichever tool reaches it first), and each tool's
+/// god-object over it.
 pub(crate) struct ContactIndex {
     pub(crate) topology_id: u64,
     set: SurfaceSet,
+    /// Per tool.
+    tools: Vec<ToolGod>,
+    /// Counts the refreshes that copied positions in: a tool whose god-object followed an
+    /// older count follows the surface again.
+    version: u64,
+}
+
+/// One tool's god-object over the shared surfaces and what it last followed.
+struct ToolGod {
     god: GodObject,
-    /// Sequence of the newest frame seen.
+    /// Sequence of the newest frame this tool saw.
     frame_sequence: Option<u64>,
+    /// [`ContactIndex::version`] the god-object last followed.
+    followed: u64,
 }
 
 impl ContactIndex {
     /// Builds the index of a topology (allocates; off the RT thread). `None` if the topology is
     /// not this contract's.
-    fn build(h: &TopologyHeader, indices: &[u32], radius: f64) -> Option<ContactIndex> {
+    fn build(h: &TopologyHeader, indices: &[u32], radii: &[f64]) -> Option<ContactIndex> {
         if h.contract_version != CONTRACT_VERSION {
             return None;
         }
@@ -95,35 +108,45 @@ impl ContactIndex {
             slices.push(&triangles[start..end]);
         }
         let set = SurfaceSet::new(h.node_count as usize, &slices);
-        let god = GodObject::new(radius, set.triangles().len());
+        let tools = radii
+            .iter()
+            .map(|&r| ToolGod {
+                god: GodObject::new(r, set.triangles().len()),
+                frame_sequence: None,
+                followed: 0,
+            })
+            .collect();
         Some(ContactIndex {
             topology_id: h.topology_id,
             set,
-            god,
-            frame_sequence: None,
+            tools,
+            version: 0,
         })
     }
 
-    /// Brings the index up to date with `frame` for the bodies the tool can reach this tick:
-    /// their positions are copied in (a few µs for an organ, so only bodies whose frame bounds
-    /// are within [`REACH`] of the device or the god-object are, and only once per frame), the
-    /// others are left out of the queries until they come within reach. The god-object is
-    /// carried along with the tissue, and rests where the frame balanced tool `tool`'s contact
-    /// patch. False when the frame is not of this index's topology: then nothing is touched
-    /// (and a stale frame ramps the force down anyway).
+    /// Brings the index up to date with `frame` for the bodies tool `tool` can reach this
+    /// tick: their positions are copied in (a few µs for an organ, so only bodies whose frame
+    /// bounds are within [`REACH`] of the device or the god-object are, and only once per
+    /// frame whichever tool asks first), the others are left out of the queries until they
+    /// come within reach. The tool's god-object is carried along with the tissue, and rests
+    /// where the frame balanced the tool's contact patch. False when the frame is not of this
+    /// index's topology or the tool has no god-object here: then nothing is touched (and a
+    /// stale frame ramps the force down anyway).
     fn refresh(&mut self, frame: &FrameSample, device: Option<[f64; 3]>, tool: usize) -> bool {
         let fh = frame.user_header();
         let nodes = frame.payload();
         if fh.topology_id != self.topology_id
             || fh.contract_version != CONTRACT_VERSION
             || nodes.len() != self.set.node_count()
+            || tool >= self.tools.len()
         {
             return false;
         }
-        let first = self.frame_sequence.is_none();
-        let new_frame = self.frame_sequence != Some(fh.sequence);
-        self.frame_sequence = Some(fh.sequence);
-        let proxy = self.god.proxy();
+        let t = &mut self.tools[tool];
+        let first = t.frame_sequence.is_none();
+        let new_frame = t.frame_sequence != Some(fh.sequence);
+        t.frame_sequence = Some(fh.sequence);
+        let proxy = t.god.proxy();
         let points = [device.unwrap_or(proxy), proxy];
         let count = (fh.body_count as usize).min(MAX_BODIES);
         let bounds = |b: usize| match fh.bodies.get(b) {
@@ -136,20 +159,28 @@ impl ContactIndex {
             Some(bf) if b < count => body_stamp(bf),
             _ => fh.sequence,
         };
-        let moved = self
+        if self
             .set
             .refresh_reachable(stamp, &points, REACH, bounds, |i| {
                 nodes[i].position.map(|c| c as f64)
-            });
+            })
+        {
+            self.version += 1;
+        }
+        // Positions copied since this god-object last followed them (by this tool's refresh
+        // or another's): follow.
+        let t = &mut self.tools[tool];
+        let moved = t.followed != self.version;
+        t.followed = self.version;
         if first {
-            self.god.reset();
+            t.god.reset();
         } else if new_frame || moved {
-            self.god.follow_surface(&self.set);
+            t.god.follow_surface(&self.set);
             // The press balanced as a contact patch: rest the proxy where the tissue put it.
             if let Some(c) = fh.contact(tool).filter(|_| new_frame) {
                 let b = c.body as usize;
                 if c.body != NO_CONTACT && b < count {
-                    self.god.rest_at(&self.set, b, c.proxy);
+                    t.god.rest_at(&self.set, b, c.proxy);
                 }
             }
         }
@@ -179,9 +210,10 @@ impl ContactSurfaces for LiveSurfaces<'_> {
     }
 
     fn god_object(&mut self) -> Option<(&mut GodObject, &mut SurfaceSet)> {
-        self.index
-            .as_deref_mut()
-            .map(|ix| (&mut ix.god, &mut ix.set))
+        let tool = self.tool;
+        let ix = self.index.as_deref_mut()?;
+        let t = ix.tools.get_mut(tool)?;
+        Some((&mut t.god, &mut ix.set))
     }
 
     fn local_model(&self) -> Option<(usize, LocalModel, f64)> {
@@ -252,7 +284,9 @@ pub(crate) struct IndexFeed {
 }
 
 impl IndexFeed {
-    pub(crate) fn start(names: &ServiceNames, radius: f64) -> Result<IndexFeed> {
+    /// Starts the thread building the indices of every topology, with a god-object of each of
+    /// `radii` (one per tool).
+    pub(crate) fn start(names: &ServiceNames, radii: Vec<f64>) -> Result<IndexFeed> {
         let (mut tx, rx) = rtrb::RingBuffer::<Box<ContactIndex>>::new(2);
         let (back, mut retired) = rtrb::RingBuffer::<Box<ContactIndex>>::new(8);
         let stop = Arc::new(AtomicBool::new(false));
@@ -275,7 +309,7 @@ impl IndexFeed {
                     while !flag.load(Ordering::Relaxed) {
                         while let Ok(Some(t)) = topologies.receive() {
                             if let Some(ix) =
-                                ContactIndex::build(t.user_header(), t.payload(), radius)
+                                ContactIndex::build(t.user_header(), t.payload(), &radii)
                             {
                                 pending = Some(Box::new(ix));
                             }

@@ -23,7 +23,8 @@
 //! frame, the deadline and the statistics are shared (the tick's compute covers every tool).
 //!
 //! The surfaces' index (adjacency, hierarchies, the god-object's buffers) is sized by the
-//! topology, so it is built off the RT thread: per tool, a helper thread subscribes to the topology,
+//! topology, so it is built off the RT thread (one index: the surfaces, shared by the tools, and
+//! a god-object per tool): a helper thread subscribes to the topology,
 //! builds the index for each new one and hands it over through a lock-free ring; the RT thread
 //! swaps it in and hands the old one back to be freed there. Frames come the same way, from a
 //! thread that receives them from shared memory (so the RT thread never maps a publisher's
@@ -117,15 +118,14 @@ impl HapticSettings {
     }
 }
 
-/// One tool of the loop: its tick, its surfaces and god-object, its tool state's entry.
+/// One tool of the loop: its tick and its tool state's entry (its god-object is in the
+/// shared contact index).
 struct ToolLoop {
     /// The tick itself: validate, surface, god-object, force, passivity, safety.
     pipeline: HapticPipeline,
     /// Its settings' radius and local-model switch, read every tick.
     radius: f64,
     local_model: bool,
-    index_feed: IndexFeed,
-    index: IndexSlot<ContactIndex>,
     entry: ToolEntry,
 }
 
@@ -136,6 +136,9 @@ pub struct HapticLoop {
     tools: Vec<ToolLoop>,
     _node: Node<ipc::Service>,
     frame_feed: FrameFeed,
+    /// The surfaces and every tool's god-object, built per topology on their own thread.
+    index_feed: IndexFeed,
+    index: IndexSlot<ContactIndex>,
     _board: ToolBoard,
     _writer: ToolWriter,
     frame: IndexSlot<FrameCopy>,
@@ -262,17 +265,19 @@ impl HapticLoop {
                 pipeline: HapticPipeline::new(pipeline.clone()),
                 radius: pipeline.tool.radius,
                 local_model: pipeline.local_model,
-                index_feed: IndexFeed::start(names, pipeline.tool.radius)?,
-                index: IndexSlot::default(),
                 entry,
             });
         }
+        let radii = settings.tools.iter().map(|p| p.tool.radius).collect();
+        let index_feed = IndexFeed::start(names, radii)?;
         let rate = settings.pipeline().rate_hz.round() as u64;
         Ok(HapticLoop {
             settings,
             tools,
             _node: node,
             frame_feed,
+            index_feed,
+            index: IndexSlot::default(),
             _board: board,
             _writer: writer,
             frame: IndexSlot::default(),
@@ -303,10 +308,10 @@ impl HapticLoop {
         self.overruns += 1;
     }
 
-    /// Whether every tool's contact index of a topology has arrived from its thread (until
-    /// then a tool renders no contact).
+    /// Whether the contact index of a topology has arrived from its thread (until then the
+    /// tools render no contact).
     pub fn contact_ready(&self) -> bool {
-        self.tools.iter().all(|t| t.index.is_ready())
+        self.index.is_ready()
     }
 
     /// Tools the loop drives.
@@ -385,8 +390,10 @@ impl HapticLoop {
             };
         }
 
-        // 2. Take the newest frame, and each tool's newest contact index, from their threads;
-        // a retired one goes back to its thread (to be freed, or filled again).
+        // 2. Take the newest frame and contact index from their threads; a retired one goes
+        // back to its thread (to be freed, or filled again).
+        self.index
+            .take_newest(&mut self.index_feed.rx, &mut self.index_feed.back);
         self.frame
             .take_newest(&mut self.frame_feed.rx, &mut self.frame_feed.back);
         let frame_age = match self.frame.current() {
@@ -419,17 +426,15 @@ impl HapticLoop {
             if !fresh {
                 state.flags |= TOOL_FLAG_STALE_FRAME;
             }
-            tool.index
-                .take_newest(&mut tool.index_feed.rx, &mut tool.index_feed.back);
             let sample = samples[k];
             let reading = sample.map(|s| DeviceReading {
                 position_mm: s.position_mm,
                 velocity_mm_s: s.velocity_mm_s,
                 grab: s.pressed(lop_drivers::BUTTON_GRAB),
             });
-            let topology_id = tool.index.current().map_or(0, |ix| ix.topology_id);
+            let topology_id = self.index.current().map_or(0, |ix| ix.topology_id);
             let mut surfaces = LiveSurfaces {
-                index: tool.index.current(),
+                index: self.index.current(),
                 frame: self.frame.current().map(|f| &*f),
                 local_model: tool.local_model,
                 tool: k,
