@@ -83,8 +83,11 @@ fn problem(
 pub struct DoctorOptions {
     /// `--config`; without it, [`STANDARD_CONFIG`] if it exists.
     pub config: Option<PathBuf>,
-    /// The device the rig uses.
-    pub device: DeviceSpec,
+    /// The devices the rig uses, one per tool in the scene's order.
+    pub devices: Vec<DeviceSpec>,
+    /// The names of the tools they drive (the scene's, with `--scene`; else `tool1`…); a
+    /// tool past the devices gets the mock.
+    pub tools: Vec<String>,
     /// Service prefix.
     pub prefix: String,
     /// Remove the resources of dead iceoryx2 nodes.
@@ -101,7 +104,28 @@ pub fn run(opts: &DoctorOptions) -> Vec<Finding> {
     let core = config.haptic.core.or_else(rt::last_core);
     out.push(check_affinity(core));
     out.push(check_isolation(core));
-    check_device(&opts.device, &config, &mut out);
+    for (k, spec) in opts.devices.iter().enumerate() {
+        let first = out.len();
+        check_device(spec, &config, &mut out);
+        if opts.devices.len() > 1 || opts.tools.len() > 1 {
+            let tool = opts.tools.get(k).map_or("?", String::as_str);
+            for f in &mut out[first..] {
+                f.value = format!("tool {tool:?}: {}", f.value);
+            }
+        }
+    }
+    if opts.tools.len() > 1 || opts.devices.len() > 1 {
+        let map: Vec<String> = opts
+            .tools
+            .iter()
+            .enumerate()
+            .map(|(k, t)| match opts.devices.get(k) {
+                Some(d) => format!("{t:?} ← {d}"),
+                None => format!("{t:?} ← mock (no --device for it: it plays its script)"),
+            })
+            .collect();
+        out.push(ok("tools", format!("devices by tool: {}", map.join(", "))));
+    }
     out.push(check_shm());
     out.push(check_ipc(&opts.prefix, opts.clean));
     out

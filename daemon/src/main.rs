@@ -70,9 +70,14 @@ struct DoctorArgs {
     #[arg(long)]
     config: Option<PathBuf>,
     /// The rig's device: openhaptics[:NAME] | dhd[:ID] | mock[:SCRIPT] | hand[:SCRIPT] |
-    /// replay:PATH.
-    #[arg(long, default_value = "openhaptics")]
-    device: String,
+    /// replay:PATH; repeatable, one per tool of --scene in order, as `lopd run` takes them.
+    /// Default: openhaptics.
+    #[arg(long, value_name = "DEVICE")]
+    device: Vec<String>,
+    /// The scene whose tools the devices drive (names them in the findings; checks there are
+    /// not more devices than tools).
+    #[arg(long)]
+    scene: Option<String>,
     /// Service prefix to look for stale services under.
     #[arg(long, default_value = lop_ipc::SERVICE_PREFIX_DEFAULT)]
     prefix: String,
@@ -737,11 +742,39 @@ fn cmd_scenes() -> Result<()> {
 }
 
 fn cmd_doctor(a: DoctorArgs) -> Result<i32> {
-    let device: DeviceSpec = bad(a.device.parse())?;
+    let given = if a.device.is_empty() {
+        vec!["openhaptics".to_string()]
+    } else {
+        a.device.clone()
+    };
+    let devices = given
+        .iter()
+        .map(|d| {
+            d.parse::<DeviceSpec>()
+                .map_err(|e| anyhow::anyhow!("--device {d:?}: {e}"))
+        })
+        .collect::<Result<Vec<_>>>();
+    let devices = bad(devices)?;
+    let tools: Vec<String> = match &a.scene {
+        Some(s) => {
+            let scene = bad(load_scene(&bad(resolve_scene(s))?))?;
+            if devices.len() > scene.tools.len() {
+                bad(Err(anyhow::anyhow!(
+                    "{} --device options for the {} tool(s) of scene {:?}: give at most one per tool",
+                    devices.len(),
+                    scene.tools.len(),
+                    scene.name
+                )))?;
+            }
+            scene.tools.iter().map(|t| t.name.clone()).collect()
+        }
+        None => (1..=devices.len()).map(|k| format!("tool{k}")).collect(),
+    };
     bad(ServiceNames::new(&a.prefix))?;
     let findings = lop_daemon::doctor::run(&lop_daemon::doctor::DoctorOptions {
         config: a.config,
-        device,
+        devices,
+        tools,
         prefix: a.prefix,
         clean: a.clean,
     });

@@ -28,6 +28,37 @@ pub fn scene_path(name: &str) -> PathBuf {
         .with_extension("toml")
 }
 
+/// The default scene (`abdomen`) with two tools, written into `dir` (its paths made absolute):
+/// its `[tool]` becomes the first `[[tool]]`, "left"; a second, "right", the same tool whose
+/// device maps 30 mm further along x (the liver's front there is 3 mm lower, so the default
+/// poke goes about 9 mm in), playing the same poke. Returns the file's path.
+pub fn two_tool_abdomen(dir: &std::path::Path) -> PathBuf {
+    let root = workspace_root();
+    let text = std::fs::read_to_string(scene_path("abdomen")).expect("the abdomen scene");
+    assert!(text.contains("\n[tool]\n") && text.contains("\n[workspace]\n"));
+    let poke = root.join("config/scripts/abdomen-poke.toml");
+    let text = text
+        .replace("\"../../assets/", &format!("\"{}/assets/", root.display()))
+        .replace(
+            "\"../scripts/",
+            &format!("\"{}/config/scripts/", root.display()),
+        )
+        .replace("\n[tool]\n", "\n[[tool]]\nname = \"left\"\n")
+        .replace(
+            "\n[workspace]\n",
+            &format!(
+                "\n[[tool]]\nname = \"right\"\nradius = 0.003\nstiffness = 300.0\n\
+                 mock_script = \"{}\"\n\
+                 workspace = {{ scale = 2.0, offset = [0.012, 0.048, -0.005] }}\n\
+                 \n[workspace]\n",
+                poke.display()
+            ),
+        );
+    let path = dir.join("abdomen-two-tools.toml");
+    std::fs::write(&path, text).expect("writing the two-tool scene");
+    path
+}
+
 /// An empty directory `TMP/TAG-PID` (removed first if a previous run left it behind). The
 /// process id keeps parallel runs of the same test binary apart.
 pub fn temp_dir(tag: &str) -> PathBuf {

@@ -132,3 +132,57 @@ fn doctor_names_a_bad_config_key_and_needs_no_library_for_mock() {
     assert_eq!(code, 2, "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Two devices for a two-tool scene: each device's findings name the tool it drives, a
+/// `tools` line maps them, and more devices than tools is refused before any check.
+#[test]
+fn two_devices_are_checked_each_for_its_tool() {
+    let dir = lop_test_support::fixtures::temp_dir("doctor-two-tools");
+    let scene = lop_test_support::fixtures::two_tool_abdomen(&dir);
+    let scene = scene.display().to_string();
+    let args = [
+        "--scene", &scene, "--device", "mock", "--device", "hand", "--json",
+    ];
+    let (_, out, err) = doctor(&args, None);
+    let v: serde_json::Value =
+        serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}: {out}{err}"));
+    let findings = v
+        .as_array()
+        .or_else(|| v["findings"].as_array())
+        .expect("findings");
+    let device: Vec<&str> = findings
+        .iter()
+        .filter(|f| f["check"] == "device")
+        .filter_map(|f| f["value"].as_str())
+        .collect();
+    assert_eq!(device.len(), 2, "{out}");
+    assert!(
+        device[0].starts_with("tool \"left\": --device mock"),
+        "{out}"
+    );
+    assert!(
+        device[1].starts_with("tool \"right\": --device hand"),
+        "{out}"
+    );
+    let tools: Vec<&str> = findings
+        .iter()
+        .filter(|f| f["check"] == "tools")
+        .filter_map(|f| f["value"].as_str())
+        .collect();
+    assert_eq!(tools.len(), 1, "{out}");
+    assert!(
+        tools[0].contains("\"left\" ← mock") && tools[0].contains("\"right\" ← hand"),
+        "{out}"
+    );
+
+    let three = [
+        "--scene", &scene, "--device", "mock", "--device", "mock", "--device", "mock",
+    ];
+    let (code, _, err) = doctor(&three, None);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("3 --device options for the 2 tool(s)"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
