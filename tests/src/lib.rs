@@ -1,7 +1,7 @@
 //! Helpers for lop's multi-process system tests: locate the `lopd` binary, spawn it with a unique
 //! service prefix and a watchdog, find its children, and clean up on every path.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::{Duration, Instant};
@@ -136,4 +136,16 @@ pub fn find_processes(needles: &[&str]) -> Vec<i32> {
         }
     }
     pids
+}
+
+/// A `--force-log` CSV's rows (mock and hand devices): the time, s, and |F|, N.
+pub fn force_rows(path: &Path) -> Vec<(f64, f64)> {
+    let csv = std::fs::read_to_string(path).expect("force log");
+    csv.lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
+            (f[0], (f[1] * f[1] + f[2] * f[2] + f[3] * f[3]).sqrt())
+        })
+        .collect()
 }

@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 
 use lop_client::{Attachment, ToolState, TOOL_FLAG_CONTACT};
 use lop_ipc::{HapticTelemetry, CONTRACT_VERSION};
-use lop_system_tests::{find_processes, sibling_binary, unique_prefix, Daemon};
+use lop_system_tests::{find_processes, force_rows, sibling_binary, unique_prefix, Daemon};
 
 /// The newest haptic telemetry sample, waiting up to `limit` for one.
 fn wait_telemetry(client: &mut Attachment, limit: Duration, daemon: &Daemon) -> HapticTelemetry {
@@ -98,18 +98,6 @@ fn interrupt(daemon: &mut Daemon) -> String {
     let log = daemon.log_text();
     assert!(status.success(), "exit {status}\n{log}");
     log
-}
-
-/// The force log's rows: the time, s, and |F|, N.
-fn force_rows(path: &std::path::Path) -> Vec<(f64, f64)> {
-    let csv = std::fs::read_to_string(path).expect("force log");
-    csv.lines()
-        .skip(1)
-        .map(|l| {
-            let f: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
-            (f[0], (f[1] * f[1] + f[2] * f[2] + f[3] * f[3]).sqrt())
-        })
-        .collect()
 }
 
 #[test]

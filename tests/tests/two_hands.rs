@@ -15,20 +15,8 @@
 use std::time::{Duration, Instant};
 
 use lop_client::{Attachment, ToolState, TOOL_FLAG_CONTACT};
-use lop_system_tests::{unique_prefix, Daemon};
+use lop_system_tests::{force_rows, unique_prefix, Daemon};
 use lop_test_support::fixtures::two_tool_abdomen;
-
-/// The force log's rows: the time, s, and |F|, N.
-fn force_rows(path: &std::path::Path) -> Vec<(f64, f64)> {
-    let csv = std::fs::read_to_string(path).expect("force log");
-    csv.lines()
-        .skip(1)
-        .map(|l| {
-            let f: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
-            (f[0], (f[1] * f[1] + f[2] * f[2] + f[3] * f[3]).sqrt())
-        })
-        .collect()
-}
 
 fn norm(f: [f64; 3]) -> f64 {
     (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
