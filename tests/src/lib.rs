@@ -1,7 +1,8 @@
 //! Helpers for lop's multi-process system tests: locate the `lopd` binary, spawn it with a unique
-//! service prefix and a watchdog, find its children, and clean up on every path.
+//! service prefix and a watchdog, find its children, and clean up on every path; the two-tool
+//! scene the two-hands tests run.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::{Duration, Instant};
@@ -112,6 +113,39 @@ impl Drop for Daemon {
             let _ = self.child.wait();
         }
     }
+}
+
+/// The default scene with a second tool: `[tool]` becomes the first `[[tool]]` ("left"), a
+/// second ("right") maps its device 30 mm further along x (the liver's front there is 3 mm
+/// lower: the same poke goes about 9 mm in). Paths made absolute, written to `dir`; its path.
+pub fn two_hand_scene(dir: &Path) -> PathBuf {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf();
+    let text = std::fs::read_to_string(root.join("config/scenes/abdomen.toml")).unwrap();
+    assert!(text.contains("\n[tool]\n") && text.contains("\n[workspace]\n"));
+    let poke = root.join("config/scripts/abdomen-poke.toml");
+    let text = text
+        .replace("\"../../assets/", &format!("\"{}/assets/", root.display()))
+        .replace(
+            "\"../scripts/",
+            &format!("\"{}/config/scripts/", root.display()),
+        )
+        .replace("\n[tool]\n", "\n[[tool]]\nname = \"left\"\n")
+        .replace(
+            "\n[workspace]\n",
+            &format!(
+                "\n[[tool]]\nname = \"right\"\nradius = 0.003\nstiffness = 300.0\n\
+                 mock_script = \"{}\"\n\
+                 workspace = {{ scale = 2.0, offset = [0.012, 0.048, -0.005] }}\n\
+                 \n[workspace]\n",
+                poke.display()
+            ),
+        );
+    let path = dir.join("abdomen-two-tools.toml");
+    std::fs::write(&path, text).unwrap();
+    path
 }
 
 /// PIDs of processes whose command line contains every one of `needles`.

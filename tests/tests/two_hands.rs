@@ -15,40 +15,7 @@
 use std::time::{Duration, Instant};
 
 use lop_client::{Attachment, ToolState, TOOL_FLAG_CONTACT};
-use lop_system_tests::{unique_prefix, Daemon};
-
-/// The default scene with a second tool: `[tool]` becomes the first `[[tool]]` ("left"), a
-/// second ("right") maps its device 30 mm further along x (the liver's front there is 3 mm
-/// lower: the same poke goes about 9 mm in). Paths made absolute, written to a temp file.
-fn two_hand_scene(dir: &std::path::Path) -> std::path::PathBuf {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap()
-        .to_path_buf();
-    let text = std::fs::read_to_string(root.join("config/scenes/abdomen.toml")).unwrap();
-    assert!(text.contains("\n[tool]\n") && text.contains("\n[workspace]\n"));
-    let poke = root.join("config/scripts/abdomen-poke.toml");
-    let text = text
-        .replace("\"../../assets/", &format!("\"{}/assets/", root.display()))
-        .replace(
-            "\"../scripts/",
-            &format!("\"{}/config/scripts/", root.display()),
-        )
-        .replace("\n[tool]\n", "\n[[tool]]\nname = \"left\"\n")
-        .replace(
-            "\n[workspace]\n",
-            &format!(
-                "\n[[tool]]\nname = \"right\"\nradius = 0.003\nstiffness = 300.0\n\
-                 mock_script = \"{}\"\n\
-                 workspace = {{ scale = 2.0, offset = [0.012, 0.048, -0.005] }}\n\
-                 \n[workspace]\n",
-                poke.display()
-            ),
-        );
-    let path = dir.join("abdomen-two-tools.toml");
-    std::fs::write(&path, text).unwrap();
-    path
-}
+use lop_system_tests::{two_hand_scene, unique_prefix, Daemon};
 
 /// The force log's rows: the time, s, and |F|, N.
 fn force_rows(path: &std::path::Path) -> Vec<(f64, f64)> {
