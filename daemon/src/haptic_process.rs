@@ -3,12 +3,13 @@
 //! [`HapticProcessBuilder::run`] starts them, locks memory, derives the loop's settings (each
 //! tool's law per body, clamped to its device), chooses the recording wrapper once, starts the
 //! publisher thread and runs the loop on the pacing the devices ask for (a timed real-time
-//! thread, or the device's own servo callback), then stops everything, zero force first.
+//! thread, or the vendor's servo callback), then stops everything, zero force first.
 //!
-//! Several devices run in the one timed loop. A device whose vendor's servo callback is the
-//! clock (OpenHaptics) runs alone for now: two OpenHaptics devices on one scheduler, or one
-//! beside another kind, are refused with that reason. Recording the device stream
-//! (`--record`) takes one device.
+//! Several devices run in one loop, on one clock: lop's own timed loop (mock, hand, replay,
+//! dhd), or the OpenHaptics library's one scheduler, whose servo callback ticks the loop with
+//! every OpenHaptics device of the run (each initialised by its configured name). The clocks do
+//! not mix: an OpenHaptics device beside a device of lop's own clock is refused with that
+//! reason. Recording the device stream (`--record`) takes one device.
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -20,7 +21,7 @@ use lop_config::{DaemonConfig, Scene};
 use lop_drivers::forcedimension::ForceDimensionDevice;
 use lop_drivers::hand::HandDevice;
 use lop_drivers::mock::MockDevice;
-use lop_drivers::openhaptics::OpenHapticsDevice;
+use lop_drivers::openhaptics::{OpenHapticsDevice, OpenHapticsScheduler};
 use lop_drivers::replay::ReplayDevice;
 use lop_drivers::{HapticDevice, Pacing};
 use lop_ipc::ServiceNames;
@@ -161,41 +162,24 @@ impl HapticProcessBuilder {
             record,
             force_log,
         } = self;
+        let pacing = check_devices(&scene, &devices, record.is_some(), force_log.len())?;
         let (mut devices, specs): (Vec<Device>, Vec<String>) = devices.into_iter().unzip();
-        if devices.is_empty() || devices.len() > scene.tools.len() {
-            bail!(
-                "{} devices for the {} tool(s) of the scene: give one per tool",
-                devices.len(),
-                scene.tools.len()
-            );
-        }
-        let pacing = devices[0].as_ref_dyn().pacing();
-        if devices.len() > 1 {
-            if let Some(k) = devices
-                .iter()
-                .position(|d| d.as_ref_dyn().pacing() == Pacing::DeviceClock)
-            {
-                bail!(
-                    "--device {}: a device whose servo callback is the clock (OpenHaptics) runs \
-                     alone; several devices run on the loop's own clock (mock, hand, replay, dhd)",
-                    specs[k]
-                );
+        // The OpenHaptics devices start together on the library's one scheduler.
+        let mut scheduler = OpenHapticsScheduler::new();
+        match pacing {
+            Pacing::DeviceClock => scheduler
+                .start(&mut servo_clocked(&mut devices, &specs)?)
+                .with_context(|| match specs.as_slice() {
+                    [one] => format!("starting the device {one}"),
+                    all => format!("starting the devices {}", all.join(", ")),
+                })?,
+            Pacing::SelfPaced => {
+                for (d, spec) in devices.iter_mut().zip(&specs) {
+                    d.as_dyn()
+                        .start()
+                        .with_context(|| format!("starting the device {spec}"))?;
+                }
             }
-            if record.is_some() {
-                bail!("--record takes one device; this run has {}", devices.len());
-            }
-        }
-        if force_log.len() > devices.len() {
-            bail!(
-                "{} --force-log files for {} device(s): give at most one per device",
-                force_log.len(),
-                devices.len()
-            );
-        }
-        for (d, spec) in devices.iter_mut().zip(&specs) {
-            d.as_dyn()
-                .start()
-                .with_context(|| format!("starting the device {spec}"))?;
         }
         if config.haptic.lock_memory {
             match rt::lock_memory() {
@@ -224,7 +208,7 @@ impl HapticProcessBuilder {
                 scene.tools[t].name,
                 d.as_ref_dyn().name(),
                 if pacing == Pacing::DeviceClock {
-                    " (the device's servo callback is the clock)"
+                    " (the OpenHaptics servo callback is the clock)"
                 } else {
                     ""
                 },
@@ -315,7 +299,12 @@ impl HapticProcessBuilder {
                     tel_tx,
                     tap.as_mut(),
                 );
-                servo::run(devices[0].as_dyn(), task)
+                servo::run(task, |tick| {
+                    let mut clocked = servo_clocked(&mut devices, &specs)?;
+                    let run = scheduler.run_clocked(&mut clocked, tick);
+                    scheduler.stop(&mut clocked);
+                    Ok(run?)
+                })
             }
         };
         done.store(true, Ordering::Release);
@@ -373,13 +362,85 @@ impl HapticProcessBuilder {
     }
 }
 
+/// Whether `devices` (the `t`-th driving the scene's tool `t`, each with its `--device` text)
+/// can run together, and on which clock: one device per tool at most, one clock for all
+/// (lop's own loop, or the OpenHaptics servo callback for every device: the two do not mix),
+/// `--record` with one device, at most one `--force-log` per device. No side effects: the
+/// devices are opened, not started.
+pub fn check_devices(
+    scene: &Scene,
+    devices: &[(Device, String)],
+    record: bool,
+    force_logs: usize,
+) -> Result<Pacing> {
+    if devices.is_empty() || devices.len() > scene.tools.len() {
+        bail!(
+            "{} devices for the {} tool(s) of the scene: give one per tool",
+            devices.len(),
+            scene.tools.len()
+        );
+    }
+    let pacing = devices[0].0.as_ref_dyn().pacing();
+    if let Some(k) = devices
+        .iter()
+        .position(|(d, _)| d.as_ref_dyn().pacing() != pacing)
+    {
+        let (clocked, own) = match pacing {
+            Pacing::DeviceClock => (0, k),
+            Pacing::SelfPaced => (k, 0),
+        };
+        bail!(
+            "--device {} beside --device {}: the OpenHaptics device runs on the vendor's servo \
+             clock, the other on lop's own loop, and one run has one clock; give every tool an \
+             OpenHaptics device (they share the one scheduler), or none",
+            devices[clocked].1,
+            devices[own].1
+        );
+    }
+    if pacing == Pacing::DeviceClock {
+        if let Some((_, spec)) = devices
+            .iter()
+            .find(|(d, _)| !matches!(d, Device::OpenHaptics(_)))
+        {
+            bail!("--device {spec}: only OpenHaptics devices run on the vendor's servo clock");
+        }
+    }
+    if record && devices.len() > 1 {
+        bail!("--record takes one device; this run has {}", devices.len());
+    }
+    if force_logs > devices.len() {
+        bail!(
+            "{force_logs} --force-log files for {} device(s): give at most one per device",
+            devices.len()
+        );
+    }
+    Ok(pacing)
+}
+
+/// The devices of a run on the OpenHaptics servo clock, in order. Err: a device that is not
+/// an OpenHaptics device ([`check_devices`] refuses such a run first).
+fn servo_clocked<'a>(
+    devices: &'a mut [Device],
+    specs: &[String],
+) -> Result<Vec<&'a mut OpenHapticsDevice>> {
+    devices
+        .iter_mut()
+        .zip(specs)
+        .map(|(d, spec)| match d {
+            Device::OpenHaptics(o) => Ok(o.as_mut()),
+            _ => bail!("--device {spec}: only OpenHaptics devices run on the vendor's servo clock"),
+        })
+        .collect()
+}
+
 /// Logs a vendor device's counters at exit (forces clamped, refused, errors), if any.
 fn report_counters(device: &Device) {
     if let Device::OpenHaptics(o) = device {
         let s = o.stats();
         if s.clamped_forces + s.non_finite_forces + s.recoverable_errors > 0 {
             tracing::info!(
-                "device: {} forces clamped to its peak, {} non-finite refused, {} force errors",
+                "device {}: {} forces clamped to its peak, {} non-finite refused, {} force errors",
+                o.label(),
                 s.clamped_forces,
                 s.non_finite_forces,
                 s.recoverable_errors

@@ -11,7 +11,7 @@ use clap::{Args, Parser, Subcommand};
 use lop_config::{
     load_daemon_config, load_scene, resolve_scene, resolve_script, DaemonConfig, Scene,
 };
-use lop_daemon::haptic_process::{Device, HapticProcess};
+use lop_daemon::haptic_process::{self, Device, HapticProcess};
 use lop_daemon::{deform, signals, supervisor};
 use lop_drivers::forcedimension::ForceDimensionDevice;
 use lop_drivers::hand::HandDevice;
@@ -504,9 +504,22 @@ fn cmd_run(a: RunArgs) -> Result<i32> {
     let (scene, config, _names, duration) = load_common(&a.haptic.common)?;
     // The meshes read and every fixed-node selector picks nodes (cheap: no models built).
     bad(lop_scene::place_bodies(&scene))?;
-    for (t, (spec, _)) in tool_devices(&a.haptic.device, &scene)?.iter().enumerate() {
-        drop(open_device(spec, &scene, t, &config)?);
+    // Every device opened (not started) and checked to run together, here rather than in
+    // the haptic child the supervisor would restart on the same error.
+    let mut devices = Vec::new();
+    for (t, (spec, text)) in tool_devices(&a.haptic.device, &scene)?
+        .into_iter()
+        .enumerate()
+    {
+        devices.push((open_device(&spec, &scene, t, &config)?, text));
     }
+    bad(haptic_process::check_devices(
+        &scene,
+        &devices,
+        a.haptic.record.is_some(),
+        a.haptic.force_log.len(),
+    ))?;
+    drop(devices);
     let view_token = a.view_token.clone().or_else(|| {
         std::env::var(supervisor::VIEW_TOKEN_ENV)
             .ok()

@@ -1,17 +1,20 @@
-//! The haptic loop on a device's own clock (OpenHaptics: the servo callback of the vendor's
-//! scheduler thread, 1 kHz).
+//! The haptic loop on the devices' own clock (OpenHaptics: the servo callback of the vendor's
+//! scheduler thread, 1 kHz, one callback for every device).
 //!
 //! Same loop, different pacing: where `haptic::run_loop` sleeps to absolute deadlines, here the
-//! device calls [`ServoTask::on_tick`] once per servo tick and it runs the existing
-//! `HapticLoop::tick` inside the servo frame. iceoryx2 ports are not `Send`, so the
-//! `HapticLoop` is built in the first callback, on the scheduler thread, and dropped in the
-//! last one; that first callback only sets up and writes zero force (it may take a few ms: no
-//! force is rendered yet). From the second callback on the RT rules hold — no allocation, no
-//! lock, no formatting (tested against the stand-in libHD in `tests/rt_alloc_servo.rs`).
+//! driver calls [`ServoTask::on_tick`] once per servo tick with every device inside its servo
+//! frame, and it runs the existing `HapticLoop::tick` on all of them (every device read, every
+//! tool's force against the same frame, every device written). iceoryx2 ports are not `Send`,
+//! so the `HapticLoop` is built in the first callback, on the scheduler thread, and dropped in
+//! the last one; that first callback only sets up and writes zero force (it may take a few ms:
+//! no force is rendered yet). From the second callback on the RT rules hold — no allocation,
+//! no lock, no formatting (tested against the stand-in libHD with two named devices in
+//! `tests/rt_alloc_servo.rs`).
 //!
-//! Every way out writes zero force in the last frame: a stop request (Ctrl-C, SIGTERM,
-//! `--duration`), a fatal device error, a panic (the driver catches it), and the driver's own
-//! `stop` writes zero again before unscheduling, stopping the scheduler and disabling the device.
+//! Every way out writes zero force to every device in the last frame: a stop request (Ctrl-C,
+//! SIGTERM, `--duration`), a fatal error of any device, a panic (the driver catches it), and the
+//! driver's own `stop` writes zero again before unscheduling, stopping the scheduler and
+//! disabling the devices.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -19,6 +22,7 @@ use anyhow::{bail, Result};
 use lop_config::{ForceLaw, Scene};
 use lop_drivers::{
     DeviceError, DeviceLimits, HapticDevice, ServoClock, ServoControl, ServoEnd, ServoRun,
+    ServoTick,
 };
 use lop_ipc::{ServiceNames, ToolState};
 
@@ -53,7 +57,8 @@ pub struct ServoTask<'a> {
 
 impl<'a> ServoTask<'a> {
     /// A task that builds its loop from these in the first servo callback. `core`: pin the
-    /// scheduler thread there (its priority is the vendor's).
+    /// scheduler thread there (its priority is the vendor's). `record`: the first device's
+    /// reads are recorded (a recorded run has one device; the others would not be ticked).
     #[allow(clippy::too_many_arguments)] // each is a distinct input of the loop's start-up
     pub fn new(
         names: &ServiceNames,
@@ -87,13 +92,18 @@ impl<'a> ServoTask<'a> {
         }
     }
 
-    /// One servo callback. The first builds the loop; the others tick it (allocation-free).
-    pub fn on_tick(&mut self, device: &mut dyn HapticDevice, clock: ServoClock) -> ServoControl {
+    /// One servo callback with every device of the clock (`devices[t]` drives tool `t`). The
+    /// first builds the loop; the others tick it (allocation-free).
+    pub fn on_tick(
+        &mut self,
+        devices: &mut [&mut dyn HapticDevice],
+        clock: ServoClock,
+    ) -> ServoControl {
         let Some(hl) = self.hl.as_mut() else {
-            return self.set_up(device, clock);
+            return self.set_up(devices, clock);
         };
         if self.stop.load(Ordering::Relaxed) || self.max_ticks.is_some_and(|m| hl.ticks() >= m) {
-            return self.finish(device);
+            return self.finish(devices);
         }
         // The device is the clock: a gap of more than one period and a half is a missed tick.
         let period = self.period_ns;
@@ -108,27 +118,27 @@ impl<'a> ServoTask<'a> {
         }
         self.last_wake_ns = clock.now_ns;
         // Whether to record was decided once, in `new`; the wrapper itself is a value on this
-        // callback's stack because the vendor lends the device for one callback at a time.
-        let outcome = match self.record.as_deref_mut() {
-            Some(tap) => hl.tick(
+        // callback's stack because the vendor lends the devices for one callback at a time.
+        let outcome = match (self.record.as_deref_mut(), devices.first_mut()) {
+            (Some(tap), Some(first)) => hl.tick(
                 &mut [&mut Recorded {
-                    device: &mut *device,
+                    device: &mut **first,
                     tap,
                 }],
                 clock.now_ns,
                 deadline,
             ),
-            None => hl.tick(&mut [&mut *device], clock.now_ns, deadline),
+            _ => hl.tick(devices, clock.now_ns, deadline),
         };
         if let Some(e) = outcome.fatal {
             self.fatal = Some(e);
-            return self.finish(device);
+            return self.finish(devices);
         }
         ServoControl::Continue
     }
 
-    fn set_up(&mut self, device: &mut dyn HapticDevice, clock: ServoClock) -> ServoControl {
-        let _ = device.write_force([0.0; 3]);
+    fn set_up(&mut self, devices: &mut [&mut dyn HapticDevice], clock: ServoClock) -> ServoControl {
+        zero_force(devices);
         let Some(s) = self.setup.take() else {
             return ServoControl::Stop;
         };
@@ -153,9 +163,10 @@ impl<'a> ServoTask<'a> {
         }
     }
 
-    /// The last tick: zero force, counters kept, the loop dropped here on its own thread.
-    fn finish(&mut self, device: &mut dyn HapticDevice) -> ServoControl {
-        let _ = device.write_force([0.0; 3]);
+    /// The last tick: zero force to every device, counters kept, the loop dropped here on its
+    /// own thread.
+    fn finish(&mut self, devices: &mut [&mut dyn HapticDevice]) -> ServoControl {
+        zero_force(devices);
         if let Some(hl) = self.hl.take() {
             self.ticks = hl.ticks();
             self.ring_drops = hl.ring_drops();
@@ -198,7 +209,14 @@ impl<'a> ServoTask<'a> {
     }
 }
 
-/// Lets the task cross to the device's scheduler thread.
+/// Writes zero force to every device (in the servo frame).
+fn zero_force(devices: &mut [&mut dyn HapticDevice]) {
+    for device in devices.iter_mut() {
+        let _ = device.write_force([0.0; 3]);
+    }
+}
+
+/// Lets the task cross to the devices' scheduler thread.
 ///
 /// SAFETY argument: the task's `HapticLoop` (iceoryx2 ports, not `Send`) is created in the
 /// first servo callback and dropped in the last one, on the scheduler thread; the thread that
@@ -209,20 +227,24 @@ struct ServoCell<'a>(ServoTask<'a>);
 unsafe impl Send for ServoCell<'_> {}
 
 impl ServoCell<'_> {
-    fn call(&mut self, device: &mut dyn HapticDevice, clock: ServoClock) -> ServoControl {
-        self.0.on_tick(device, clock)
+    fn call(&mut self, devices: &mut [&mut dyn HapticDevice], clock: ServoClock) -> ServoControl {
+        self.0.on_tick(devices, clock)
     }
 }
 
-/// Runs `task` on `device`'s clock until it stops; the device is then stopped (zero force
-/// first, then unschedule, stop the scheduler, disable).
-pub fn run(device: &mut dyn HapticDevice, task: ServoTask<'_>) -> Result<HapticSummary> {
+/// Runs `task` on the devices' clock: `run_clocked` hands the tick to the driver (e.g.
+/// `OpenHapticsScheduler::run_clocked` with every device), which calls it once per servo tick
+/// until it stops, then stops the devices (zero force first, then unschedule, stop the
+/// scheduler, disable).
+pub fn run(
+    task: ServoTask<'_>,
+    run_clocked: impl FnOnce(&mut ServoTick<'_>) -> Result<ServoRun>,
+) -> Result<HapticSummary> {
     let mut cell = ServoCell(task);
     let run = {
         let cell = &mut cell;
-        device.run_clocked(&mut |dev, clock| cell.call(dev, clock))
+        run_clocked(&mut |devices, clock| cell.call(devices, clock))
     };
-    device.stop();
     let run = run?;
     cell.0.summary(run)
 }

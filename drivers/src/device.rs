@@ -190,11 +190,12 @@ pub trait HapticDevice: Send {
     /// scheduler stalls; blocks the calling thread meanwhile. Only for
     /// [`Pacing::DeviceClock`] devices (the default refuses).
     ///
-    /// Inside `tick`, the `&mut dyn HapticDevice` it is given reads and writes the device within
-    /// the servo frame; the RT rules hold there. The first call may be slow (the caller may set
-    /// up there, e.g. build state that must live on the scheduler thread); every later call must
-    /// not allocate, lock, format or block. When `tick` stops, and on every other way out (a
-    /// fatal device error, a panic in `tick`), the driver writes zero force in that same frame.
+    /// Inside `tick`, the devices it is given (this one; a driver that runs several devices on
+    /// one servo clock gives them all, in order) read and write within the servo frame; the RT
+    /// rules hold there. The first call may be slow (the caller may set up there, e.g. build
+    /// state that must live on the scheduler thread); every later call must not allocate, lock,
+    /// format or block. When `tick` stops, and on every other way out (a fatal device error, a
+    /// panic in `tick`), the driver writes zero force to every device in that same frame.
     fn run_clocked(&mut self, tick: &mut ServoTick<'_>) -> Result<ServoRun, DeviceOpenError> {
         let _ = tick;
         Err(DeviceOpenError::Unavailable {
@@ -209,7 +210,7 @@ pub trait HapticDevice: Send {
 pub enum ServoControl {
     /// Call again next servo tick.
     Continue,
-    /// Write zero force and stop calling (OpenHaptics `HD_CALLBACK_DONE`).
+    /// Write zero force to every device and stop calling (OpenHaptics `HD_CALLBACK_DONE`).
     Stop,
 }
 
@@ -222,18 +223,21 @@ pub struct ServoClock {
     pub now_ns: u64,
 }
 
-/// The per-tick closure a device-clocked driver runs in its servo callback. `Send`: it runs on
-/// the device's scheduler thread.
-pub type ServoTick<'a> = dyn FnMut(&mut dyn HapticDevice, ServoClock) -> ServoControl + Send + 'a;
+/// The per-tick closure a device-clocked driver runs in its servo callback, given the devices
+/// of that clock (one, or several sharing the vendor's scheduler) inside their frames. `Send`:
+/// it runs on the device's scheduler thread.
+pub type ServoTick<'a> =
+    dyn FnMut(&mut [&mut dyn HapticDevice], ServoClock) -> ServoControl + Send + 'a;
 
 /// Why a device-clocked run ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ServoEnd {
     /// The tick asked to stop.
     Requested,
-    /// The device reported an unrecoverable error; zero force was written in that frame.
+    /// A device reported an unrecoverable error; zero force was written to every device in
+    /// that frame.
     Device(DeviceError),
-    /// The tick panicked; zero force was written in that frame.
+    /// The tick panicked; zero force was written to every device in that frame.
     Panicked,
     /// The scheduler stopped calling back (the device or its link died).
     Stalled,

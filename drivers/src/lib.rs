@@ -15,7 +15,8 @@
 //!   file format and its writer.
 //! - [`openhaptics`]: a Phantom Omni / Touch through the proprietary OpenHaptics HD library,
 //!   loaded at run time; the device's servo callback is the clock ([`Pacing::DeviceClock`],
-//!   [`HapticDevice::run_clocked`]).
+//!   [`HapticDevice::run_clocked`]); several devices share the library's one scheduler and one
+//!   servo callback ([`openhaptics::OpenHapticsScheduler`]).
 //! - [`forcedimension`]: Force Dimension omega / sigma / delta devices through the proprietary
 //!   DHD SDK, loaded at run time; paced by lop's own loop, device chosen by the SDK's index.
 //!

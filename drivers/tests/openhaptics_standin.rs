@@ -9,7 +9,8 @@
 //! allocation our code makes on the scheduler thread from tick 100 on (the stand-in is a
 //! separate shared library with its own allocator, standing for the vendor's code).
 //!
-//! The stand-in is one process-wide device, so the scenarios run in sequence in one test.
+//! The stand-in is one process-wide library, so the scenarios run in sequence in one test
+//! (several named devices on one scheduler: `openhaptics_two_devices.rs`).
 
 #[path = "../standin-hd/testing.rs"]
 mod standin;
@@ -21,7 +22,7 @@ use lop_drivers::{DeviceError, DeviceOpenError, HapticDevice, Pacing, ServoContr
 use lop_test_support::alloc::{self, Counting};
 use lop_test_support::fixtures::temp_dir;
 use lop_test_support::vec3::norm;
-use standin::{logs_in, read_log, standin_library, StandinEvent};
+use standin::{assert_safe_exit, logs_in, read_log, standin_library, StandinEvent};
 
 #[global_allocator]
 static A: Counting = Counting::armed_threads();
@@ -61,34 +62,6 @@ fn session_log(dir: &Path) -> Vec<StandinEvent> {
     read_log(&files[0])
 }
 
-/// Zero force last: the last frame, and at every release step.
-fn assert_safe_exit(log: &[StandinEvent]) {
-    let last_frame = log
-        .iter()
-        .rev()
-        .find(|e| e.event == "frame")
-        .expect("frames");
-    assert_eq!(last_frame.force, [0.0; 3], "last frame force");
-    for step in [
-        "unschedule",
-        "stop_scheduler",
-        "force_output_off",
-        "disable_device",
-    ] {
-        for e in log.iter().filter(|e| e.event == step) {
-            assert_eq!(e.force, [0.0; 3], "force rendered at {step}: {e:?}");
-        }
-    }
-    assert!(
-        log.iter().any(|e| e.event == "disable_device"),
-        "device disabled"
-    );
-    assert!(
-        !log.iter().any(|e| e.event == "exceeded"),
-        "the driver sent a force above the device's limit"
-    );
-}
-
 #[test]
 fn openhaptics_driver_against_the_standin() {
     let dir = temp_dir("lop-oh-standin");
@@ -117,7 +90,8 @@ fn openhaptics_driver_against_the_standin() {
     let mut refused_nan = false;
     let mut rendered = 0u64;
     let run = device
-        .run_clocked(&mut |dev, clock| {
+        .run_clocked(&mut |devices, clock| {
+            let dev = &mut *devices[0];
             if clock.tick == 100 {
                 alloc::reset();
                 alloc::arm();
@@ -184,7 +158,7 @@ fn openhaptics_driver_against_the_standin() {
     assert_eq!(stats.recoverable_errors, 1);
     device.stop();
     let log = session_log(&dir);
-    assert_safe_exit(&log);
+    assert_safe_exit(&log, "session");
     let frames: Vec<&StandinEvent> = log.iter().filter(|e| e.event == "frame").collect();
     let max = frames.iter().map(|e| norm(e.force)).fold(0.0, f64::max);
     assert!(
@@ -213,9 +187,9 @@ fn openhaptics_driver_against_the_standin() {
     setup(&dir, "");
     device.start().expect("restart");
     let run = device
-        .run_clocked(&mut |dev, clock| {
-            let _ = dev.read(0.0);
-            let _ = dev.write_force([0.5, 0.0, 0.0]);
+        .run_clocked(&mut |devices, clock| {
+            let _ = devices[0].read(0.0);
+            let _ = devices[0].write_force([0.5, 0.0, 0.0]);
             if clock.tick >= 300 {
                 ServoControl::Stop
             } else {
@@ -227,7 +201,7 @@ fn openhaptics_driver_against_the_standin() {
     assert_eq!(run.ticks, 301);
     drop(device); // drop stops the device
     let log = session_log(&dir);
-    assert_safe_exit(&log);
+    assert_safe_exit(&log, "session");
     assert!(log
         .iter()
         .any(|e| e.event == "frame" && e.force == [0.5, 0.0, 0.0]));
@@ -240,8 +214,8 @@ fn openhaptics_driver_against_the_standin() {
     let mut device = OpenHapticsDevice::open(None, None).unwrap();
     device.start().unwrap();
     let run = device
-        .run_clocked(&mut |dev, clock| {
-            let _ = dev.write_force([0.0, 1.0, 0.0]);
+        .run_clocked(&mut |devices, clock| {
+            let _ = devices[0].write_force([0.0, 1.0, 0.0]);
             if clock.tick == 50 {
                 panic!("a bug in the tick");
             }
@@ -251,7 +225,7 @@ fn openhaptics_driver_against_the_standin() {
     std::panic::set_hook(default_hook);
     assert_eq!(run.end, ServoEnd::Panicked);
     device.stop();
-    assert_safe_exit(&session_log(&dir));
+    assert_safe_exit(&session_log(&dir), "session");
 
     // 4. An unknown device name is a clear start error, and nothing is left running.
     setup(&dir, "");

@@ -1,5 +1,6 @@
 //! Helpers for lop's multi-process system tests: locate the `lopd` binary, spawn it with a unique
-//! service prefix and a watchdog, find its children, and clean up on every path.
+//! service prefix and a watchdog, find its children, and clean up on every path; the two-tool
+//! scene the two-hands tests run.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};

@@ -23,7 +23,7 @@ use lop_drivers::replay::Recording;
 use lop_drivers::DeviceError;
 use lop_system_tests::{unique_prefix, Daemon};
 use lop_test_support::vec3::norm;
-use standin::{logs_in, read_log, standin_library, StandinEvent};
+use standin::{assert_safe_exit, logs_in, read_log, standin_library, StandinEvent};
 
 /// Device x (mm) of the stylus at servo tick `k`: rest beside cylinder_a (6 mm off its outer
 /// side, outside the switch margin) until 4 s, push 9 mm in over 0.7 s, hold, withdraw from 8 s.
@@ -35,32 +35,6 @@ fn x_at(k: u64) -> f64 {
         u * u * (3.0 - 2.0 * u)
     };
     -70.0 + 15.0 * smooth((t - 4.0) / 0.7) - 15.0 * smooth((t - 8.0) / 0.7)
-}
-
-fn assert_safe_exit(log: &[StandinEvent], session: &str) {
-    let last = log
-        .iter()
-        .rev()
-        .find(|e| e.event == "frame")
-        .expect("frames");
-    assert_eq!(last.force, [0.0; 3], "{session}: last frame {last:?}");
-    for step in [
-        "unschedule",
-        "stop_scheduler",
-        "force_output_off",
-        "disable_device",
-    ] {
-        for e in log.iter().filter(|e| e.event == step) {
-            assert_eq!(e.force, [0.0; 3], "{session}: force at {step}: {e:?}");
-        }
-    }
-    for step in ["stop_scheduler", "disable_device"] {
-        assert!(log.iter().any(|e| e.event == step), "{session}: no {step}");
-    }
-    assert!(
-        !log.iter().any(|e| e.event == "exceeded"),
-        "{session}: force above the limit"
-    );
 }
 
 #[test]

@@ -1,6 +1,6 @@
 //! `lopd`'s command line on good and bad input: shipped meshes give sane figures; malformed
 //! meshes, bad scenes and unsupported devices give exit code 2 and a message naming the file,
-//! key or value — never a panic.
+//! key or value — never a panic; devices that cannot run together are refused naming them.
 
 use crate::lopd_cli;
 
@@ -147,4 +147,58 @@ fn unsupported_devices_are_refused_clearly() {
         assert_eq!(code, 2, "{dev}: {err}");
         assert!(err.contains(needle), "{dev}: {err}");
     }
+}
+
+/// One run has one clock: an OpenHaptics device beside a device of lop's own loop is refused
+/// naming both, whichever comes first, and `--record` takes one device — before any device is
+/// started (`lopd haptic`, the process `lopd run` supervises; the stand-in libHD serves the
+/// names).
+#[test]
+fn openhaptics_beside_another_clock_is_refused() {
+    let dir = std::env::temp_dir().join(format!("lopd-cli-clocks-{}", std::process::id()));
+    let organs = std::fs::read_to_string(repo().join("config/scenes/organs.toml")).unwrap();
+    let mesh_dir = repo().join("assets/meshes");
+    let scripts_dir = repo().join("config/scripts");
+    let two_tools = organs
+        .replace("../../assets/meshes", mesh_dir.to_str().unwrap())
+        .replace("\"../scripts", &format!("\"{}", scripts_dir.display()))
+        .replacen("[tool]\n", "[[tool]]\nname = \"left\"\n", 1)
+        + "\n[[tool]]\nname = \"right\"\nradius = 0.003\nstiffness = 300.0\n";
+    let scene = write_scene(&dir, &two_tools);
+    let haptic_or_run = |command: &str, devices: [&str; 2], record: bool| {
+        let mut c = lopd();
+        c.args([command, "--duration", "1", "--prefix"])
+            .arg(format!("cli-clocks-{}", std::process::id()))
+            .arg("--scene")
+            .arg(&scene)
+            .env("LOP_HD_LIBRARY", crate::standin::standin_library())
+            .env("LOP_STANDIN_DEVICE_NAMES", "Left,Right");
+        for d in devices {
+            c.args(["--device", d]);
+        }
+        if record {
+            c.arg("--record").arg(dir.join("two.lrec"));
+        }
+        run(&mut c)
+    };
+    let haptic = |devices: [&str; 2], record: bool| haptic_or_run("haptic", devices, record);
+    for devices in [["openhaptics:Left", "mock"], ["mock", "openhaptics:Left"]] {
+        let (code, _, err) = haptic(devices, false);
+        assert_ne!(code, 0, "{devices:?}: {err}");
+        assert!(
+            err.contains("--device openhaptics:Left beside --device mock")
+                && err.contains("one clock"),
+            "{devices:?}: {err}"
+        );
+    }
+    // `lopd run` refuses it before starting anything (exit 2, bad input), rather than leave
+    // the supervisor restarting a haptic process that fails the same way.
+    let (code, _, err) = haptic_or_run("run", ["openhaptics:Left", "mock"], false);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("one clock"), "{err}");
+    let (code, _, err) = haptic(["openhaptics:Left", "openhaptics:Right"], true);
+    assert_ne!(code, 0, "{err}");
+    assert!(err.contains("--record takes one device"), "{err}");
+    assert!(!dir.join("two.lrec").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -3,24 +3,40 @@
 //! so the driver's whole path runs in CI without a Phantom Omni.
 //!
 //! What it does, like the real library:
-//! - `hdStartScheduler` starts its own 1 kHz scheduler thread that calls the registered
-//!   callbacks in priority order; a callback returning `HD_CALLBACK_DONE` is dropped;
-//!   `hdScheduleSynchronous` runs a callback on that thread and waits for it.
-//! - The device plays a trajectory, one row per servo tick, and keeps rendering the last force
-//!   it was given (committed at `hdEndFrame`); `hdGetError` pops a queue of errors.
+//! - serves the devices named in its configuration, each by its own handle (`hdInitDevice(NAME)`;
+//!   `NULL` or `"Default Device"` is the first name); each device has its own trajectory,
+//!   frame state, force and event log; an unknown name fails with `HD_DEVICE_FAULT` and
+//!   `HD_INVALID_HANDLE`, a name already initialised with `HD_DEVICE_ALREADY_INITIATED`;
+//! - state calls (`hdGetDoublev`, `hdGetIntegerv`, `hdSetDoublev`, `hdEnable`, `hdDisable`)
+//!   apply to the current device: the one last made current by `hdMakeCurrentDevice` (or just
+//!   initialised). `hdBeginFrame(h)` and `hdEndFrame(h)` bracket device `h`'s frame and do not
+//!   make it current; a begin inside an open frame is `HD_ILLEGAL_BEGIN`, an end outside one
+//!   `HD_ILLEGAL_END`, a force set on a device outside its frame `HD_INVALID_OPERATION`; a
+//!   handle that is not an initialised device is `HD_BAD_HANDLE`;
+//! - `hdStartScheduler` starts its own 1 kHz scheduler thread (one for every device) that calls
+//!   the registered callbacks in priority order; a callback returning `HD_CALLBACK_DONE` is
+//!   dropped; `hdScheduleSynchronous` runs a callback on that thread and waits for it;
+//! - a device plays its trajectory, one row per servo tick, and keeps rendering the last force
+//!   it was given (committed at `hdEndFrame`); `hdGetError` pops one queue of errors for every
+//!   device, each naming the device it concerns (`HDErrorInfo::hHD`).
 //!
-//! Controlled by environment variables, read at `hdInitDevice`:
+//! Controlled by environment variables, read when the first device of a session (no device
+//! initialised) is initialised, the trajectories when each device is:
+//! - `LOP_STANDIN_DEVICE_NAMES`: comma-separated names of the devices it serves, in handle
+//!   order (default `Omni`).
 //! - `LOP_STANDIN_TRAJECTORY`: CSV file, one row per servo tick: `x_mm,y_mm,z_mm[,buttons]`
 //!   (lines starting with `#` and a header row are skipped); after the last row the device
-//!   holds still. Without it the stylus rests at the origin.
-//! - `LOP_STANDIN_ERRORS`: `TICK:CODE,...` — push HD error `CODE` (hex `0x0302` or decimal)
-//!   at servo tick `TICK`.
-//! - `LOP_STANDIN_LOG_DIR`: at `hdDisableDevice` write `standin-<pid>-<n>.csv` there: one row
-//!   per event `event,tick,code,fx,fy,fz` where the force is the one being rendered at that
-//!   moment — `frame` rows for every `hdEndFrame`, and `init`, `error`, `force_output_on/off`,
-//!   `unschedule`, `stop_scheduler`, `disable_device` rows.
-//! - `LOP_STANDIN_DEVICE_NAMES`: comma-separated names `hdInitDevice` accepts besides NULL and
-//!   `"Default Device"` (default `Omni`); any other name fails with `HD_DEVICE_FAULT`.
+//!   holds still. Without it the stylus rests at the origin. `LOP_STANDIN_TRAJECTORY_<NAME>`
+//!   gives device `NAME` its own.
+//! - `LOP_STANDIN_ERRORS`: `TICK:CODE[@NAME],...` — push HD error `CODE` (hex `0x0302` or
+//!   decimal) at servo tick `TICK`, concerning device `NAME` (default: the first device).
+//! - `LOP_STANDIN_LOG_DIR`: at `hdDisableDevice` write that device's log as
+//!   `standin-<pid>-<n>-<NAME>.csv` there (`n` counts the disables of the process): one row per
+//!   event `event,tick,code,fx,fy,fz` where the force is the one the device renders at that
+//!   moment — `begin` and `frame` rows for every `hdBeginFrame` and `hdEndFrame`, and `init`,
+//!   `error`, `exceeded`, `illegal_begin`, `illegal_end`, `set_outside_frame`,
+//!   `force_output_on/off`, `unschedule`, `stop_scheduler`, `disable_device` rows
+//!   (`unschedule` and `stop_scheduler` in the log of every initialised device).
 //!
 //! It is a test fixture, not a real-time component: it locks a mutex and allocates freely.
 
@@ -65,6 +81,7 @@ const HD_DEVICE_FAULT: c_uint = 0x0300;
 const HD_DEVICE_ALREADY_INITIATED: c_uint = 0x0301;
 const HD_INVALID_ENUM: c_uint = 0x0100;
 const HD_INVALID_OPERATION: c_uint = 0x0102;
+const HD_BAD_HANDLE: c_uint = 0x0104;
 const HD_ILLEGAL_BEGIN: c_uint = 0x0400;
 const HD_ILLEGAL_END: c_uint = 0x0401;
 
@@ -87,24 +104,44 @@ struct SyncJob {
     done: Arc<(Mutex<bool>, Condvar)>,
 }
 
+/// One device the stand-in serves; its handle is its index.
 #[derive(Default)]
-struct State {
+struct Device {
+    name: String,
     initialized: bool,
     force_output: bool,
     in_frame: bool,
-    /// Servo ticks so far (the scheduler's clock).
-    tick: u64,
     trajectory: Vec<[f64; 4]>,
-    scripted_errors: Vec<(u64, c_uint)>,
-    errors: VecDeque<c_uint>,
     /// Force set in the current frame; committed at hdEndFrame.
     frame_force: [f64; 3],
     /// Force the motors render now.
     rendered: [f64; 3],
     log: Vec<(&'static str, u64, c_uint, [f64; 3])>,
+}
+
+impl Device {
+    fn row(&self, tick: u64) -> [f64; 4] {
+        match self.trajectory.len() {
+            0 => [0.0; 4],
+            n => self.trajectory[(tick as usize).min(n - 1)],
+        }
+    }
+}
+
+#[derive(Default)]
+struct State {
+    /// The devices, by handle.
+    devices: Vec<Device>,
+    /// The handle state calls apply to.
+    current: Option<usize>,
+    /// Servo ticks so far (the scheduler's clock).
+    tick: u64,
+    /// (tick, code, device).
+    scripted_errors: Vec<(u64, c_uint, usize)>,
+    /// (code, the device it concerns).
+    errors: VecDeque<(c_uint, Hhd)>,
     log_dir: Option<String>,
     sessions: u32,
-    names: Vec<String>,
     callbacks: Vec<Callback>,
     next_handle: c_ulong,
     sync_jobs: Vec<SyncJob>,
@@ -134,26 +171,65 @@ macro_rules! with_state {
 }
 
 impl State {
-    fn event(&mut self, kind: &'static str, code: c_uint) {
-        let (tick, f) = (self.tick, self.rendered);
-        self.log.push((kind, tick, code, f));
-    }
-
-    fn row(&self, tick: u64) -> [f64; 4] {
-        match self.trajectory.len() {
-            0 => [0.0; 4],
-            n => self.trajectory[(tick as usize).min(n - 1)],
+    /// An event in device `d`'s log, with the force it renders now.
+    fn event(&mut self, d: usize, kind: &'static str, code: c_uint) {
+        let tick = self.tick;
+        if let Some(dev) = self.devices.get_mut(d) {
+            let f = dev.rendered;
+            dev.log.push((kind, tick, code, f));
         }
     }
 
-    fn write_log(&mut self) {
+    /// An event in the log of every initialised device.
+    fn event_all(&mut self, kind: &'static str) {
+        for d in 0..self.devices.len() {
+            if self.devices[d].initialized {
+                self.event(d, kind, 0);
+            }
+        }
+    }
+
+    fn error(&mut self, code: c_uint, d: Option<usize>) {
+        let hhd = d.map_or(HD_INVALID_HANDLE, |d| d as Hhd);
+        self.errors.push_back((code, hhd));
+    }
+
+    /// The initialised device of handle `hhd`; else queues `HD_BAD_HANDLE`.
+    fn device(&mut self, hhd: Hhd) -> Option<usize> {
+        let d = hhd as usize;
+        if self.devices.get(d).is_some_and(|dev| dev.initialized) {
+            Some(d)
+        } else {
+            self.error(HD_BAD_HANDLE, None);
+            None
+        }
+    }
+
+    /// The current device, if it is initialised; else queues `HD_BAD_HANDLE`.
+    fn current(&mut self) -> Option<usize> {
+        match self.current {
+            Some(d) => self.device(d as Hhd),
+            None => {
+                self.error(HD_BAD_HANDLE, None);
+                None
+            }
+        }
+    }
+
+    fn write_log(&mut self, d: usize) {
         let Some(dir) = &self.log_dir else {
             return;
         };
         self.sessions += 1;
-        let path = format!("{dir}/standin-{}-{}.csv", std::process::id(), self.sessions);
+        let dev = &mut self.devices[d];
+        let path = format!(
+            "{dir}/standin-{}-{}-{}.csv",
+            std::process::id(),
+            self.sessions,
+            dev.name
+        );
         let mut text = String::from("event,tick,code,fx,fy,fz\n");
-        for (kind, tick, code, f) in &self.log {
+        for (kind, tick, code, f) in &dev.log {
             text.push_str(&format!(
                 "{kind},{tick},{code},{},{},{}\n",
                 f[0], f[1], f[2]
@@ -162,7 +238,7 @@ impl State {
         if let Ok(mut file) = std::fs::File::create(&path) {
             let _ = file.write_all(text.as_bytes());
         }
-        self.log.clear();
+        dev.log.clear();
     }
 }
 
@@ -174,40 +250,63 @@ fn parse_code(s: &str) -> Option<c_uint> {
     }
 }
 
-fn load_env(s: &mut State) {
-    s.trajectory.clear();
-    if let Ok(path) = std::env::var("LOP_STANDIN_TRAJECTORY") {
-        let text = std::fs::read_to_string(&path)
-            .unwrap_or_else(|e| panic!("stand-in libHD: {path}: {e}"));
-        for line in text.lines() {
-            let line = line.trim();
-            if line.is_empty() || line.starts_with('#') {
-                continue;
-            }
-            let v: Vec<f64> = line
-                .split(',')
-                .filter_map(|x| x.trim().parse().ok())
-                .collect();
-            if v.len() >= 3 {
-                s.trajectory
-                    .push([v[0], v[1], v[2], v.get(3).copied().unwrap_or(0.0)]);
-            }
+fn load_trajectory(name: &str) -> Vec<[f64; 4]> {
+    let Ok(path) = std::env::var(format!("LOP_STANDIN_TRAJECTORY_{name}"))
+        .or_else(|_| std::env::var("LOP_STANDIN_TRAJECTORY"))
+    else {
+        return Vec::new();
+    };
+    let text =
+        std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("stand-in libHD: {path}: {e}"));
+    let mut rows = Vec::new();
+    for line in text.lines() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let v: Vec<f64> = line
+            .split(',')
+            .filter_map(|x| x.trim().parse().ok())
+            .collect();
+        if v.len() >= 3 {
+            rows.push([v[0], v[1], v[2], v.get(3).copied().unwrap_or(0.0)]);
         }
     }
+    rows
+}
+
+/// A new session: the devices, the scripted errors and the log directory from the environment.
+fn load_session(s: &mut State) {
+    s.devices = std::env::var("LOP_STANDIN_DEVICE_NAMES")
+        .unwrap_or_else(|_| "Omni".into())
+        .split(',')
+        .map(|n| Device {
+            name: n.trim().to_string(),
+            ..Default::default()
+        })
+        .collect();
+    s.current = None;
+    s.tick = 0;
+    let names: Vec<String> = s.devices.iter().map(|d| d.name.clone()).collect();
     s.scripted_errors = std::env::var("LOP_STANDIN_ERRORS")
         .unwrap_or_default()
         .split(',')
         .filter_map(|item| {
-            let (tick, code) = item.split_once(':')?;
-            Some((tick.trim().parse().ok()?, parse_code(code)?))
+            let (tick, rest) = item.split_once(':')?;
+            let (code, device) = match rest.split_once('@') {
+                Some((code, name)) => {
+                    let d = names.iter().position(|n| n == name.trim());
+                    let d = d.unwrap_or_else(|| {
+                        panic!("stand-in libHD: LOP_STANDIN_ERRORS names no device: {item}")
+                    });
+                    (code, d)
+                }
+                None => (rest, 0),
+            };
+            Some((tick.trim().parse().ok()?, parse_code(code)?, device))
         })
         .collect();
     s.log_dir = std::env::var("LOP_STANDIN_LOG_DIR").ok();
-    s.names = std::env::var("LOP_STANDIN_DEVICE_NAMES")
-        .unwrap_or_else(|_| "Omni".into())
-        .split(',')
-        .map(|n| n.trim().to_string())
-        .collect();
 }
 
 #[no_mangle]
@@ -222,54 +321,78 @@ pub unsafe extern "C" fn hdInitDevice(name: *const c_char) -> Hhd {
         )
     };
     with_state!(|s| {
-        if s.initialized {
-            s.errors.push_back(HD_DEVICE_ALREADY_INITIATED);
-            return HD_INVALID_HANDLE;
+        if !s.devices.iter().any(|d| d.initialized) {
+            load_session(s);
         }
-        load_env(s);
-        let known = match &name {
-            None => true,
-            Some(n) => n == "Default Device" || s.names.iter().any(|k| k == n),
+        let d = match name.as_deref() {
+            None | Some("Default Device") => Some(0),
+            Some(n) => s.devices.iter().position(|d| d.name == n),
         };
-        if !known {
-            s.errors.push_back(HD_DEVICE_FAULT);
+        let Some(d) = d.filter(|&d| d < s.devices.len()) else {
+            s.error(HD_DEVICE_FAULT, None);
+            return HD_INVALID_HANDLE;
+        };
+        if s.devices[d].initialized {
+            s.error(HD_DEVICE_ALREADY_INITIATED, Some(d));
             return HD_INVALID_HANDLE;
         }
-        s.initialized = true;
-        s.tick = 0;
-        s.rendered = [0.0; 3];
-        s.frame_force = [0.0; 3];
-        s.log.clear();
-        s.event("init", 0);
-        0
+        let trajectory = load_trajectory(&s.devices[d].name);
+        let dev = &mut s.devices[d];
+        dev.initialized = true;
+        dev.force_output = false;
+        dev.in_frame = false;
+        dev.trajectory = trajectory;
+        dev.rendered = [0.0; 3];
+        dev.frame_force = [0.0; 3];
+        dev.log.clear();
+        s.current = Some(d);
+        s.event(d, "init", 0);
+        d as Hhd
     })
 }
 
 #[no_mangle]
-pub extern "C" fn hdDisableDevice(_hhd: Hhd) {
+pub extern "C" fn hdDisableDevice(hhd: Hhd) {
     with_state!(|s| {
-        s.event("disable_device", 0);
-        s.initialized = false;
-        s.force_output = false;
-        s.rendered = [0.0; 3];
-        s.write_log();
+        let Some(d) = s.device(hhd) else {
+            return;
+        };
+        s.event(d, "disable_device", 0);
+        let dev = &mut s.devices[d];
+        dev.initialized = false;
+        dev.force_output = false;
+        dev.in_frame = false;
+        dev.rendered = [0.0; 3];
+        if s.current == Some(d) {
+            s.current = None;
+        }
+        s.write_log(d);
     })
 }
 
 #[no_mangle]
-pub extern "C" fn hdMakeCurrentDevice(_hhd: Hhd) {}
+pub extern "C" fn hdMakeCurrentDevice(hhd: Hhd) {
+    with_state!(|s| {
+        if let Some(d) = s.device(hhd) {
+            s.current = Some(d);
+        }
+    })
+}
 
 #[no_mangle]
 pub extern "C" fn hdGetCurrentDevice() -> Hhd {
-    0
+    with_state!(|s| s.current.map_or(HD_INVALID_HANDLE, |d| d as Hhd))
 }
 
 #[no_mangle]
 pub extern "C" fn hdEnable(cap: c_uint) {
     with_state!(|s| {
+        let Some(d) = s.current() else {
+            return;
+        };
         if cap == HD_FORCE_OUTPUT {
-            s.force_output = true;
-            s.event("force_output_on", 0);
+            s.devices[d].force_output = true;
+            s.event(d, "force_output_on", 0);
         }
     })
 }
@@ -277,10 +400,13 @@ pub extern "C" fn hdEnable(cap: c_uint) {
 #[no_mangle]
 pub extern "C" fn hdDisable(cap: c_uint) {
     with_state!(|s| {
+        let Some(d) = s.current() else {
+            return;
+        };
         if cap == HD_FORCE_OUTPUT {
-            s.event("force_output_off", 0);
-            s.force_output = false;
-            s.rendered = [0.0; 3];
+            s.event(d, "force_output_off", 0);
+            s.devices[d].force_output = false;
+            s.devices[d].rendered = [0.0; 3];
         }
     })
 }
@@ -311,15 +437,15 @@ fn scheduler_loop() {
             }
             s.tick += 1;
             let tick = s.tick;
-            let due: Vec<c_uint> = s
+            let due: Vec<(c_uint, usize)> = s
                 .scripted_errors
                 .iter()
-                .filter(|(t, _)| *t == tick)
-                .map(|(_, c)| *c)
+                .filter(|(t, _, _)| *t == tick)
+                .map(|(_, c, d)| (*c, *d))
                 .collect();
-            for code in due {
-                s.errors.push_back(code);
-                s.event("error", code);
+            for (code, d) in due {
+                s.error(code, Some(d));
+                s.event(d, "error", code);
             }
             let cbs: Vec<(c_ulong, usize, usize, u16)> = s
                 .callbacks
@@ -368,7 +494,7 @@ pub extern "C" fn hdStartScheduler() {
 #[no_mangle]
 pub extern "C" fn hdStopScheduler() {
     with_state!(|s| {
-        s.event("stop_scheduler", 0);
+        s.event_all("stop_scheduler");
         s.running = false;
     });
     let handle = SCHEDULER.lock().unwrap_or_else(|p| p.into_inner()).take();
@@ -425,44 +551,59 @@ pub unsafe extern "C" fn hdScheduleSynchronous(f: HdCallback, data: *mut c_void,
 #[no_mangle]
 pub extern "C" fn hdUnschedule(handle: c_ulong) {
     with_state!(|s| {
-        s.event("unschedule", 0);
+        s.event_all("unschedule");
         s.callbacks.retain(|c| c.handle != handle);
     })
 }
 
 #[no_mangle]
-pub extern "C" fn hdBeginFrame(_hhd: Hhd) {
+pub extern "C" fn hdBeginFrame(hhd: Hhd) {
     with_state!(|s| {
-        if s.in_frame {
-            s.errors.push_back(HD_ILLEGAL_BEGIN);
+        let Some(d) = s.device(hhd) else {
+            return;
+        };
+        if s.devices[d].in_frame {
+            s.error(HD_ILLEGAL_BEGIN, Some(d));
+            s.event(d, "illegal_begin", HD_ILLEGAL_BEGIN);
         }
-        s.in_frame = true;
-        s.frame_force = s.rendered;
+        let dev = &mut s.devices[d];
+        dev.in_frame = true;
+        dev.frame_force = dev.rendered;
+        s.event(d, "begin", 0);
     })
 }
 
 #[no_mangle]
-pub extern "C" fn hdEndFrame(_hhd: Hhd) {
+pub extern "C" fn hdEndFrame(hhd: Hhd) {
     with_state!(|s| {
-        if !s.in_frame {
-            s.errors.push_back(HD_ILLEGAL_END);
+        let Some(d) = s.device(hhd) else {
+            return;
+        };
+        if !s.devices[d].in_frame {
+            s.error(HD_ILLEGAL_END, Some(d));
+            s.event(d, "illegal_end", HD_ILLEGAL_END);
             return;
         }
-        s.in_frame = false;
-        s.rendered = if s.force_output {
-            s.frame_force
+        let dev = &mut s.devices[d];
+        dev.in_frame = false;
+        dev.rendered = if dev.force_output {
+            dev.frame_force
         } else {
             [0.0; 3]
         };
-        s.event("frame", 0);
+        s.event(d, "frame", 0);
     })
 }
 
 #[no_mangle]
 pub unsafe extern "C" fn hdGetDoublev(what: c_uint, out: *mut f64) {
     let values: Vec<f64> = with_state!(|s| {
-        let row = s.row(s.tick);
-        let prev = s.row(s.tick.saturating_sub(1));
+        let Some(d) = s.current() else {
+            return;
+        };
+        let dev = &s.devices[d];
+        let row = dev.row(s.tick);
+        let prev = dev.row(s.tick.saturating_sub(1));
         match what {
             HD_CURRENT_POSITION => row[..3].to_vec(),
             HD_CURRENT_VELOCITY => (0..3).map(|k| (row[k] - prev[k]) * 1000.0).collect(),
@@ -475,14 +616,14 @@ pub unsafe extern "C" fn hdGetDoublev(what: c_uint, out: *mut f64) {
                 m[12..15].copy_from_slice(&row[..3]);
                 m
             }
-            HD_CURRENT_FORCE => s.rendered.to_vec(),
+            HD_CURRENT_FORCE => dev.rendered.to_vec(),
             HD_NOMINAL_MAX_FORCE => vec![MAX_FORCE],
             HD_NOMINAL_MAX_CONTINUOUS_FORCE => vec![MAX_CONTINUOUS_FORCE],
             HD_NOMINAL_MAX_STIFFNESS => vec![MAX_STIFFNESS],
             HD_NOMINAL_MAX_DAMPING => vec![0.003],
             HD_USABLE_WORKSPACE_DIMENSIONS => WORKSPACE.to_vec(),
             _ => {
-                s.errors.push_back(HD_INVALID_ENUM);
+                s.error(HD_INVALID_ENUM, Some(d));
                 Vec::new()
             }
         }
@@ -494,9 +635,14 @@ pub unsafe extern "C" fn hdGetDoublev(what: c_uint, out: *mut f64) {
 
 #[no_mangle]
 pub unsafe extern "C" fn hdGetIntegerv(what: c_uint, out: *mut c_int) {
-    with_state!(|s| match what {
-        HD_CURRENT_BUTTONS => unsafe { *out = s.row(s.tick)[3] as c_int },
-        _ => s.errors.push_back(HD_INVALID_ENUM),
+    with_state!(|s| {
+        let Some(d) = s.current() else {
+            return;
+        };
+        match what {
+            HD_CURRENT_BUTTONS => unsafe { *out = s.devices[d].row(s.tick)[3] as c_int },
+            _ => s.error(HD_INVALID_ENUM, Some(d)),
+        }
     })
 }
 
@@ -504,32 +650,39 @@ pub unsafe extern "C" fn hdGetIntegerv(what: c_uint, out: *mut c_int) {
 pub unsafe extern "C" fn hdSetDoublev(what: c_uint, values: *const f64) {
     let v = unsafe { [*values, *values.add(1), *values.add(2)] };
     with_state!(|s| {
+        let Some(d) = s.current() else {
+            return;
+        };
         if what != HD_CURRENT_FORCE {
-            s.errors.push_back(HD_INVALID_ENUM);
+            s.error(HD_INVALID_ENUM, Some(d));
             return;
         }
-        if !s.in_frame {
-            s.errors.push_back(HD_INVALID_OPERATION);
+        if !s.devices[d].in_frame {
+            s.error(HD_INVALID_OPERATION, Some(d));
+            s.event(d, "set_outside_frame", HD_INVALID_OPERATION);
             return;
         }
         let magnitude = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         if !magnitude.is_finite() || magnitude > MAX_FORCE * (1.0 + 1e-9) {
             // Like the device: refuse and render nothing.
-            s.errors.push_back(HD_EXCEEDED_MAX_FORCE);
-            s.event("exceeded", HD_EXCEEDED_MAX_FORCE);
-            s.frame_force = [0.0; 3];
+            s.error(HD_EXCEEDED_MAX_FORCE, Some(d));
+            s.event(d, "exceeded", HD_EXCEEDED_MAX_FORCE);
+            s.devices[d].frame_force = [0.0; 3];
             return;
         }
-        s.frame_force = v;
+        s.devices[d].frame_force = v;
     })
 }
 
 #[no_mangle]
 pub extern "C" fn hdGetError() -> HdErrorInfo {
-    with_state!(|s| HdErrorInfo {
-        error_code: s.errors.pop_front().unwrap_or(HD_SUCCESS),
-        internal_error_code: 0,
-        hhd: 0,
+    with_state!(|s| {
+        let (error_code, hhd) = s.errors.pop_front().unwrap_or((HD_SUCCESS, 0));
+        HdErrorInfo {
+            error_code,
+            internal_error_code: 0,
+            hhd,
+        }
     })
 }
 
