@@ -48,9 +48,10 @@ enum Command {
     /// Tool interaction, the thesis' §6.3.4: haptic tick compute (god-object + force), collision
     /// detection per step, heat step per body (table, CSV, SVG).
     Interaction(interaction::InteractionArgs),
-    /// Haptics, part 1 (transparency): the force lop renders when a 3 mm tool presses a clamped
-    /// block, on three gmsh meshes, against a static FE contact reference and Hertz; the force's
-    /// steadiness during a hold (tables, CSV, SVG, PASS/FAIL).
+    /// Haptics: the force lop renders when a 3 mm tool presses a clamped block (three gmsh
+    /// meshes) and the liver, against a static FE contact reference and Hertz; the stability of
+    /// the closed loop with the simulated hand; a bimanual pinch with two simulated hands
+    /// (tables, CSV, SVG, PASS/FAIL).
     Haptics(haptics::HapticsArgs),
     /// Soak: the whole pipeline for N minutes under randomised faults (deformation process
     /// killed and stopped, NaN and out-of-workspace samples, control hammered, viewers coming

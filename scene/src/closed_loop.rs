@@ -1,19 +1,25 @@
 //! The haptic pipeline and the deformation rounds coupled in one process on simulated time,
-//! with the simulated hand holding the stylus: what `lopd run --device hand` does, without
-//! shared memory or the wall clock, so that a press can be replayed deterministically and the
-//! coupling's stability measured (`lopd simulate --device hand[:SCRIPT]`, `lop-bench haptics`
-//! part 3, and the tests).
+//! with a simulated hand holding each tool's stylus: what `lopd run --device hand` does,
+//! without shared memory or the wall clock, so that a press can be replayed deterministically
+//! and the coupling's stability measured (`lopd simulate --device hand[:SCRIPT]`,
+//! `lop-bench haptics` parts 3 and 4, and the tests).
 //!
 //! Each tick `n` at `t = n T` (`T` the scene's haptic period), in the live loop's order:
 //!
-//! 1. the hand device is read at `t` (it integrates the hand and the stylus at 10 kHz under the
-//!    force written the tick before);
-//! 2. the live loop's own [`HapticPipeline`], with the same settings
-//!    ([`pipeline_settings`](crate::pipeline_settings)), renders against the world as its last
-//!    round left it ([`OfflineSession::surfaces`]: the surfaces, the proxy resting where the
-//!    patch balanced, the patch's local model);
-//! 3. the force is written to the device;
-//! 4. the world runs its round to `t + T` with this tick's tool ([`OfflineSession::advance`]).
+//! 1. every hand device is read at `t` (each integrates its hand and stylus at 10 kHz under
+//!    the force written to it the tick before);
+//! 2. every tool's own [`HapticPipeline`], with the live loop's settings for that tool
+//!    ([`tool_pipeline_settings`](crate::tool_pipeline_settings)), renders against the world
+//!    as its last round left it ([`OfflineSession::tool_surfaces`]: the surfaces, the proxy
+//!    resting where the patch balanced, that tool's local model of the patch) — every tool
+//!    against the same world;
+//! 3. every force is written to its device;
+//! 4. the world runs one round to `t + T` with every tool of this tick
+//!    ([`OfflineSession::advance_tools`]): tissue pressed by several tools is one contact
+//!    patch, each tool with its own spring and its own share of the force.
+//!
+//! [`run`] is this loop with one tool (the scene's first), [`run_tools`] with a hand on each of
+//! the scene's first tools.
 //!
 //! So a frame is one tick old when the hand feels it if the touched body steps every tick (the
 //! live loop's frame age is then 0.5–1.4 ms, `lop-bench latency`). A body that steps at a
@@ -23,17 +29,18 @@
 //! as live. Everything else that depends on the wall clock live (the step's own duration,
 //! scheduling) is absent here.
 
-use anyhow::{Context, Result};
+use anyhow::{ensure, Context, Result};
 use lop_config::{DaemonConfig, Scene};
 use lop_drivers::hand::{HandDevice, HandParameters};
 use lop_drivers::mock::MockScript;
-use lop_drivers::{DeviceLimits, HapticDevice, BUTTON_GRAB, BUTTON_HEAT};
-use lop_sim::haptic::{DeviceReading, HapticPipeline};
+use lop_drivers::{DeviceLimits, DeviceSample, HapticDevice, BUTTON_GRAB, BUTTON_HEAT};
+use lop_sim::haptic::{DeviceReading, HapticPipeline, TickOutput};
+use lop_sim::world::MAX_TOOLS;
 
 use crate::session::{OfflineSession, RoundInput, TickRecord};
 use crate::{DeviceClamp, ToolLaws};
 
-/// What to run.
+/// What to run with one tool.
 #[derive(Debug, Clone)]
 pub struct ClosedLoopOptions {
     /// The scene (as loaded; callers may change its parameters first).
@@ -50,7 +57,33 @@ pub struct ClosedLoopOptions {
     pub seconds: f64,
 }
 
-/// A run's ticks and the passivity controller's account.
+/// The hand on one tool and the device it holds.
+#[derive(Debug, Clone)]
+pub struct ToolHand {
+    /// The hand's intent.
+    pub script: MockScript,
+    /// The hand; `None`: the script's `[hand]` table, else the defaults.
+    pub hand: Option<HandParameters>,
+    /// The device; its stiffness limit clamps this tool's law as live.
+    pub limits: DeviceLimits,
+}
+
+/// What to run with several tools.
+#[derive(Debug, Clone)]
+pub struct ClosedLoopToolsOptions {
+    /// The scene (as loaded; callers may change its parameters first).
+    pub scene: Scene,
+    /// One hand per tool, in the scene's order: `hands[k]` holds tool `k` (at least one, at
+    /// most the scene's tools and [`MAX_TOOLS`]; a tool past the last hand has no device and
+    /// acts on nothing).
+    pub hands: Vec<ToolHand>,
+    /// The daemon's settings (the haptic loop's local model, passivity, safety).
+    pub config: DaemonConfig,
+    /// Simulated seconds.
+    pub seconds: f64,
+}
+
+/// A run's ticks and the passivity controller's account, for one tool.
 #[derive(Debug, Clone)]
 pub struct ClosedLoopRun {
     /// Every tick.
@@ -63,79 +96,169 @@ pub struct ClosedLoopRun {
     pub stiffness: Vec<f64>,
 }
 
-/// Runs the closed loop (see the module docs).
+impl ClosedLoopRun {
+    /// The energy through this tool's two ports ([`port_energy`] of its ticks).
+    pub fn port_energy(&self) -> PortEnergy {
+        port_energy(&self.ticks)
+    }
+}
+
+/// Runs the closed loop with one tool, the scene's first (see the module docs).
 pub fn run(opts: ClosedLoopOptions) -> Result<ClosedLoopRun> {
-    let settings = crate::pipeline_settings(&opts.config, &opts.scene, &opts.limits);
-    let laws = ToolLaws::new(
-        &opts.scene,
-        DeviceClamp {
-            max_stiffness_n_per_mm: opts.limits.max_stiffness_n_per_mm,
-        },
+    let mut runs = run_tools(ClosedLoopToolsOptions {
+        scene: opts.scene,
+        hands: vec![ToolHand {
+            script: opts.script,
+            hand: opts.hand,
+            limits: opts.limits,
+        }],
+        config: opts.config,
+        seconds: opts.seconds,
+    })?;
+    Ok(runs.swap_remove(0))
+}
+
+/// One tool of the loop: the device its hand holds and the pipeline that renders its force.
+struct ToolLoop {
+    device: HandDevice,
+    pipeline: HapticPipeline,
+    /// What this tool's hand felt, tick by tick.
+    ticks: Vec<TickRecord>,
+    /// The tool stiffness against each body, N/m (the pipeline's settings).
+    stiffness: Vec<f64>,
+}
+
+/// Runs the closed loop with a hand on each of the scene's first tools (see the module docs);
+/// one run per hand, in the scene's order.
+///
+/// # Errors
+/// No hand, more hands than the scene has tools, a hand's parameters refused, the scene not
+/// loading, or a device refusing a read or a force (each named by its tool).
+pub fn run_tools(opts: ClosedLoopToolsOptions) -> Result<Vec<ClosedLoopRun>> {
+    let ClosedLoopToolsOptions {
+        scene,
+        hands,
+        config,
+        seconds,
+    } = opts;
+    ensure!(!hands.is_empty(), "the closed loop needs a hand on a tool");
+    ensure!(
+        hands.len() <= scene.tools.len().max(1) && hands.len() <= MAX_TOOLS,
+        "{} hands for the {} tools of scene {:?} (at most {MAX_TOOLS})",
+        hands.len(),
+        scene.tools.len(),
+        scene.name
     );
-    let mut device = match opts.hand {
-        Some(p) => HandDevice::with_parameters(opts.script.clone(), p, opts.limits)
-            .context("hand parameters")?,
-        None => HandDevice::new(opts.script.clone(), opts.limits),
-    };
-    device
-        .start()
-        .map_err(|e| anyhow::anyhow!("starting the hand device: {e}"))?;
-    let loaded = crate::load(opts.scene.clone())?;
-    let mut session = OfflineSession::new(loaded.world, laws);
-    let period = settings.period();
-    let ticks = (opts.seconds / period).round() as usize;
-    let stiffness = settings.body_stiffness.clone();
-    let mut pipeline = HapticPipeline::new(settings);
-    let mut out = Vec::with_capacity(ticks);
+    let mut tools = Vec::with_capacity(hands.len());
+    let mut laws = Vec::with_capacity(hands.len());
+    for (k, h) in hands.into_iter().enumerate() {
+        let settings = crate::tool_pipeline_settings(&config, &scene, k, &h.limits);
+        laws.push(ToolLaws::of_tool(
+            &scene,
+            k,
+            DeviceClamp {
+                max_stiffness_n_per_mm: h.limits.max_stiffness_n_per_mm,
+            },
+        ));
+        let mut device = match h.hand {
+            Some(p) => HandDevice::with_parameters(h.script, p, h.limits)
+                .with_context(|| format!("tool {k}: hand parameters"))?,
+            None => HandDevice::new(h.script, h.limits),
+        };
+        device
+            .start()
+            .map_err(|e| anyhow::anyhow!("tool {k}: starting the hand device: {e}"))?;
+        tools.push(ToolLoop {
+            device,
+            stiffness: settings.body_stiffness.clone(),
+            pipeline: HapticPipeline::new(settings),
+            ticks: Vec::new(),
+        });
+    }
+    let loaded = crate::load(scene)?;
+    let mut session = OfflineSession::with_tools(loaded.world, laws);
+    // Every tool's pipeline ticks at the scene's haptic rate.
+    let period = tools[0].pipeline.settings().period();
+    let ticks = (seconds / period).round() as usize;
+    for tool in &mut tools {
+        tool.ticks.reserve_exact(ticks);
+    }
+    let mut samples = vec![DeviceSample::default(); tools.len()];
+    let mut outputs: Vec<TickOutput> = Vec::with_capacity(tools.len());
+    let mut inputs: Vec<Option<RoundInput>> = vec![None; tools.len()];
     // Stage timings on a counter: the run stays deterministic.
     let mut clock = 0u64;
     for n in 0..ticks {
         let t = n as f64 * period;
-        let sample = device
-            .read(t)
-            .map_err(|e| anyhow::anyhow!("hand device at {t} s: {e}"))?;
-        let reading = DeviceReading {
-            position_mm: sample.position_mm,
-            velocity_mm_s: sample.velocity_mm_s,
-            grab: sample.pressed(BUTTON_GRAB),
-        };
-        // The frame the hand feels is the touched body's last step: one tick old when it
-        // steps every tick, up to its step period old when it steps slower.
-        let mut surfaces = session.surfaces(t, period);
-        let tick = pipeline.tick(Some(reading), true, &mut surfaces, || {
-            clock += 1;
-            clock
-        });
-        session.follow(tick.god.as_ref());
-        device
-            .write_force(tick.device_force)
-            .map_err(|e| anyhow::anyhow!("hand device refused {:?} N: {e}", tick.device_force))?;
-        out.push(TickRecord {
-            t,
-            stylus: sample.position_mm.map(|c| c * 1e-3),
-            force: tick.device_force,
-            contact: tick.anchor().is_some(),
-            local: tick.local,
-            grip_work: device.grip_work(),
-            tissue_force: session.tissue_force(tick.god.as_ref()),
-        });
-        let tool = tick.tip.map(|center| RoundInput {
-            center,
-            heat: sample.pressed(BUTTON_HEAT),
-            stiffness: tick.anchor().map(|_| tick.stiffness),
-        });
-        session.advance(t + period, tool, &[], || {
+        // 1. Every hand is read.
+        for (k, (tool, sample)) in tools.iter_mut().zip(&mut samples).enumerate() {
+            *sample = tool
+                .device
+                .read(t)
+                .map_err(|e| anyhow::anyhow!("tool {k}: hand device at {t} s: {e}"))?;
+        }
+        // 2. Every pipeline renders against the same world. The frame each hand feels is the
+        // touched body's last step: one tick old when it steps every tick, up to its step
+        // period old when it steps slower.
+        outputs.clear();
+        for (k, (tool, sample)) in tools.iter_mut().zip(&samples).enumerate() {
+            let reading = DeviceReading {
+                position_mm: sample.position_mm,
+                velocity_mm_s: sample.velocity_mm_s,
+                grab: sample.pressed(BUTTON_GRAB),
+            };
+            let mut surfaces = session.tool_surfaces(k, t, period);
+            let tick = tool.pipeline.tick(Some(reading), true, &mut surfaces, || {
+                clock += 1;
+                clock
+            });
+            session.follow_tool(k, tick.god.as_ref());
+            outputs.push(tick);
+        }
+        // 3. Every force is written, and what each hand felt recorded.
+        for (k, ((tool, sample), tick)) in tools.iter_mut().zip(&samples).zip(&outputs).enumerate()
+        {
+            tool.device.write_force(tick.device_force).map_err(|e| {
+                anyhow::anyhow!(
+                    "tool {k}: hand device refused {:?} N: {e}",
+                    tick.device_force
+                )
+            })?;
+            tool.ticks.push(TickRecord {
+                t,
+                stylus: sample.position_mm.map(|c| c * 1e-3),
+                force: tick.device_force,
+                contact: tick.anchor().is_some(),
+                local: tick.local,
+                grip_work: tool.device.grip_work(),
+                tissue_force: session.tool_tissue_force(k, tick.god.as_ref()),
+            });
+        }
+        // 4. One round of the world with every tool.
+        for ((input, sample), tick) in inputs.iter_mut().zip(&samples).zip(&outputs) {
+            *input = tick.tip.map(|center| RoundInput {
+                center,
+                heat: sample.pressed(BUTTON_HEAT),
+                stiffness: tick.anchor().map(|_| tick.stiffness),
+            });
+        }
+        session.advance_tools(t + period, &inputs, &[], || {
             clock += 1;
             clock
         });
     }
-    device.stop();
-    Ok(ClosedLoopRun {
-        ticks: out,
-        dissipated: pipeline.passivity().dissipated(),
-        passivity_ticks: pipeline.passivity().active_ticks(),
-        stiffness,
-    })
+    Ok(tools
+        .into_iter()
+        .map(|mut tool| {
+            tool.device.stop();
+            ClosedLoopRun {
+                ticks: tool.ticks,
+                dissipated: tool.pipeline.passivity().dissipated(),
+                passivity_ticks: tool.pipeline.passivity().active_ticks(),
+                stiffness: tool.stiffness,
+            }
+        })
+        .collect())
 }
 
 /// What `lopd simulate --device hand` writes beside `hand.csv`.

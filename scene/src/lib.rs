@@ -8,7 +8,7 @@
 //! spring the hand feels. The haptic pipeline's settings come from here too
 //! ([`pipeline_settings`]), and so does the one offline path: the rounds both `lopd deform` and
 //! `lopd simulate` run ([`Rounds`]), the [`OfflineSession`] every offline run and benchmark
-//! steps, and the closed loop with the simulated hand ([`closed_loop`]).
+//! steps, and the closed loop with a simulated hand on each tool ([`closed_loop`]).
 
 use anyhow::{bail, Context, Result};
 use lop_config::{BodySpec, Scene, ToolSpec};

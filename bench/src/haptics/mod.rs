@@ -24,6 +24,13 @@
 //! the default scene at the device's maximum the oscillation is within 2 % of the held force
 //! within 100 ms and the cycle generates no energy; with the default hand no run up to the
 //! device's maximum generates any.
+//!
+//! Part 4, **the pinch** (`pinch.rs`): two simulated hands, each on its own tool and device,
+//! squeeze a free soft cube from opposite sides through the closed loop of several tools
+//! (`lop_scene::closed_loop::run_tools`): press, hold, withdraw, across the two hands. Per hand
+//! the held force and the energy at its device port; per pinch the balance of the two forces.
+//! Targets: every hand in contact through the hold, `|F_left + F_right| / |F|` within 1 % over
+//! it, and no energy generated at a firm-grip hand's device port.
 
 // `!(x > 0.0)` is how a check is written so that NaN fails it (as in lop-sim); 3×3 blocks read
 // best as index loops.
@@ -32,6 +39,7 @@
 pub(crate) mod block;
 mod hertz;
 mod liver;
+mod pinch;
 mod press;
 mod reference;
 pub(crate) mod stability;
@@ -48,7 +56,7 @@ use serde::Serialize;
 #[derive(Args, Debug)]
 pub struct HapticsArgs {
     /// Small and fast (for the smoke test): the 0.8 and 0.4 mm meshes, four reference depths, no
-    /// converged reference; the liver held at 1 and 3 mm only.
+    /// converged reference; the liver held at 1 and 3 mm only; two pinches, no hand alone.
     #[arg(long)]
     quick: bool,
     /// Where the CSV and SVG files go (created if missing).
@@ -58,19 +66,26 @@ pub struct HapticsArgs {
     #[arg(long)]
     json: Option<PathBuf>,
     /// Only part 3, the stability map (about a minute; with `--quick`, seconds).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "pinch_only")]
     stability_only: bool,
+    /// Only part 4, the bimanual pinch (seconds).
+    #[arg(long)]
+    pinch_only: bool,
 }
 
 /// Everything `--json` writes: part 1's figures at the top level, part 2's under `liver`,
-/// part 3's under `stability` (with `--stability-only`, only that).
+/// part 3's under `stability`, part 4's under `pinch` (with `--stability-only` or
+/// `--pinch-only`, only that part).
 #[derive(Debug, Serialize)]
 struct Report {
     #[serde(flatten)]
     transparency: Option<transparency::Report>,
     #[serde(skip_serializing_if = "Option::is_none")]
     liver: Option<liver::LiverReport>,
-    stability: stability::StabilityReport,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    stability: Option<stability::StabilityReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pinch: Option<pinch::PinchReport>,
 }
 
 /// Runs the benchmark.
@@ -81,13 +96,22 @@ pub fn run(a: HapticsArgs) -> Result<()> {
         Report {
             transparency: None,
             liver: None,
-            stability: stability::run_map(a.quick, &a.out)?,
+            stability: Some(stability::run_map(a.quick, &a.out)?),
+            pinch: None,
+        }
+    } else if a.pinch_only {
+        Report {
+            transparency: None,
+            liver: None,
+            stability: None,
+            pinch: Some(pinch::run(a.quick, &a.out)?),
         }
     } else {
         Report {
             transparency: Some(transparency::run(a.quick, &a.out)?),
             liver: Some(liver::run(a.quick, &a.out)?),
-            stability: stability::run_map(a.quick, &a.out)?,
+            stability: Some(stability::run_map(a.quick, &a.out)?),
+            pinch: Some(pinch::run(a.quick, &a.out)?),
         }
     };
     println!(

@@ -213,14 +213,16 @@ pub enum Grip {
 }
 
 impl Grip {
-    fn parameters(self) -> HandParameters {
+    /// The hand's parameters.
+    pub(crate) fn parameters(self) -> HandParameters {
         match self {
             Grip::Firm => HandParameters::default(),
             Grip::Light => HandParameters::light_grip(),
         }
     }
 
-    fn name(self) -> &'static str {
+    /// Its name in tables.
+    pub(crate) fn name(self) -> &'static str {
         match self {
             Grip::Firm => "firm grip",
             Grip::Light => "light grip, bare stylus",

@@ -4,7 +4,9 @@
 //! contact patch promises, on the quick meshes: lop within 10 % of the static contact solution
 //! on the same mesh (block and liver), and a felt force that converges with the mesh as that
 //! solution does; and that the simulated hand's press on the default scene settles and
-//! generates no energy at the device's stiffness limit. No wall-clock bound.
+//! generates no energy at the device's stiffness limit; and that two simulated hands pinching a
+//! free cube hold equal and opposite forces without generating energy at a firm hand's port.
+//! No wall-clock bound.
 
 use crate::common;
 
@@ -123,7 +125,35 @@ fn haptics_quick_reports_every_mesh_and_target() {
     for t in targets {
         assert_eq!(t["pass"].as_bool(), Some(true), "{t}");
     }
+    // Part 4, the pinch (quick: two firm hands, and a light with a firm one): both hands of
+    // each pinch hold through the measured hold, the two forces balance, and the targets pass.
+    let pinch = &report["pinch"];
+    let runs = pinch["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 2, "{pinch}");
+    for r in runs {
+        let hands = r["hands"].as_array().unwrap();
+        assert_eq!(hands.len(), 2, "{r}");
+        for h in hands {
+            assert!(h["held_n"].as_f64().unwrap() > 0.1, "{h}");
+            assert_eq!(h["hold_contact_ticks"].as_u64(), Some(300), "{h}");
+            // Each hand feels what its tool gave the tissue.
+            let (held, tissue) = (
+                h["held_n"].as_f64().unwrap(),
+                h["tissue_n"].as_f64().unwrap(),
+            );
+            assert!((held - tissue).abs() < 0.01 * tissue, "{h}");
+        }
+        assert!(r["balance_max"].as_f64().unwrap() < 0.01, "{r}");
+    }
+    let targets = pinch["targets"].as_array().unwrap();
+    assert_eq!(targets.len(), 3, "{pinch}");
+    for t in targets {
+        assert_eq!(t["pass"].as_bool(), Some(true), "{t}");
+    }
     for f in [
+        "pinch.csv",
+        "pinch.svg",
+        "pinch.toml",
         "stability.csv",
         "stability.svg",
         "liver.csv",

@@ -2,6 +2,7 @@
 //! (`cargo test -p lop-scene --test scene`): one build and link of the dependencies instead of
 //! one per file.
 
+mod closed_loop_tools;
 mod fix_selectors;
 mod live_rounds;
 mod render_surface;
