@@ -150,3 +150,14 @@ pub fn force_rows(path: &Path) -> Vec<(f64, f64)> {
         })
         .collect()
 }
+
+/// Ctrl-C to `lopd run`: it must exit 0 within 20 s. Its log.
+pub fn interrupt(daemon: &mut Daemon) -> String {
+    daemon.signal(libc::SIGINT);
+    let status = daemon
+        .wait(Duration::from_secs(20))
+        .expect("lopd run did not stop");
+    let log = daemon.log_text();
+    assert!(status.success(), "exit {status}\n{log}");
+    log
+}

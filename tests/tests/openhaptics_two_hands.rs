@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use lop_client::{Attachment, ToolState, TOOL_FLAG_CONTACT};
 use lop_drivers::mock::MockScript;
-use lop_system_tests::{unique_prefix, Daemon};
+use lop_system_tests::{interrupt, unique_prefix, Daemon};
 use lop_test_support::fixtures::two_tool_abdomen;
 use lop_test_support::vec3::norm;
 use standin::{assert_frames_paired, assert_safe_exit, logs_of, read_log, standin_library};
@@ -96,12 +96,7 @@ fn two_openhaptics_devices_press_one_liver() {
     );
 
     drop(client);
-    daemon.signal(libc::SIGINT);
-    let status = daemon
-        .wait(Duration::from_secs(20))
-        .expect("lopd run did not stop");
-    let log = daemon.log_text();
-    assert!(status.success(), "exit {status}\n{log}");
+    let log = interrupt(&mut daemon);
     assert!(lop_ipc::services::list_services(&prefix).is_empty());
 
     let mut frame_counts = Vec::new();

@@ -19,7 +19,9 @@ use std::time::{Duration, Instant};
 
 use lop_client::{Attachment, ToolState, TOOL_FLAG_CONTACT};
 use lop_ipc::{HapticTelemetry, CONTRACT_VERSION};
-use lop_system_tests::{find_processes, force_rows, sibling_binary, unique_prefix, Daemon};
+use lop_system_tests::{
+    find_processes, force_rows, interrupt, sibling_binary, unique_prefix, Daemon,
+};
 
 /// The newest haptic telemetry sample, waiting up to `limit` for one.
 fn wait_telemetry(client: &mut Attachment, limit: Duration, daemon: &Daemon) -> HapticTelemetry {
@@ -87,17 +89,6 @@ fn run_mock(scene: &str, tag: &str, device: &str) -> (String, std::path::PathBuf
         Duration::from_secs(120),
     );
     (prefix, force_log, daemon)
-}
-
-/// Ctrl-C to `lopd run`: it must exit 0 within 20 s. Its log.
-fn interrupt(daemon: &mut Daemon) -> String {
-    daemon.signal(libc::SIGINT);
-    let status = daemon
-        .wait(Duration::from_secs(20))
-        .expect("lopd run did not stop");
-    let log = daemon.log_text();
-    assert!(status.success(), "exit {status}\n{log}");
-    log
 }
 
 #[test]

@@ -15,7 +15,7 @@
 use std::time::{Duration, Instant};
 
 use lop_client::{Attachment, ToolState, TOOL_FLAG_CONTACT};
-use lop_system_tests::{force_rows, unique_prefix, Daemon};
+use lop_system_tests::{force_rows, interrupt, unique_prefix, Daemon};
 use lop_test_support::fixtures::two_tool_abdomen;
 
 fn norm(f: [f64; 3]) -> f64 {
@@ -96,12 +96,7 @@ fn two_devices_press_one_liver_and_each_hand_feels_its_own_tool() {
 
     // Let the hold settle, then stop.
     std::thread::sleep(Duration::from_millis(500));
-    daemon.signal(libc::SIGINT);
-    let status = daemon
-        .wait(Duration::from_secs(20))
-        .expect("lopd run did not stop");
-    let log = daemon.log_text();
-    assert!(status.success(), "exit {status}\n{log}");
+    let log = interrupt(&mut daemon);
 
     for (path, name) in logs.iter().zip(["left", "right"]) {
         let rows = force_rows(path);
