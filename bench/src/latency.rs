@@ -182,10 +182,8 @@ pub fn run(a: LatencyArgs) -> Result<()> {
     }
     let (mut report, stopped) = measure_scene(&a)?;
     // The haptic loop's rows name the device count they were measured with.
-    for row in report.rows.iter_mut() {
-        if row.key == "haptic_jitter" || row.key == "haptic_compute" {
-            row.devices = Some(1);
-        }
+    for row in report.rows.iter_mut().filter(|r| is_haptic(r)) {
+        row.devices = Some(1);
     }
     let one = haptic_rows(&report.rows);
     let mut more = Vec::new();
@@ -272,13 +270,15 @@ impl LatencyArgs {
     }
 }
 
-/// The haptic loop's rows of a report (`haptic_jitter`, `haptic_compute`), as measured with
-/// one device.
+/// Whether `row` is one of the haptic loop's rows (`haptic_jitter`, `haptic_compute`), the
+/// ones measured per device count.
+fn is_haptic(row: &Row) -> bool {
+    row.key == "haptic_jitter" || row.key == "haptic_compute"
+}
+
+/// The haptic loop's rows of a report.
 fn haptic_rows(rows: &[Row]) -> Vec<Row> {
-    rows.iter()
-        .filter(|r| r.key == "haptic_jitter" || r.key == "haptic_compute")
-        .map(|r| r.clone().with_devices(1))
-        .collect()
+    rows.iter().filter(|r| is_haptic(r)).cloned().collect()
 }
 
 /// A scene file written beside `path` (its relative paths stay valid), removed when dropped.

@@ -415,6 +415,22 @@ fn check_device(spec: &DeviceSpec, config: &DaemonConfig, out: &mut Vec<Finding>
     }
 }
 
+/// A vendor library that did not load (`e`): a FAIL with `fix`, and the device not probed
+/// (`unprobed` says why).
+fn library_missing(e: &DeviceOpenError, fix: String, unprobed: String, out: &mut Vec<Finding>) {
+    let why = match e {
+        DeviceOpenError::Unavailable { reason, .. } => reason.clone(),
+        other => other.to_string(),
+    };
+    out.push(problem("device-library", Status::Fail, why, fix));
+    out.push(problem(
+        "device",
+        Status::Fail,
+        unprobed,
+        "fix device-library first",
+    ));
+}
+
 /// The DHD library, every Force Dimension device it sees (index, type, serial), and the one
 /// `--device dhd[:ID]` opens, started for a moment (zero force) to show it answers.
 fn check_force_dimension(id: Option<u8>, config: &DaemonConfig, out: &mut Vec<Finding>) {
@@ -423,27 +439,16 @@ fn check_force_dimension(id: Option<u8>, config: &DaemonConfig, out: &mut Vec<Fi
     let found = match ForceDimensionDevice::discover(configured) {
         Ok(found) => found,
         Err(e) => {
-            let why = match &e {
-                DeviceOpenError::Unavailable { reason, .. } => reason.clone(),
-                other => other.to_string(),
-            };
-            out.push(problem(
-                "device-library",
-                Status::Fail,
-                why,
+            return library_missing(
+                &e,
                 format!(
                     "install the Force Dimension SDK (libdhd.so; its `make install` puts it in \
                      /usr/local/lib), or point {env} / [device] dhd_library in the config at \
                      the library; for a rig without a device use --device mock"
                 ),
-            ));
-            out.push(problem(
-                "device",
-                Status::Fail,
-                "not probed: no DHD library",
-                "fix device-library first",
-            ));
-            return;
+                "not probed: no DHD library".to_owned(),
+                out,
+            )
         }
     };
     let library = found.library.display().to_string();
@@ -596,27 +601,16 @@ fn check_openhaptics(
                 d
             }
             Err(e) => {
-                let why = match &e {
-                    DeviceOpenError::Unavailable { reason, .. } => reason.clone(),
-                    other => other.to_string(),
-                };
-                out.push(problem(
-                    "device-library",
-                    Status::Fail,
-                    why,
+                return library_missing(
+                    &e,
                     format!(
-                    "install OpenHaptics (libHD.so) and the device driver as in docs/deploy.md, \
-                     or point {LIBRARY_ENV} / [device] hd_library in the config at the library; \
-                     for a rig without a device use --device mock"
-                ),
-                ));
-                out.push(problem(
-                    "device",
-                    Status::Fail,
+                        "install OpenHaptics (libHD.so) and the device driver as in \
+                         docs/deploy.md, or point {LIBRARY_ENV} / [device] hd_library in the \
+                         config at the library; for a rig without a device use --device mock"
+                    ),
                     format!("not probed: no HD library ({nodes_text})"),
-                    "fix device-library first",
-                ));
-                return;
+                    out,
+                )
             }
         };
     match answer(&mut device, |d| d.model().map(str::to_owned)) {

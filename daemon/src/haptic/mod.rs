@@ -123,9 +123,6 @@ impl HapticSettings {
 struct ToolLoop {
     /// The tick itself: validate, surface, god-object, force, passivity, safety.
     pipeline: HapticPipeline,
-    /// Its settings' radius and local-model switch, read every tick.
-    radius: f64,
-    local_model: bool,
     entry: ToolEntry,
 }
 
@@ -263,8 +260,6 @@ impl HapticLoop {
         for (pipeline, entry) in settings.tools.iter().zip(entries) {
             tools.push(ToolLoop {
                 pipeline: HapticPipeline::new(pipeline.clone()),
-                radius: pipeline.tool.radius,
-                local_model: pipeline.local_model,
                 entry,
             });
         }
@@ -412,13 +407,19 @@ impl HapticLoop {
         let mut forces = [[0.0; 3]; MAX_TOOLS];
         let mut in_contact = false;
         let mut largest = [0.0; 3];
-        for (k, tool) in self.tools.iter_mut().enumerate().take(n) {
+        for (k, (tool, settings)) in self
+            .tools
+            .iter_mut()
+            .zip(&self.settings.tools)
+            .enumerate()
+            .take(n)
+        {
             let state = &mut states[k];
             *state = ToolState {
                 contract_version: CONTRACT_VERSION,
                 sequence: self.tick,
                 stamp_ns: wake_ns,
-                tool_radius: tool.radius,
+                tool_radius: settings.tool.radius,
                 contact_body: -1,
                 tool: k as u32,
                 ..Default::default()
@@ -436,7 +437,7 @@ impl HapticLoop {
             let mut surfaces = LiveSurfaces {
                 index: self.index.current(),
                 frame: self.frame.current().map(|f| &*f),
-                local_model: tool.local_model,
+                local_model: settings.local_model,
                 tool: k,
                 wake_ns,
             };
