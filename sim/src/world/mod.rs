@@ -10,8 +10,10 @@
 //! [`World::step_body`] steps one body alone, for tests of a single model.
 
 pub mod pace;
+mod rehearse;
 mod round;
 
+pub use rehearse::Rehearsal;
 pub use round::{BodyRound, Round, RoundReport, RoundTool, MAX_HEAT_CATCH_UP};
 
 use crate::collide::{CollisionBody, CollisionParams, CollisionStats, Collisions};
