@@ -120,6 +120,8 @@
 //! | `max_force` | float | `3.0` | N, force clamp for this scene (> 0); the daemon clamps to the smallest of this, `haptic.max_force_n` and the device's limit |
 //! | `heat_power` | float | `20` | W delivered by the cautery button (>= 0), spread over the touched surface triangle's nodes by the contact point's barycentric weights (see `[heat]`) |
 //! | `name` | string | `"tool"` (the N-th of several: `"toolN"`) | shown in logs and by viewers; unique in the scene |
+//! | `kind` | `"probe"` \| `"grasper"` \| `"hook"` | `"probe"` | what the device's buttons do: a `probe`'s grab button holds the tissue at the point it touches and its heat button cauterizes; a `grasper`'s grab button closes its jaws, which hold the surface within `jaw_radius` of that point until the button opens them, and it does not cauterize (`heat_power` refused); a `hook` cauterizes and does not hold (its grab button is ignored). Every kind presses with its tip. `"blade"` is refused: lop does not cut tissue yet |
+//! | `jaw_radius` | float | the tool's `radius` | a grasper's jaws: how far around the touched point they hold the surface, m (> 0); refused on another kind |
 //! | `workspace` | table | the scene's `[workspace]` | this tool's device mapping, same keys as `[workspace]` |
 //! | `mock_script` | string | none (the first tool: `[device] mock_script`) | the script a scripted device (`mock`, `hand`) driving this tool plays when the command line names none, relative to the scene file |
 //!
@@ -358,7 +360,8 @@ pub use resolve::{
 };
 pub use scene::{
     load_scene, parse_scene, parse_selector, selector_toml, BodySpec, CollisionSpec,
-    DeviceDefaults, GcParams, HeatParams, HeatSpec, Importance, LopSpec, Rates, Scene, ToolSpec,
+    DeviceDefaults, GcParams, HeatParams, HeatSpec, Importance, LopSpec, Rates, Scene, ToolKind,
+    ToolSpec,
 };
 // The value types a scene names are `lop-sim`'s (one owner each, read through its `serde`
 // feature); re-exported so a reader of a scene needs only this crate.

@@ -75,6 +75,8 @@ pub(crate) struct RawSceneMeta {
 #[serde(deny_unknown_fields)]
 pub(crate) struct RawTool {
     pub name: Option<String>,
+    pub kind: Option<String>,
+    pub jaw_radius: Option<f64>,
     pub mock_script: Option<String>,
     pub workspace: Option<RawWorkspace>,
     pub radius: Option<f64>,
@@ -88,7 +90,7 @@ pub(crate) struct RawTool {
 /// The scene's tools as written: one `[tool]` table, or an array of `[[tool]]` tables.
 #[derive(Debug)]
 pub(crate) enum RawTools {
-    One(RawTool),
+    One(Box<RawTool>),
     Many(Vec<RawTool>),
 }
 
@@ -107,7 +109,7 @@ impl<'de> Deserialize<'de> for RawTools {
                 .collect::<Result<Vec<_>, _>>()
                 .map(RawTools::Many),
             t @ toml::Value::Table(_) => RawTool::deserialize(t)
-                .map(RawTools::One)
+                .map(|t| RawTools::One(Box::new(t)))
                 .map_err(|e| D::Error::custom(format!("tool: {e}"))),
             other => Err(D::Error::custom(format!(
                 "tool must be a [tool] table or [[tool]] tables, not a {}",

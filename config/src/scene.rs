@@ -20,7 +20,7 @@ use crate::source::{KeyPath, Source};
 
 pub use body::{BodySpec, GcParams, HeatParams, Importance};
 pub use fix::{parse_selector, selector_toml};
-pub use sections::{CollisionSpec, DeviceDefaults, HeatSpec, LopSpec, Rates, ToolSpec};
+pub use sections::{CollisionSpec, DeviceDefaults, HeatSpec, LopSpec, Rates, ToolKind, ToolSpec};
 use validate::{
     check_name, validate_collision, validate_device, validate_heat, validate_lop, validate_rates,
     validate_tools,

@@ -107,6 +107,8 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
         .with_context(|| format!("creating {}", opts.out.display()))?;
     let script = ToolSource::load(opts.script.as_deref(), opts.replay.as_deref())?;
     let workspace = opts.scene.tool().workspace.transform();
+    // What the first tool's buttons do (its kind).
+    let kind = opts.scene.tool().kind;
     let laws = ToolLaws::new(
         &opts.scene,
         DeviceClamp {
@@ -176,10 +178,10 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
             let tool = script.as_ref().map(|s| {
                 let sample = s.sample(now);
                 let at = workspace.device_to_scene(sample.position_mm);
-                session.probe(at, sample.pressed(BUTTON_GRAB));
+                session.probe(at, kind.holds() && sample.pressed(BUTTON_GRAB));
                 RoundInput {
                     center: at,
-                    heat: sample.pressed(BUTTON_HEAT),
+                    heat: kind.cauterizes() && sample.pressed(BUTTON_HEAT),
                     stiffness: None,
                 }
             });

@@ -235,10 +235,15 @@ pub fn run_tools(opts: ClosedLoopToolsOptions) -> Result<Vec<ClosedLoopRun>> {
             });
         }
         // 4. One round of the world with every tool.
-        for ((input, sample), tick) in inputs.iter_mut().zip(&samples).zip(&outputs) {
+        for (((input, sample), tick), tool) in inputs
+            .iter_mut()
+            .zip(&samples)
+            .zip(&outputs)
+            .zip(tools.iter())
+        {
             *input = tick.tip.map(|center| RoundInput {
                 center,
-                heat: sample.pressed(BUTTON_HEAT),
+                heat: tool.pipeline.settings().cauterizes && sample.pressed(BUTTON_HEAT),
                 stiffness: tick.anchor().map(|_| tick.stiffness),
             });
         }

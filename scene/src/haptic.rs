@@ -51,6 +51,8 @@ pub fn tool_pipeline_settings(
         damping: laws.damping,
         local_model: h.local_model,
         passivity_max_damping: h.passivity_max_damping,
+        holds: spec.kind.holds(),
+        cauterizes: spec.kind.cauterizes(),
     }
 }
 

@@ -83,12 +83,62 @@ impl Default for LopSpec {
     }
 }
 
+/// What a tool is, and so what its device's buttons do (`[tool] kind`). Every kind presses
+/// the tissue with its tip, a sphere rendered as a god-object.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum ToolKind {
+    /// A probe (the default): its grab button holds the tissue at the point it touches, its
+    /// heat button cauterizes there.
+    #[default]
+    Probe,
+    /// A grasper: its grab button closes the jaws, which hold the surface within `jaw_radius`
+    /// (m) of the point the tip touches until the button opens them; no cautery.
+    Grasper {
+        /// How far around the touched point the closed jaws hold the surface, m (> 0).
+        jaw_radius: f64,
+    },
+    /// An electrosurgical hook: its heat button cauterizes where the tip touches; it does not
+    /// hold tissue (its grab button is ignored).
+    Hook,
+}
+
+impl ToolKind {
+    /// The name written in `kind`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            ToolKind::Probe => "probe",
+            ToolKind::Grasper { .. } => "grasper",
+            ToolKind::Hook => "hook",
+        }
+    }
+
+    /// Whether the grab button holds the tissue (a probe's point, a grasper's jaws).
+    pub fn holds(&self) -> bool {
+        !matches!(self, ToolKind::Hook)
+    }
+
+    /// Whether the heat button cauterizes.
+    pub fn cauterizes(&self) -> bool {
+        !matches!(self, ToolKind::Grasper { .. })
+    }
+
+    /// A grasper's jaw radius, m; `None` for the other kinds (they hold at a point).
+    pub fn jaw_radius(&self) -> Option<f64> {
+        match *self {
+            ToolKind::Grasper { jaw_radius } => Some(jaw_radius),
+            _ => None,
+        }
+    }
+}
+
 /// A tool: a sphere driven by a device, rendered as a god-object.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ToolSpec {
     /// Name (unique in the scene, non-empty): `tool` for a scene's only or first tool unless
     /// named, `toolN` for the N-th.
     pub name: String,
+    /// What the tool is, and what its buttons do.
+    pub kind: ToolKind,
     /// Tip radius, m (> 0).
     pub radius: f64,
     /// Force law.
@@ -114,6 +164,7 @@ impl Default for ToolSpec {
     fn default() -> Self {
         ToolSpec {
             name: "tool".to_owned(),
+            kind: ToolKind::Probe,
             workspace: WorkspaceMap::default(),
             mock_script: None,
             radius: 0.003,

@@ -14,7 +14,7 @@ use crate::WorkspaceMap;
 use lop_sim::contact::ForceLaw;
 use lop_sim::world::MAX_TOOLS;
 
-use super::{CollisionSpec, DeviceDefaults, HeatSpec, LopSpec, Rates, ToolSpec};
+use super::{CollisionSpec, DeviceDefaults, HeatSpec, LopSpec, Rates, ToolKind, ToolSpec};
 
 pub(super) fn validate_collision(
     c: &Check<'_, '_>,
@@ -151,7 +151,7 @@ pub(super) fn validate_tools(
                 ..ToolSpec::default()
             }])
         }
-        Some(RawTools::One(t)) => (vec![t], false),
+        Some(RawTools::One(t)) => (vec![*t], false),
         Some(RawTools::Many(v)) => (v, true),
     };
     let top = KeyPath::top("tool");
@@ -233,8 +233,17 @@ fn validate_tool(
         }
         Some(s) => Some(dir.join(s)),
     };
+    let kind = validate_kind(c, k, &raw.kind, raw.jaw_radius, radius)?;
+    if raw.heat_power.is_some() && !kind.cauterizes() {
+        return Err(c.invalid(
+            &k.key("heat_power"),
+            format!("{}", raw.heat_power.unwrap_or_default()),
+            format!("a {} does not cauterize: leave heat_power out", kind.name()),
+        ));
+    }
     Ok(ToolSpec {
         name,
+        kind,
         radius,
         force_law,
         stiffness,
@@ -256,6 +265,49 @@ fn validate_tool(
         workspace,
         mock_script,
     })
+}
+
+/// A tool's `kind` (and a grasper's `jaw_radius`, by default its tip's `radius`).
+fn validate_kind(
+    c: &Check<'_, '_>,
+    k: &KeyPath,
+    kind: &Option<String>,
+    jaw_radius: Option<f64>,
+    radius: f64,
+) -> Result<ToolKind, ConfigError> {
+    let kind = match kind.as_deref() {
+        None | Some("probe") => ToolKind::Probe,
+        Some("hook") => ToolKind::Hook,
+        Some("grasper") => ToolKind::Grasper {
+            jaw_radius: c.positive(
+                &k.key("jaw_radius"),
+                jaw_radius.unwrap_or(radius),
+                "grasper jaw_radius (m)",
+            )?,
+        },
+        Some("blade") => {
+            return Err(c.invalid(
+                &k.key("kind"),
+                "\"blade\"",
+                "lop does not cut tissue yet: kind is probe, grasper or hook",
+            ))
+        }
+        Some(other) => {
+            return Err(c.invalid(
+                &k.key("kind"),
+                format!("{other:?}"),
+                "kind is probe, grasper or hook",
+            ))
+        }
+    };
+    if let (Some(j), None) = (jaw_radius, kind.jaw_radius()) {
+        return Err(c.invalid(
+            &k.key("jaw_radius"),
+            format!("{j}"),
+            format!("only a grasper has jaws; this tool is a {}", kind.name()),
+        ));
+    }
+    Ok(kind)
 }
 
 fn validate_workspace(

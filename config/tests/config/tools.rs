@@ -1,10 +1,10 @@
-//! Several tools in a scene: `[[tool]]` tables, each with its name, law, workspace and script;
-//! one `[tool]` table as before; bad tool tables refused naming the table and the key.
+//! Several tools in a scene: `[[tool]]` tables, each with its name, kind, law, workspace and
+//! script; one `[tool]` table as before; bad tool tables refused naming the table and the key.
 
 use crate::common;
 
 use common::{line_of, scene_path, GOOD};
-use lop_config::{parse_scene, ForceLaw, WorkspaceMap};
+use lop_config::{parse_scene, ForceLaw, ToolKind, WorkspaceMap};
 
 const TWO_HANDS: &str = r#"
 [[tool]]
@@ -108,5 +108,70 @@ fn bad_tool_tables_are_refused_naming_the_table_and_key() {
     expect_err(
         &format!("[[tool]]\nradius = 0.003\nstiffness = 300.0\nmock_script = \"\"\n{GOOD}"),
         &["tool[0].mock_script"],
+    );
+}
+
+#[test]
+fn a_tool_kind_says_what_its_buttons_do() {
+    let text = format!(
+        "[[tool]]\nkind = \"grasper\"\nradius = 0.003\nstiffness = 300.0\njaw_radius = 0.005\n\
+         [[tool]]\nkind = \"hook\"\nradius = 0.002\nstiffness = 300.0\nheat_power = 25.0\n\
+         [[tool]]\nkind = \"grasper\"\nradius = 0.004\nstiffness = 300.0\n\
+         [[tool]]\nradius = 0.003\nstiffness = 300.0\n{GOOD}"
+    );
+    let scene = parse_scene(&text, &scene_path()).unwrap();
+    let kinds: Vec<ToolKind> = scene.tools.iter().map(|t| t.kind).collect();
+    assert_eq!(
+        kinds,
+        [
+            ToolKind::Grasper { jaw_radius: 0.005 },
+            ToolKind::Hook,
+            // A grasper's jaws hold what its tip covers unless told otherwise.
+            ToolKind::Grasper { jaw_radius: 0.004 },
+            ToolKind::Probe,
+        ]
+    );
+    let does = |k: ToolKind| (k.holds(), k.cauterizes());
+    assert_eq!(does(kinds[0]), (true, false));
+    assert_eq!(does(kinds[1]), (false, true));
+    assert_eq!(does(kinds[3]), (true, true));
+    assert_eq!(scene.tools[1].heat_power, 25.0);
+    // The one [tool] of the shipped scenes is a probe.
+    let one = format!("[tool]\nradius = 0.003\nstiffness = 300.0\n{GOOD}");
+    assert_eq!(
+        parse_scene(&one, &scene_path()).unwrap().tool().kind,
+        ToolKind::Probe
+    );
+}
+
+#[test]
+fn a_bad_tool_kind_is_refused_naming_it() {
+    let tool =
+        |extra: &str| format!("[[tool]]\nradius = 0.003\nstiffness = 300.0\n{extra}\n{GOOD}");
+    let err = expect_err(
+        &tool("kind = \"forceps\""),
+        &["tool[0].kind", "\"forceps\"", "probe, grasper or hook"],
+    );
+    assert_eq!(
+        err.line(),
+        Some(line_of(&tool("kind = \"forceps\""), "kind = "))
+    );
+    expect_err(&tool("kind = \"blade\""), &["tool[0].kind", "does not cut"]);
+    expect_err(&tool("kind = 3"), &["tool[0]", "kind"]);
+    expect_err(
+        &tool("jaw_radius = 0.004"),
+        &["tool[0].jaw_radius", "0.004", "only a grasper", "probe"],
+    );
+    expect_err(
+        &tool("kind = \"hook\"\njaw_radius = 0.004"),
+        &["tool[0].jaw_radius", "hook"],
+    );
+    expect_err(
+        &tool("kind = \"grasper\"\njaw_radius = -0.001"),
+        &["tool[0].jaw_radius", "-0.001"],
+    );
+    expect_err(
+        &tool("kind = \"grasper\"\nheat_power = 20.0"),
+        &["tool[0].heat_power", "grasper does not cauterize"],
     );
 }

@@ -469,7 +469,7 @@ impl HapticLoop {
                     if out.grabbing() {
                         state.flags |= TOOL_FLAG_GRAB;
                     }
-                    if s.pressed(lop_drivers::BUTTON_HEAT) {
+                    if settings.cauterizes && s.pressed(lop_drivers::BUTTON_HEAT) {
                         state.flags |= TOOL_FLAG_HEAT;
                     }
                     if out.local {

@@ -67,6 +67,12 @@ pub struct PipelineSettings {
     pub local_model: bool,
     /// The passivity controller's largest damping, N·s/m (0: off).
     pub passivity_max_damping: f64,
+    /// The grab button holds the tissue (the tool's kind: a probe or a grasper; a hook does
+    /// not hold, its grab button is ignored).
+    pub holds: bool,
+    /// The heat button cauterizes (a probe or a hook; not a grasper). The pipeline renders no
+    /// heat; the loops that pass the button to the deformation read it here.
+    pub cauterizes: bool,
 }
 
 impl PipelineSettings {
@@ -277,7 +283,7 @@ impl HapticPipeline {
         let god = match (reading, tip) {
             (Some(r), Some(p)) if surface_ready => surfaces
                 .god_object()
-                .map(|(god, set)| god.update(set, p, r.grab)),
+                .map(|(god, set)| god.update(set, p, r.grab && s.holds)),
             _ => None,
         };
         let t3 = clock();
@@ -404,6 +410,8 @@ mod tests {
             damping: 0.0,
             local_model: true,
             passivity_max_damping: 0.0,
+            holds: true,
+            cauterizes: true,
         }
     }
 
@@ -441,6 +449,25 @@ mod tests {
         assert_eq!(out.stiffness, 500.0);
         assert_eq!(out.device_force, out.force, "identity workspace");
         assert_eq!(p.stage_ns(), [10; 6]);
+    }
+
+    #[test]
+    fn the_grab_button_holds_only_with_a_tool_that_holds() {
+        let grab = |z_mm: f64| at(z_mm).map(|r| DeviceReading { grab: true, ..r });
+        for holds in [true, false] {
+            let mut p = HapticPipeline::new(PipelineSettings {
+                holds,
+                ..settings()
+            });
+            let mut floor = Floor::new(0.002);
+            let mut out = p.tick(at(10.0), true, &mut floor, counter());
+            for k in 0..=40 {
+                out = p.tick(grab(2.0 - 0.025 * k as f64), true, &mut floor, counter());
+            }
+            // Touching with the button held: a probe or grasper holds, a hook presses.
+            assert_eq!(out.grabbing(), holds);
+            assert!(out.pressing());
+        }
     }
 
     #[test]
