@@ -71,14 +71,7 @@ impl World {
         let n = scale(normal, 1.0 / area);
         let radius = tool.radius.max(1e-4);
         let proxy = add(centroid, scale(n, radius));
-        let anchor = ToolAnchor::from_proxy(
-            &surface,
-            &x0,
-            triangle,
-            [1.0 / 3.0; 3],
-            proxy,
-            false,
-        )?;
+        let anchor = ToolAnchor::from_proxy(&surface, &x0, triangle, [1.0 / 3.0; 3], proxy, false)?;
         let device = sub(proxy, scale(n, depth));
         let sphere = ToolSphere {
             center: device,
@@ -161,7 +154,10 @@ fn far_free_triangle(
     surface
         .iter()
         .enumerate()
-        .filter(|(_, t)| t.iter().all(|&k| (k as usize) < x.len() && !held(k as usize)))
+        .filter(|(_, t)| {
+            t.iter()
+                .all(|&k| (k as usize) < x.len() && !held(k as usize))
+        })
         .map(|(i, t)| {
             let c = t.iter().map(|&k| v(x[k as usize])).sum::<glam::DVec3>() / 3.0;
             (i as u32, c.distance_squared(from))
@@ -212,15 +208,27 @@ mod tests {
         // The far end: the x = 20 mm face.
         let tri = w.bodies[0].mesh.surface[r.triangle as usize];
         for k in tri {
-            assert!((rest[k as usize][0] - 0.02).abs() < 1e-12, "{:?}", rest[k as usize]);
+            assert!(
+                (rest[k as usize][0] - 0.02).abs() < 1e-12,
+                "{:?}",
+                rest[k as usize]
+            );
         }
         // One cost per timed step (the made-up clock's 1 µs between its two reads).
         assert_eq!(r.costs.len(), 12);
-        assert!(r.costs.iter().all(|&c| (c - 1e-6).abs() < 1e-15), "{:?}", r.costs);
+        assert!(
+            r.costs.iter().all(|&c| (c - 1e-6).abs() < 1e-15),
+            "{:?}",
+            r.costs
+        );
         assert!((r.median() - 1e-6).abs() < 1e-15);
         // The tool pressed: a force on the tissue, at most its spring stretched by the whole
         // depth (the tissue only gives way; this soft bar gives most of it).
-        assert!(r.force > 1e-3 && r.force <= 300.0 * 0.002 * (1.0 + 1e-9), "{}", r.force);
+        assert!(
+            r.force > 1e-3 && r.force <= 300.0 * 0.002 * (1.0 + 1e-9),
+            "{}",
+            r.force
+        );
         // And the body is back at rest, its clock and reports as they were.
         assert_eq!(w.bodies[0].model.positions(), &rest[..]);
         assert_eq!(w.bodies[0].time, 0.0);
