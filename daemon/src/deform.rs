@@ -69,13 +69,14 @@ const REST_SPEED: f64 = 1e-3;
 const PERIOD_CHANGE_DELAY_STEPS: u32 = 16;
 /// Steps timed at load to estimate a body's step cost from rest (after two untimed ones).
 const ESTIMATE_STEPS: usize = 8;
-/// The touch rehearsed at load ([`World::rehearse_touch`]): how far the device goes past the
-/// surface (m; with the shipped tool's 300–600 N/m, 0.6–1.2 N on a surface that does not
-/// give), the steps left untimed (the rotations and the patch's first columns start cold, as
-/// they do live at a touch, but only once a touch) and the steps timed.
+/// The touch rehearsed at load ([`World::rehearse_touch`]): how far past the surface the device
+/// goes (m; with the shipped tool's 300 N/m, 0.6 N on a surface that does not give), the
+/// steps left untimed (the contact forming: the patch's first columns, the rotations starting
+/// cold) and the steps timed. 50 steps: 40 mm/s at 1 ms; a 20k organ's 50 steps of ~10 ms
+/// add half a second to its load.
 const REHEARSAL_DEPTH: f64 = 0.002;
-const REHEARSAL_WARM: usize = 4;
-const REHEARSAL_TIMED: usize = 20;
+const REHEARSAL_WARM: usize = 20;
+const REHEARSAL_TIMED: usize = 30;
 /// Wall time over which the real-time factor is measured, s.
 const REAL_TIME_WINDOW: f64 = 1.0;
 
@@ -613,8 +614,8 @@ impl DeformLoop {
 /// Gives every body with an FEM model (running, or parked behind its levels-of-precision
 /// controller) a pace that may lengthen its period up to `max_period_ms`. The pace starts at
 /// the period a touched step's cost allows, from a touch rehearsed now with the first tool's
-/// law against the body ([`World::rehearse_touch`]: the body pressed by the god-object's patch
-/// for a few steps, then back at rest). A step from rest is 3–8 times cheaper than a touched
+/// law against the body ([`World::rehearse_touch`]: the body poked by the god-object's patch
+/// for 50 steps, then back at rest). A step from rest is 3–8 times cheaper than a touched
 /// step on the organs a lab brings (measured on the recipe's 2k–10k organs), so a pace
 /// started from it started every 5k organ at 1 ms and lost time at its first touch until its
 /// window moved it; both figures are logged. A body that cannot keep real time even at the
@@ -669,7 +670,7 @@ fn pace_bodies(
             }
             match touched {
                 Some(t) => tracing::info!(
-                    "{name}: a touched step costs about {:.2} ms here (a rehearsed press; \
+                    "{name}: a touched step costs about {:.2} ms here (a rehearsed poke; \
                      {:.2} ms from rest); it starts at {} ms",
                     t * 1e3,
                     rest * 1e3,

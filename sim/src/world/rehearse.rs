@@ -6,11 +6,14 @@
 //! at once and there is no contact patch. A touched step costs 3–8 times more on the organs a
 //! lab brings (the god-object's patch with its columns of `K̃⁻¹`, a moving body, CG iterating),
 //! so a pace started from rest started every 5k organ at 1 ms and lost time at its first touch
-//! until its window moved it. [`World::rehearse_touch`] presses the body with the tool before
-//! the run: the god-object resting on a surface triangle far from the fixed nodes, the device
-//! pushed `depth` behind it from the first step (a step of force the tissue answers by moving
-//! for the whole rehearsal), `warm` steps untimed and `timed` timed, then the body back at
-//! rest. Its median is what the live touched step costs, up to the live round's own work.
+//! until its window moved it. [`World::rehearse_touch`] pokes the body with the tool before
+//! the run, as a hand would: the god-object resting on a surface triangle far from the fixed
+//! nodes, the device going into the tissue along the triangle's normal at a steady speed, to
+//! `depth` past the surface at the last step (2 mm over 50 steps of 1 ms is 40 mm/s, a brisk
+//! poke), the first `warm` steps untimed and the other `timed` timed, then the body back at
+//! rest. Their median is what a live touched step costs, up to the live round's own work.
+//! (A first version put the device `depth` in at once: the sudden press made CG iterate as no
+//! poke does, and it read the shipped liver's step 2–4 times dearer than live.)
 
 use super::World;
 use crate::contact::{ForceLaw, ToolSphere};
@@ -39,10 +42,11 @@ impl Rehearsal {
 }
 
 impl World {
-    /// Presses body `i`'s precise FEM model (running, or parked behind its levels-of-precision
-    /// controller) with `tool` (its radius, stiffness and law; its centre is ignored) as the
-    /// god-object would, `depth` (m) past the surface, for `warm` + `timed` steps, timing the
-    /// last `timed` with `now_ns` (module docs). The model is put back at rest afterwards
+    /// Pokes body `i`'s precise FEM model (running, or parked behind its levels-of-precision
+    /// controller) with `tool` (its radius and stiffness; its centre and law are ignored: the
+    /// god-object's press is linear) as the god-object would, the device reaching `depth` (m)
+    /// past the surface at a steady speed over `warm` + `timed` steps, timing the last `timed`
+    /// with `now_ns` (module docs). The model is put back at rest afterwards
     /// (positions, velocities, rotations; a factor it made meanwhile is kept), the body's time
     /// and reports untouched. `None` for a body without an FEM model, or with no surface
     /// triangle whose nodes are all free.
@@ -72,22 +76,23 @@ impl World {
         let radius = tool.radius.max(1e-4);
         let proxy = add(centroid, scale(n, radius));
         let anchor = ToolAnchor::from_proxy(&surface, &x0, triangle, [1.0 / 3.0; 3], proxy, false)?;
-        let device = sub(proxy, scale(n, depth));
-        let sphere = ToolSphere {
-            center: device,
-            radius,
-            stiffness: tool.stiffness,
-            law: ForceLaw::Linear,
-        };
-        let tools = [PatchTool {
-            device,
-            stiffness: tool.stiffness,
-        }];
         let mut points = Vec::with_capacity(MAX_PATCH);
         let mut scratch = GatherScratch::new(surface.len(), x0.len());
         let mut costs = Vec::with_capacity(timed);
         let mut force = 0.0;
-        for k in 0..warm + timed {
+        let steps = warm + timed;
+        for k in 0..steps {
+            let device = sub(proxy, scale(n, depth * (k + 1) as f64 / steps as f64));
+            let sphere = ToolSphere {
+                center: device,
+                radius,
+                stiffness: tool.stiffness,
+                law: ForceLaw::Linear,
+            };
+            let tools = [PatchTool {
+                device,
+                stiffness: tool.stiffness,
+            }];
             points.clear();
             let x = fem.positions();
             let Some(proxy) = anchor.proxy(&surface, x) else {
