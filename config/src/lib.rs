@@ -97,6 +97,17 @@
 //! burn_stiffening = 1.0
 //! ```
 //!
+//! ## `base` (optional, top level)
+//! `base = "abdomen.toml"` (a path relative to this file) writes this scene over another: the
+//! base's bodies, `[lop]`, `[heat]` and `[collision]`, with this file's `[scene]`, tools
+//! (`[tool]` or `[[tool]]`), `[workspace]`, `[rates]` and `[device]` where it gives them — other
+//! tools, devices or mappings over the same organs without copying them. Each section given
+//! replaces the base's whole; tools given here map with this file's `[workspace]` (the default
+//! mapping if it gives none), never the base's. A body, `[lop]`, `[heat]` or `[collision]`
+//! beside `base` is refused naming it. The base is read as a scene of its own first, so its
+//! errors name its file and line; a base may stand on another, up to four deep. The shipped
+//! `abdomen-two-hands` is written over `abdomen`.
+//!
 //! ## `[scene]` (optional)
 //! | key | type | default | meaning |
 //! |---|---|---|---|

@@ -14,6 +14,8 @@ use crate::scene::Importance;
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct RawScene {
+    /// Another scene file this one starts from (see `Scene`'s loading docs).
+    pub base: Option<String>,
     #[serde(default)]
     pub scene: RawSceneMeta,
     /// `None` when the scene has no `[tool]` section (the default tool); one `[tool]` table or

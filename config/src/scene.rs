@@ -86,11 +86,113 @@ pub fn load_scene(path: &Path) -> Result<Scene, ConfigError> {
 }
 
 /// Parses and validates scene text. `path` is used only in messages and to resolve relative
-/// paths (mesh files, mock script) against its directory; the mesh files must exist.
+/// paths (mesh files, mock script, a base scene) against its directory; the mesh files must
+/// exist.
 pub fn parse_scene(text: &str, path: &Path) -> Result<Scene, ConfigError> {
+    parse_scene_at(text, path, 0)
+}
+
+/// Bases a scene may stand on, one on another (a scene that is its own base is refused here).
+const MAX_BASES: usize = 4;
+
+/// The top-level sections a scene with a `base` gives itself; the rest come from the base.
+const OVER_BASE: [&str; 6] = ["base", "scene", "tool", "workspace", "rates", "device"];
+
+fn parse_scene_at(text: &str, path: &Path, depth: usize) -> Result<Scene, ConfigError> {
     let src = Source::parse(path, text)?;
     let raw: RawScene = src.deserialize()?;
-    validate_scene(&src, raw)
+    match raw.base.clone() {
+        None => validate_scene(&src, raw),
+        Some(base) => over_base(&src, raw, &base, depth),
+    }
+}
+
+/// A scene written over another (`base = "abdomen.toml"`): the base's bodies, `[lop]`,
+/// `[heat]` and `[collision]`, with this file's `[scene]`, tools and `[workspace]`, `[rates]`
+/// and `[device]` where it gives them — a scene of other tools, devices or mappings over the
+/// same organs, without copying them. The base is loaded as a scene of its own first (its
+/// errors name its file); a section given here replaces the base's whole (tools given here
+/// map with this file's `[workspace]`, the default one if it gives none).
+fn over_base(
+    src: &Source<'_>,
+    raw: RawScene,
+    base: &str,
+    depth: usize,
+) -> Result<Scene, ConfigError> {
+    let abs = std::path::absolute(src.file).unwrap_or_else(|_| src.file.to_path_buf());
+    let dir = abs.parent().map(Path::to_path_buf).unwrap_or_default();
+    let c = Check { src, body: None };
+    let key = KeyPath::top("base");
+    let given = src.top_keys();
+    if let Some(other) = given.iter().find(|k| !OVER_BASE.contains(&k.as_str())) {
+        return Err(c.invalid(
+            &KeyPath::top(other),
+            "(given)",
+            format!(
+                "a scene with a base takes its bodies, [lop], [heat] and [collision] from the \
+                 base ({base:?}); over it, a scene gives only {}",
+                OVER_BASE[1..].join(", ")
+            ),
+        ));
+    }
+    if base.trim().is_empty() {
+        return Err(c.invalid(
+            &key,
+            "\"\"",
+            "base must be a scene file's path (relative to this file)",
+        ));
+    }
+    if depth >= MAX_BASES {
+        return Err(c.invalid(
+            &key,
+            format!("{base:?}"),
+            format!("more than {MAX_BASES} scenes stand on one another (a base that leads back to itself?)"),
+        ));
+    }
+    let base_path = dir.join(base);
+    let text = crate::source::read_text(&base_path).map_err(|e| match e {
+        ConfigError::Read { source, .. } => c.invalid(
+            &key,
+            format!("{base:?}"),
+            format!(
+                "the base scene {} cannot be read: {source}",
+                base_path.display()
+            ),
+        ),
+        other => other,
+    })?;
+    // `../base/x.toml` resolved, so the base's meshes are named as the base names them.
+    let base_path = base_path.canonicalize().unwrap_or(base_path);
+    let mut scene = parse_scene_at(&text, &base_path, depth + 1)?;
+    let meta = KeyPath::top("scene");
+    scene.name = match raw.scene.name {
+        Some(n) => n,
+        None => src
+            .file
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .filter(|s| !s.trim().is_empty())
+            .unwrap_or_else(|| "unnamed".to_owned()),
+    };
+    check_name(&c, &meta.key("name"), &scene.name, "scene name")?;
+    if let Some(d) = raw.scene.description {
+        scene.description = d;
+    }
+    if let Some(g) = raw.scene.gravity {
+        scene.gravity = c.finite3(&meta.key("gravity"), g, "gravity")?;
+    }
+    let has = |k: &str| given.iter().any(|g| g == k);
+    if has("tool") || has("workspace") {
+        scene.tools = validate_tools(&c, raw.tool, raw.workspace, &dir)?;
+    }
+    if has("rates") {
+        scene.rates = validate_rates(&c, raw.rates)?;
+    }
+    if has("device") {
+        scene.device = validate_device(&c, raw.device, &dir)?;
+    }
+    scene.path = abs;
+    Ok(scene)
 }
 
 fn validate_scene(src: &Source<'_>, raw: RawScene) -> Result<Scene, ConfigError> {

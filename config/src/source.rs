@@ -130,6 +130,15 @@ impl<'a> Source<'a> {
         })
     }
 
+    /// The top-level keys the file gives, in file order.
+    pub(crate) fn top_keys(&self) -> Vec<String> {
+        self.doc
+            .as_table()
+            .iter()
+            .map(|(k, _)| k.to_owned())
+            .collect()
+    }
+
     /// Where `key` is in the file: the position of its value if it is present, else of the
     /// deepest enclosing table that is, else just the file.
     pub(crate) fn locate(&self, key: &KeyPath) -> Location {

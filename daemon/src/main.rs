@@ -743,14 +743,21 @@ fn cmd_scene_new(a: SceneNewArgs) -> Result<i32> {
 }
 
 fn cmd_scenes() -> Result<()> {
+    // Names in a column as wide as the longest.
+    let print = |list: Vec<(String, std::path::PathBuf)>| {
+        let w = list
+            .iter()
+            .map(|(n, _)| n.chars().count())
+            .max()
+            .unwrap_or(0);
+        for (name, path) in list {
+            println!("  {name:<w$} {}", path.display());
+        }
+    };
     println!("scenes:");
-    for (name, path) in lop_config::list_scenes() {
-        println!("  {name:<12} {}", path.display());
-    }
+    print(lop_config::list_scenes());
     println!("mock scripts (--device mock:NAME):");
-    for (name, path) in lop_config::list_scripts() {
-        println!("  {name:<18} {}", path.display());
-    }
+    print(lop_config::list_scripts());
     Ok(())
 }
 

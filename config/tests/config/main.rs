@@ -15,6 +15,7 @@ static A: Counting = Counting::armed_threads();
 mod common;
 
 mod api;
+mod base;
 mod errors;
 mod fix_selectors;
 mod fuzz_config;

@@ -3,7 +3,7 @@
 
 use lop_config::{
     list_scenes, load_scene, parse_daemon_config, parse_scene, resolve_scene, FemMode, ForceLaw,
-    HeatParams, HeatSpec, Importance, ModelPin, NodeMass, Scene,
+    HeatParams, HeatSpec, Importance, ModelPin, NodeMass, Scene, ToolKind,
 };
 use lop_sim::lop::{CageDynamics, CageSprings};
 
@@ -52,7 +52,13 @@ fn assert_common(scene: &Scene, script: &str) {
 #[test]
 fn all_shipped_scenes_are_listed() {
     let names: Vec<String> = list_scenes().into_iter().map(|(n, _)| n).collect();
-    for want in ["abdomen", "beam", "cylinders", "organs"] {
+    for want in [
+        "abdomen",
+        "abdomen-two-hands",
+        "beam",
+        "cylinders",
+        "organs",
+    ] {
         assert!(names.iter().any(|n| n == want), "{want} not in {names:?}");
     }
 }
@@ -196,6 +202,34 @@ fn abdomen_has_real_tissue_values() {
 
 /// `organs` is the thesis' reproduction: its file stays byte for byte as it was when `abdomen`
 /// became the default (FNV-1a of the file). Change the thesis' numbers in a new scene instead.
+#[test]
+fn abdomen_two_hands_is_the_abdomen_with_a_grasper_and_a_hook() {
+    let s = shipped("abdomen-two-hands");
+    let abdomen = shipped("abdomen");
+    assert_eq!(s.name, "abdomen-two-hands");
+    assert!(!s.description.is_empty());
+    // The abdomen's organs and sections, its device mapping.
+    assert_eq!(s.bodies, abdomen.bodies);
+    assert_eq!(
+        (&s.lop, &s.heat, &s.collision),
+        (&abdomen.lop, &abdomen.heat, &abdomen.collision)
+    );
+    assert_eq!(s.rates, abdomen.rates);
+    // Two tools, each with a script of its own, both Omni-safe and mapped as the abdomen's.
+    let kinds: Vec<ToolKind> = s.tools.iter().map(|t| t.kind).collect();
+    assert_eq!(
+        kinds,
+        [ToolKind::Grasper { jaw_radius: 0.004 }, ToolKind::Hook]
+    );
+    for (t, tool) in s.tools.iter().enumerate() {
+        assert_eq!(tool.workspace, abdomen.tool().workspace);
+        assert!(tool.stiffness * tool.workspace.scale <= 700.0);
+        let script = s.tool_script(t).expect("a script per tool");
+        assert!(script.exists(), "{script:?}");
+        assert!(script.ends_with(format!("abdomen-two-hands-{}.toml", tool.name)));
+    }
+}
+
 #[test]
 fn organs_scene_file_is_unchanged() {
     let path = resolve_scene("organs").unwrap();
