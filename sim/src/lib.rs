@@ -21,6 +21,8 @@
 //!   models import it, never `model`.
 //! - [`patch`]: the tool as a contact patch — the points of the surface the tool's sphere
 //!   covers, and the complementarity problem that presses them, balanced by the tool spring.
+//! - [`grasp`]: tools holding tissue — several grabs on one body with presses beside them
+//!   (bilateral springs eliminated from the patch's problem), and a grasper's jaw footprint.
 //! - [`contact`]: tool-to-surface geometry (the tool sphere, closest points, force laws).
 //! - [`haptic`]: the god-object over a set of surfaces (what the 1 kHz loop runs) and its
 //!   offline probe over a world.
@@ -44,6 +46,7 @@ pub mod contact;
 pub mod control;
 pub mod fem;
 pub mod gc;
+pub mod grasp;
 pub mod haptic;
 pub mod heat;
 pub mod interaction;

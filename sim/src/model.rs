@@ -153,6 +153,20 @@ impl Model {
             Model::Gc(m) => m.patch_solution(),
         }
     }
+    /// [`Model::patch_solution`] with the patch's grabs: the solve every tool of the last
+    /// step's patch is reported from ([`crate::patch::PatchSolve::report`]).
+    pub(crate) fn patch_solve(&mut self) -> Option<&mut crate::patch::PatchSolve> {
+        match self {
+            Model::MassSpring(m) => Some(m.patch_solve()),
+            Model::Fem(m) => m.patch_solve(),
+            Model::Gc(_) => None,
+        }
+    }
+    /// Whether the model resolves grabs in its contact patch ([`crate::grasp`]): the precise
+    /// models do, the cage does not.
+    pub(crate) fn resolves_holds(&self) -> bool {
+        !matches!(self, Model::Gc(_))
+    }
     /// Sub-steps (or solver iterations) per step, for logs.
     pub fn substeps(&self) -> usize {
         match self {

@@ -57,6 +57,8 @@
 //! the nodes, a few micrometres off, which is 7–10 % of a light press's force.
 
 use crate::contact::{bary_point, closest_bary, unit_normal};
+use crate::grasp::HoldSolve;
+pub use crate::grasp::PatchHold;
 use crate::interaction::{ContactReport, PatchResponse};
 use crate::vec3::v;
 use glam::DVec3;
@@ -109,6 +111,9 @@ pub struct ToolPatch<'a> {
     pub tools: &'a [PatchTool],
     /// The contact points.
     pub points: &'a [PatchPoint],
+    /// The tools grabbing the body (see [`crate::grasp`]): bilateral springs solved with the
+    /// points. A tool presses points or holds, never both.
+    pub holds: &'a [PatchHold],
 }
 
 impl ToolPatch<'_> {
@@ -167,6 +172,8 @@ pub(crate) struct PatchSolve {
     pub(crate) correction: Vec<f64>,
     /// Per unknown: one point's column, rebuilt for projection (`PatchSolve::matrix_by_columns`).
     col: Vec<f64>,
+    /// The grabs' rows of the problem ([`crate::grasp`]); none without a grab.
+    pub(crate) holds: HoldSolve,
 }
 
 impl PatchSolve {
@@ -177,12 +184,20 @@ impl PatchSolve {
             cols: Vec::new(),
             correction: vec![0.0; n],
             col: vec![0.0; n],
+            holds: HoldSolve::new(),
         }
     }
 
-    /// The patch limited to [`MAX_PATCH`] points, or `None` if it has none, a tool's spring is
-    /// not a positive finite stiffness, or a point names a tool the patch does not have.
+    /// The patch limited to [`MAX_PATCH`] points, or `None` if it has neither points nor
+    /// holds, a tool's spring is not a positive finite stiffness, a point names a tool the
+    /// patch does not have, or a hold is unsound ([`ToolPatch::holds_sound`]; checked against
+    /// its nodes with [`PatchSolve::limit_for`]).
     pub(crate) fn limit<'a>(patch: &ToolPatch<'a>) -> Option<ToolPatch<'a>> {
+        Self::limit_for(patch, usize::MAX)
+    }
+
+    /// [`PatchSolve::limit`] for a body of `nodes` nodes.
+    pub(crate) fn limit_for<'a>(patch: &ToolPatch<'a>, nodes: usize) -> Option<ToolPatch<'a>> {
         let m = patch.points.len().min(MAX_PATCH);
         let springs = patch
             .tools
@@ -191,7 +206,8 @@ impl PatchSolve {
         let named = patch.points[..m]
             .iter()
             .all(|p| (p.tool as usize) < patch.tools.len());
-        (m > 0 && springs && named).then_some(ToolPatch {
+        let holds = patch.holds.is_empty() || patch.holds_sound(nodes);
+        ((m > 0 || !patch.holds.is_empty()) && springs && named && holds).then_some(ToolPatch {
             points: &patch.points[..m],
             ..*patch
         })
@@ -201,7 +217,8 @@ impl PatchSolve {
     /// contact; `A` zero.
     pub(crate) fn begin(&mut self, patch: &ToolPatch<'_>, predicted: impl Fn(u32) -> [f64; 3]) {
         self.lcp.reset(patch.points.len());
-        patch.free_gaps(predicted, self.lcp.q());
+        patch.free_gaps(&predicted, self.lcp.q());
+        self.begin_holds(patch, predicted);
     }
 
     /// Fills `A = scale · Cᵀ K⁻¹ C` by one solve of the points' columns together:
@@ -215,19 +232,37 @@ impl PatchSolve {
         mut solve_columns: impl FnMut(&mut [f64], usize),
     ) {
         let (m, n) = (patch.points.len(), self.correction.len());
-        if self.cols.len() < m * n {
-            self.cols.resize(m * n, 0.0);
+        // The holds' rows follow the points' columns, solved in the same batch.
+        self.size_holds(patch);
+        let g = self.holds.rows;
+        if self.cols.len() < (m + g) * n {
+            self.cols.resize((m + g) * n, 0.0);
         }
-        let cols = &mut self.cols[..m * n];
+        let cols = &mut self.cols[..(m + g) * n];
         cols.fill(0.0);
         for (k, col) in cols.chunks_exact_mut(n).enumerate() {
-            spread(patch, k, 1.0, first_dof, col);
+            if k < m {
+                spread(patch, k, 1.0, first_dof, col);
+            } else {
+                PatchSolve::spread_hold(patch, k - m, first_dof, col);
+            }
         }
-        solve_columns(cols, m);
+        solve_columns(cols, m + g);
         let a = self.lcp.matrix();
-        for (k, col) in cols.chunks_exact(n).enumerate() {
+        for (k, col) in cols.chunks_exact(n).enumerate().take(m) {
             for j in 0..m {
                 a[k * m + j] = scale * project(patch, j, first_dof, col);
+            }
+        }
+        if g > 0 {
+            let hs = &mut self.holds;
+            for (r, col) in cols.chunks_exact(n).skip(m).enumerate() {
+                for s in 0..g {
+                    hs.a_gg[r * g + s] = scale * PatchSolve::project_hold(patch, s, first_dof, col);
+                }
+                for j in 0..m {
+                    hs.a_gp[j * g + r] = scale * project(patch, j, first_dof, col);
+                }
             }
         }
     }
@@ -299,12 +334,41 @@ impl PatchSolve {
                 a[j * m + k] = entry;
             }
         }
+        self.size_holds(patch);
+        if self.holds.rows > 0 {
+            self.hold_matrix_lumped(patch, inv_mass, scale);
+        }
     }
 
     /// Adds the tool spring's compliance and solves for `λ`; false if it cannot be solved.
     pub(crate) fn solve(&mut self, patch: &ToolPatch<'_>) -> bool {
         patch.add_tool_compliance(self.lcp.matrix());
+        if self.holds.rows > 0 {
+            return self.solve_with_holds(patch);
+        }
         self.lcp.solve()
+    }
+
+    /// After [`PatchSolve::solve`]: the report of tool `tool` of `patch`, a hold's (the force
+    /// its spring applied, [`crate::grasp`]) or a press's ([`report`]).
+    pub(crate) fn report(&mut self, patch: &ToolPatch<'_>, tool: usize) -> ContactReport {
+        let held = patch
+            .holds
+            .iter()
+            .take(self.holds.rows / 3)
+            .position(|h| h.tool as usize == tool);
+        match (held, patch.tools.get(tool)) {
+            (Some(h), Some(t)) => {
+                let f = self.holds.force(h);
+                ContactReport {
+                    force_on_tissue: f,
+                    depth: v(f).length() / t.stiffness,
+                    proxy: None,
+                    response: None,
+                }
+            }
+            _ => report(patch, &mut self.lcp, tool),
+        }
     }
 
     /// After [`PatchSolve::matrix_by_solves`] and [`PatchSolve::solve`]: `correction =
@@ -322,6 +386,18 @@ impl PatchSolve {
                     .for_each(|(t, c)| *t += f * c);
             }
         }
+        // The holds' columns follow the points'.
+        let g = self.holds.rows;
+        let hold_cols = self.cols[m * n..(m + g) * n].chunks_exact(n);
+        for (col, &l) in hold_cols.zip(&self.holds.lambda[..g]) {
+            if l != 0.0 {
+                let f = scale * l;
+                self.correction
+                    .iter_mut()
+                    .zip(col)
+                    .for_each(|(t, c)| *t += f * c);
+            }
+        }
         self.correction.iter().all(|d| d.is_finite())
     }
 }
@@ -329,9 +405,9 @@ impl PatchSolve {
 /// Scratch for [`gather`], sized once for a surface.
 #[derive(Debug, Clone, Default)]
 pub struct GatherScratch {
-    queue: Vec<u32>,
-    tri_stamp: Vec<u32>,
-    node_stamp: Vec<u32>,
+    pub(crate) queue: Vec<u32>,
+    pub(crate) tri_stamp: Vec<u32>,
+    pub(crate) node_stamp: Vec<u32>,
     stamp: u32,
 }
 
@@ -344,6 +420,17 @@ impl GatherScratch {
             node_stamp: vec![0; nodes],
             stamp: 0,
         }
+    }
+
+    /// A fresh stamp for a walk (every triangle and node unmarked).
+    pub(crate) fn next_stamp(&mut self) -> u32 {
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.tri_stamp.iter_mut().for_each(|t| *t = 0);
+            self.node_stamp.iter_mut().for_each(|t| *t = 0);
+            self.stamp = 1;
+        }
+        self.stamp
     }
 }
 
@@ -395,13 +482,7 @@ pub fn gather(
     if tri0.iter().any(|&k| k as usize >= x.len()) || !(radius > 0.0) {
         return;
     }
-    s.stamp = s.stamp.wrapping_add(1);
-    if s.stamp == 0 {
-        s.tri_stamp.iter_mut().for_each(|t| *t = 0);
-        s.node_stamp.iter_mut().for_each(|t| *t = 0);
-        s.stamp = 1;
-    }
-    let stamp = s.stamp;
+    let stamp = s.next_stamp();
     let c = v(proxy);
     let reach = radius * (1.0 + REACH_MARGIN);
     s.queue.clear();
@@ -637,6 +718,7 @@ mod tests {
         let patch = ToolPatch {
             tools: &tools,
             points: &points,
+            holds: &[],
         };
         // Node 2 is held.
         let inv_mass = |k: u32| [2.0, 0.5, 0.0, 4.0][k as usize];
@@ -715,6 +797,7 @@ mod tests {
                 let patch = ToolPatch {
                     tools: &tools,
                     points: &points,
+                    holds: &[],
                 };
                 lcp.reset(m);
                 lcp.matrix().copy_from_slice(&a_t);
@@ -799,6 +882,7 @@ mod tests {
             let patch = ToolPatch {
                 tools: &tools,
                 points: &points,
+                holds: &[],
             };
             lcp.reset(m);
             lcp.matrix().copy_from_slice(&a_t);
@@ -840,6 +924,7 @@ mod tests {
         let patch = ToolPatch {
             tools: &tools,
             points: &points,
+            holds: &[],
         };
         patch.add_tool_compliance(&mut a);
         for j in 0..m {

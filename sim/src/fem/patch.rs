@@ -5,7 +5,7 @@
 use super::system::NONE;
 use super::{Factor, Fem, PatchCorrection};
 use crate::interaction::ContactReport;
-use crate::patch::{report, PatchSolve, ToolPatch};
+use crate::patch::{PatchSolve, ToolPatch};
 
 impl Fem {
     /// The last step's solved contact patch (its forces and the factor of its active set),
@@ -16,12 +16,20 @@ impl Fem {
         s.patch_applied.then_some(&mut s.patch.lcp)
     }
 
+    /// The last step's patch solve, if the step applied one: for the reports of its tools
+    /// (presses and grabs).
+    pub(crate) fn patch_solve(&mut self) -> Option<&mut PatchSolve> {
+        let s = &mut *self.s;
+        s.patch_applied.then_some(&mut s.patch)
+    }
+
     /// With `sol` the increment of the step without the tool: solves the patch with the
     /// current factor of `K̃` and adds its response to `sol`. A linear body keeps `K̃⁻¹`'s
     /// columns of the patch's nodes across steps (`patch_slot`); otherwise the points' columns
     /// are solved together each step. In the lagged-factor CG mode the factor is the lagged
     /// one, so the gaps close to its accuracy; the forces still balance the tool spring
-    /// exactly. A patch that cannot be solved (non-finite data) applies no force.
+    /// exactly. A patch that cannot be solved (non-finite data) applies no force. Tools
+    /// grabbing the body come as the patch's holds (`crate::grasp`), solved with its points.
     pub(super) fn patch_correct(&mut self, patch: &ToolPatch<'_>) -> ContactReport {
         self.s.patch_applied = false;
         let Some(patch) = PatchSolve::limit(patch) else {
@@ -37,7 +45,9 @@ impl Fem {
                 }
             });
         }
+        // Grabs (`crate::grasp`) are solved with the points' columns, never from the cache.
         let cached = matches!(self.factor, Factor::RestDynamic | Factor::WarpedDynamic)
+            && patch.holds.is_empty()
             && self.cache_patch_nodes(&patch);
         if cached {
             self.cached_matrix(&patch);
@@ -71,7 +81,7 @@ impl Fem {
             .zip(&s.patch.correction)
             .for_each(|(d, c)| *d += c);
         s.patch_applied = true;
-        report(&patch, &mut s.patch.lcp, 0)
+        s.patch.report(&patch, 0)
     }
 
     /// Puts every free node of the patch in the column cache; false if they do not all fit.

@@ -488,7 +488,12 @@ fn patch_correct(
     jacobian_t: &DMatrix<f64>,
     factored: bool,
 ) -> ContactReport {
-    let Some(patch) = PatchSolve::limit(patch) else {
+    // The cage resolves presses only: a grabbed body runs its precise model (`crate::grasp`).
+    let presses = crate::patch::ToolPatch {
+        holds: &[],
+        ..*patch
+    };
+    let Some(patch) = PatchSolve::limit(&presses) else {
         return ContactReport::default();
     };
     let Reduced {

@@ -7,7 +7,7 @@ use super::forces::{Loads, Network};
 use super::Scratch;
 use crate::contact::{add, scale};
 use crate::interaction::ContactReport;
-use crate::patch::{self, PatchSolve, ToolPatch, MAX_PATCH};
+use crate::patch::{PatchSolve, ToolPatch, MAX_PATCH};
 
 /// An explicit integrator: `substeps` sub-steps of size `h` of the body `State` under `Loads`.
 pub(super) type Integrate = fn(&Network, State<'_>, &mut Scratch, &Loads<'_, '_>, f64, usize);
@@ -191,7 +191,7 @@ pub(super) fn rk4(
 pub(super) struct ExplicitPatch {
     /// The complementarity problem (no unknowns of its own: the correction is applied node by
     /// node here).
-    solve: PatchSolve,
+    pub(super) solve: PatchSolve,
     /// `h² Cᵀ M⁻¹ C` of this step's patch, column-major; sized for [`MAX_PATCH`] points.
     a: Vec<f64>,
     /// What the last step's patch did.
@@ -269,7 +269,18 @@ impl ExplicitPatch {
                     }
                 }
             }
-            report = patch::report(&patch, &mut self.solve.lcp, 0);
+            // The grabs' forces (`crate::grasp`), spread over their nodes by their weights.
+            for (i, hold) in patch.holds.iter().enumerate() {
+                let f = self.solve.holds.force(i);
+                for (k, w) in hold.terms() {
+                    let dv = scale(f, h * inv_mass(k) * w);
+                    if let (Some(xk), Some(vk)) = (x.get_mut(k as usize), v.get_mut(k as usize)) {
+                        *vk = add(*vk, dv);
+                        *xk = add(*xk, scale(dv, h));
+                    }
+                }
+            }
+            report = self.solve.report(&patch, 0);
         }
         self.report = Some(report);
     }

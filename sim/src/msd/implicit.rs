@@ -41,7 +41,7 @@ pub(super) struct ImplicitSolver {
     /// Right-hand side `h (f − γv − hKv)` on entry to the solve, `Δv` on exit.
     rhs: Vec<f64>,
     /// The contact patch's solve (`patch_correct`).
-    patch: PatchSolve,
+    pub(super) patch: PatchSolve,
     /// What the last step's patch did.
     patch_report: Option<ContactReport>,
 }
@@ -288,7 +288,7 @@ impl ImplicitSolver {
             .iter_mut()
             .zip(&self.patch.correction)
             .for_each(|(d, c)| *d += c);
-        crate::patch::report(&patch, &mut self.patch.lcp, 0)
+        self.patch.report(&patch, 0)
     }
 
     /// Numeric refactorisation into the reused buffers, then the solve: `rhs` becomes `Δv`.

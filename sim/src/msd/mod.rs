@@ -286,6 +286,14 @@ enum Stepper {
 }
 
 impl MassSpring {
+    /// The last step's patch solve, for the reports of its tools (presses and grabs).
+    pub(crate) fn patch_solve(&mut self) -> &mut crate::patch::PatchSolve {
+        match &mut self.stepper {
+            Stepper::Implicit(solver) => &mut solver.patch,
+            Stepper::Explicit { patch, .. } => &mut patch.solve,
+        }
+    }
+
     /// The last step's contact patch problem (its forces and the factor of its active set);
     /// meaningful only when the step's report came from a patch (it has a proxy). For the
     /// reports of a patch's other tools ([`crate::patch::report`]).

@@ -18,6 +18,8 @@ pub use round::{BodyRound, Round, RoundReport, RoundTool, MAX_HEAT_CATCH_UP};
 
 use crate::collide::{CollisionBody, CollisionParams, CollisionStats, Collisions};
 use crate::contact::{closest_on_surface, scale, ForceLaw, ToolSphere};
+pub use crate::grasp::Grip;
+use crate::grasp::{jaw_hold, MAX_HOLDS};
 use crate::haptic::{FreeMotion, LocalModel};
 use crate::heat::HeatWorld;
 use crate::lop::PrecisionController;
@@ -26,7 +28,8 @@ use crate::model::{BlowUp, ContactReport, ContactSpring, Model, ToolAnchor, Tool
 use crate::msd::{MassSpring, MsdParameters};
 use crate::parallel::WorkerPool;
 use crate::patch::{
-    gather, GatherScratch, GatherSphere, PatchPoint, PatchSolve, PatchTool, ToolPatch, MAX_PATCH,
+    gather, GatherScratch, GatherSphere, PatchHold, PatchPoint, PatchSolve, PatchTool, ToolPatch,
+    MAX_PATCH,
 };
 use std::sync::Arc;
 
@@ -41,6 +44,8 @@ pub const SWITCH_MARGIN: f64 = 0.002;
 /// Most tools a world is stepped with at once (a scene's tools: two hands, a grasper and a
 /// hook…). Fixed so a body's per-tool state needs no allocation.
 pub const MAX_TOOLS: usize = 4;
+// Every tool of a step may grab the same body.
+const _: () = assert!(MAX_HOLDS >= MAX_TOOLS);
 
 /// One deformable body.
 #[derive(Debug, Clone)]
@@ -144,6 +149,9 @@ pub struct World {
     report: RoundReport,
     /// The worker pool of the FEM bodies' steps ([`World::set_threads`]).
     pool: Option<Arc<WorkerPool>>,
+    /// Per tool (in the order the steps are given them): how it holds tissue when it grabs
+    /// ([`World::set_grip`]).
+    grips: [Grip; MAX_TOOLS],
 }
 
 /// The heat model of a world and its clock.
@@ -179,7 +187,24 @@ impl World {
             heat: None,
             report: RoundReport::default(),
             pool: None,
+            grips: [Grip::Point; MAX_TOOLS],
         }
+    }
+
+    /// Sets how tool `tool` (its index in [`Round::tools`], or in the tools given to
+    /// [`World::step_body_tools`]) holds tissue when it grabs: [`Grip::Point`] (the default)
+    /// holds the god-object's anchored point, [`Grip::Jaws`] a grasper's footprint of the
+    /// surface around it ([`crate::grasp`]). A property of the tool, kept until changed; a
+    /// tool index of [`MAX_TOOLS`] or more is ignored.
+    pub fn set_grip(&mut self, tool: usize, grip: Grip) {
+        if let Some(g) = self.grips.get_mut(tool) {
+            *g = grip;
+        }
+    }
+
+    /// How tool `tool` holds tissue when it grabs ([`World::set_grip`]).
+    pub fn grip(&self, tool: usize) -> Grip {
+        self.grips.get(tool).copied().unwrap_or_default()
     }
 
     /// Runs every FEM body's step (active or parked behind the levels-of-precision
@@ -538,13 +563,21 @@ impl World {
     /// with its own points, sphere and spring, solved together ([`crate::patch`]): tissue
     /// pinched between two tools pushes back on both, and each tool's share is its report in
     /// [`Body::contacts`]. When the tools press more points than a patch holds, each keeps
-    /// an equal share of [`MAX_PATCH`]. A body grabbed by a tool (or pressed with the
-    /// quadratic law, a point contact) takes that tool alone this step, the first such tool:
-    /// the others' presses on it are not applied to the tissue until it lets go.
-    /// [`Coupling::Nearest`] acts with the first tool whose sphere reaches the body.
+    /// an equal share of [`MAX_PATCH`].
+    ///
+    /// Grabs (linear law) join the same problem as bilateral springs ([`crate::grasp`]) when
+    /// several tools grab the body, a tool presses beside a grab, or a tool grabs with jaws
+    /// ([`World::set_grip`]): each grabbing tool holds its own point (or footprint) with its
+    /// own spring, its report the force its spring applied, and the presses beside act on the
+    /// tissue as the grabs hold it. A lone point grab stays the one-point contact it always
+    /// was. A body grabbed under its cage, or pressed with the quadratic law (a point
+    /// contact), takes that tool alone this step, the first such tool: the others' presses on
+    /// it are not applied to the tissue until it lets go. [`Coupling::Nearest`] acts with the
+    /// first tool whose sphere reaches the body.
     pub fn step_body_tools(&mut self, i: usize, tools: &[Option<BodyTool>]) -> Result<(), BlowUp> {
         let tools = &tools[..tools.len().min(MAX_TOOLS)];
         let gravity = self.gravity;
+        let grips = self.grips;
         let springs: &[ContactSpring] = match &self.collisions {
             Some(c) => c.springs.get(i).map_or(&[], |v| &v[..]),
             None => &[],
@@ -599,14 +632,20 @@ impl World {
         b.time += dt;
         let sphere = |t: usize| tools[t].map(|bt| bt.sphere);
         // A press by a god-object (linear law) acts over the tool's footprint: the patch of
-        // the sphere resting at the anchor, held by the tool spring to the device. A grab or
-        // a quadratic press is a point contact of one tool.
-        let presses = |t: usize| {
-            anchors[t].is_some_and(|a| !a.grab)
-                && sphere(t).is_some_and(|s| s.law == ForceLaw::Linear)
-        };
-        let point = (0..tools.len()).find(|&t| anchors[t].is_some() && !presses(t));
+        // the sphere resting at the anchor, held by the tool spring to the device. A grab
+        // (linear law) holds its point or its jaws' footprint in the same problem when it
+        // shares the body or holds with jaws (`crate::grasp`); a lone point grab, a grab of a
+        // cage and a quadratic press are point contacts of one tool.
+        let linear = |t: usize| sphere(t).is_some_and(|s| s.law == ForceLaw::Linear);
+        let presses = |t: usize| anchors[t].is_some_and(|a| !a.grab) && linear(t);
+        let grabs = |t: usize| anchors[t].is_some_and(|a| a.grab) && linear(t);
         let pressing = (0..tools.len()).filter(|&t| presses(t)).count();
+        let grabbing = (0..tools.len()).filter(|&t| grabs(t)).count();
+        let jaws = (0..tools.len()).any(|t| grabs(t) && grips[t].jaw_radius().is_some());
+        let holding =
+            b.model.resolves_holds() && grabbing > 0 && (grabbing > 1 || pressing > 0 || jaws);
+        let patched = |t: usize| presses(t) || (holding && grabs(t));
+        let point = (0..tools.len()).find(|&t| anchors[t].is_some() && !patched(t));
         // Per patch tool: the tool it is (an index into `tools`).
         let mut patch_of = [0usize; MAX_TOOLS];
         let mut patch_tools = [PatchTool {
@@ -614,13 +653,34 @@ impl World {
             stiffness: 0.0,
         }; MAX_TOOLS];
         let mut in_patch = 0;
+        let mut holds = [PatchHold::EMPTY; MAX_HOLDS];
+        let mut n_holds = 0;
         b.patch_points.clear();
         if point.is_none() {
-            for t in (0..tools.len()).filter(|&t| presses(t)) {
+            for t in (0..tools.len()).filter(|&t| patched(t)) {
                 let (Some(a), Some(s)) = (anchors[t], sphere(t)) else {
                     continue;
                 };
-                if let Some(proxy) = a.proxy(&b.mesh.surface, b.model.positions()) {
+                if a.grab {
+                    let x = b.model.positions();
+                    let hold = match grips[t].jaw_radius() {
+                        Some(r) => jaw_hold(
+                            &b.mesh.surface,
+                            &b.node_triangles,
+                            x,
+                            &a,
+                            r,
+                            in_patch as u32,
+                            &mut b.patch_scratch,
+                        ),
+                        None => PatchHold::at_anchor(&b.mesh.surface, &a, in_patch as u32),
+                    };
+                    let Some(hold) = hold.filter(|_| a.point(&b.mesh.surface, x).is_some()) else {
+                        continue;
+                    };
+                    holds[n_holds] = hold;
+                    n_holds += 1;
+                } else if let Some(proxy) = a.proxy(&b.mesh.surface, b.model.positions()) {
                     let max = b.patch_points.len() + MAX_PATCH / pressing;
                     gather(
                         &b.mesh.surface,
@@ -636,18 +696,21 @@ impl World {
                         &mut b.patch_points,
                         &mut b.patch_scratch,
                     );
-                    patch_tools[in_patch] = PatchTool {
-                        device: s.center,
-                        stiffness: s.stiffness,
-                    };
-                    patch_of[in_patch] = t;
-                    in_patch += 1;
+                } else {
+                    continue;
                 }
+                patch_tools[in_patch] = PatchTool {
+                    device: s.center,
+                    stiffness: s.stiffness,
+                };
+                patch_of[in_patch] = t;
+                in_patch += 1;
             }
         }
         let patch = (in_patch > 0).then_some(ToolPatch {
             tools: &patch_tools[..in_patch],
             points: &b.patch_points,
+            holds: &holds[..n_holds],
         });
         // The tool the contact is given as: the point contact's, else the patch's first,
         // else the first anchored tool's, else the nearest.
@@ -671,19 +734,23 @@ impl World {
         match r {
             Ok(report) => {
                 b.contacts = [ContactReport::default(); MAX_TOOLS];
-                match (patch.filter(|_| point.is_none()), report.proxy) {
-                    (Some(patch), Some(_)) => {
+                // A press's report has its proxy; a patch with grabs reports them either way.
+                let solved = patch
+                    .filter(|_| point.is_none())
+                    .filter(|p| report.proxy.is_some() || !p.holds.is_empty());
+                match solved {
+                    Some(patch) => {
                         b.contacts[patch_of[0]] = report;
                         // The other tools' shares of the same solve.
-                        if let (Some(limited), Some(lcp)) =
-                            (PatchSolve::limit(&patch), b.model.patch_solution())
+                        if let (Some(limited), Some(solve)) =
+                            (PatchSolve::limit(&patch), b.model.patch_solve())
                         {
                             for (k, &t) in patch_of.iter().enumerate().take(in_patch).skip(1) {
-                                b.contacts[t] = crate::patch::report(&limited, lcp, k);
+                                b.contacts[t] = solve.report(&limited, k);
                             }
                         }
                     }
-                    _ => {
+                    None => {
                         if let Some(t) = acting {
                             b.contacts[t] = report;
                         }

@@ -156,6 +156,7 @@ fn a_cage_with_a_patch_is_allocation_free() {
                 stiffness: tool.stiffness,
             }],
             points: &points,
+            holds: &[],
         }),
     };
     let gravity = [0.0, -9.81, 0.0];

@@ -24,6 +24,7 @@ mod fem_ordering;
 mod fem_threads;
 mod fem_validation;
 mod gc;
+mod grasp;
 mod haptic;
 mod heat;
 mod interaction;

@@ -106,6 +106,7 @@ fn step_with_a_patch_is_allocation_free_after_the_first_step() {
                 stiffness: tool.stiffness,
             }],
             points: &points,
+            holds: &[],
         }),
     };
     for integrator in Integrator::ALL {
