@@ -120,6 +120,7 @@ impl World {
                 patch: (!points.is_empty()).then_some(ToolPatch {
                     tools: &tools,
                     points: &points,
+                    holds: &[],
                 }),
             };
             let t0 = now_ns();
