@@ -341,7 +341,8 @@ pub fn body_models(
 }
 
 /// Loads every body's mesh, places it, builds its models and controller, and attaches organ
-/// collision and the heat model as the scene sets them.
+/// collision and the heat model as the scene sets them, and each grasper's jaws
+/// ([`lop_sim::World::set_grip`]).
 pub fn load(scene: Scene) -> Result<LoadedScene> {
     let mut world = World::new(scene.gravity);
     let mut topology = Topology::default();
@@ -400,6 +401,12 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
     }
     let heat = heat_world(&scene, &world)?;
     world.set_heat(heat);
+    // A grasper's jaws hold a footprint of the surface; every other tool a point.
+    for (t, tool) in scene.tools.iter().enumerate() {
+        if let Some(radius) = tool.kind.jaw_radius() {
+            world.set_grip(t, lop_sim::grasp::Grip::Jaws { radius });
+        }
+    }
     topology.node_count = node_offset;
     topology.triangle_count = triangles.len() / 3;
     topology.tet_count = tets.len() / 4;
