@@ -139,9 +139,10 @@ const POSTPONE_S: f64 = 10.0;
 /// The most devices a soak runs (`--devices`).
 const MAX_DEVICES: usize = 2;
 /// Where the second tool's device maps, along x from the first's, m: 20 mm to the −x side,
-/// where the shipped scripts still reach the tissue (on `abdomen` each tool presses about
-/// 40 % of the time and both at once about 30 %, against 15 % at +30 mm, where the grab
-/// misses the liver) and the two tools' contacts stay apart.
+/// where the shipped scripts still reach the tissue and the two tools' contacts stay apart. On
+/// `abdomen` (30 s runs) both hands felt a force on 28–30 % of the ticks at 15–30 mm along −x,
+/// each about 40 %; 16–17 % at 0 and +12 mm; at +30 mm the second tool's grab misses the
+/// liver.
 const SECOND_TOOL_X_M: f64 = -0.02;
 
 impl SoakArgs {
@@ -240,6 +241,14 @@ pub fn run(a: SoakArgs) -> Result<()> {
         .map_or(shipped.clone(), |c| c.path().to_path_buf());
     let scene = lop_config::load_scene(&scene_path)
         .with_context(|| format!("loading scene {}", scene_path.display()))?;
+    if scene.tools.len() != a.devices {
+        bail!(
+            "scene {} has {} tools and the soak drives one device per tool: give --devices {}",
+            scene.name,
+            scene.tools.len(),
+            scene.tools.len()
+        );
+    }
     let rate = scene.rates.haptic_hz;
     let haptic = lop_config::DaemonConfig::default().haptic;
     let clamp = haptic
