@@ -47,6 +47,7 @@ use serde::Serialize;
 
 use crate::cyclictest;
 use crate::pipeline::{self, Lopd, LopdOptions};
+use crate::scenes::scene_with_tools;
 use crate::table::{self, Row};
 
 /// Warm-up after the first frame, s.
@@ -188,7 +189,8 @@ pub fn run(a: LatencyArgs) -> Result<()> {
     let one = haptic_rows(&report.rows);
     let mut more = Vec::new();
     for n in 2..=a.devices {
-        let scene = scene_with_tools(Path::new(&report.scene_path), n)?;
+        // Each further device 30 mm along x: apart, and still over the tissue.
+        let scene = scene_with_tools(Path::new(&report.scene_path), n, 0.03)?;
         let run = LatencyArgs {
             scene: scene.path().display().to_string(),
             json: None,
@@ -279,90 +281,6 @@ fn is_haptic(row: &Row) -> bool {
 /// The haptic loop's rows of a report.
 fn haptic_rows(rows: &[Row]) -> Vec<Row> {
     rows.iter().filter(|r| is_haptic(r)).cloned().collect()
-}
-
-/// A scene file written beside `path` (its relative paths stay valid), removed when dropped.
-struct SceneCopy(PathBuf);
-
-impl SceneCopy {
-    fn path(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for SceneCopy {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.0);
-    }
-}
-
-/// The scene at `path` with `n` tools: its first tool (`[tool]`, or the default tool) and
-/// `n − 1` copies named `device2`… whose devices map 30 mm further along x each, all playing
-/// the scene's mock script. Written beside the scene so its relative paths stay valid.
-fn scene_with_tools(path: &Path, n: usize) -> Result<SceneCopy> {
-    use toml::{Table, Value};
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let mut scene: Table =
-        toml::from_str(&text).with_context(|| format!("{}: not a TOML table", path.display()))?;
-    let first = match scene.remove("tool") {
-        Some(Value::Table(t)) => t,
-        Some(Value::Array(a)) => match a.into_iter().next() {
-            Some(Value::Table(t)) => t,
-            _ => bail!("{}: its [[tool]] is not a table", path.display()),
-        },
-        _ => {
-            let d = lop_config::ToolSpec::default();
-            Table::from_iter([
-                ("radius".to_string(), Value::Float(d.radius)),
-                ("stiffness".to_string(), Value::Float(d.stiffness)),
-            ])
-        }
-    };
-    let workspace = match scene.get("workspace") {
-        Some(Value::Table(w)) => w.clone(),
-        _ => Table::new(),
-    };
-    let offset: Vec<f64> = match workspace.get("offset") {
-        Some(Value::Array(o)) => o
-            .iter()
-            .map(|v| {
-                v.as_float()
-                    .or(v.as_integer().map(|i| i as f64))
-                    .unwrap_or(0.0)
-            })
-            .collect(),
-        _ => vec![0.0; 3],
-    };
-    let script = scene
-        .get("device")
-        .and_then(|d| d.get("mock_script"))
-        .cloned();
-    let mut tools = vec![Value::Table(first.clone())];
-    for k in 1..n {
-        let mut t = first.clone();
-        t.insert("name".into(), Value::String(format!("device{}", k + 1)));
-        let mut w = workspace.clone();
-        let mut o = offset.clone();
-        o.resize(3, 0.0);
-        o[0] += 0.03 * k as f64;
-        w.insert(
-            "offset".into(),
-            Value::Array(o.into_iter().map(Value::Float).collect()),
-        );
-        t.insert("workspace".into(), Value::Table(w));
-        if let Some(s) = &script {
-            t.insert("mock_script".into(), s.clone());
-        }
-        tools.push(Value::Table(t));
-    }
-    scene.insert("tool".into(), Value::Array(tools));
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene");
-    let out = dir.join(format!(".{stem}-{n}-devices-{}.toml", std::process::id()));
-    std::fs::write(&out, toml::to_string(&scene)?)
-        .with_context(|| format!("writing {} (beside the scene)", out.display()))?;
-    Ok(SceneCopy(out))
 }
 
 /// One measured run of the pipeline, printed nowhere: the report, and whether the daemon then

@@ -1,7 +1,8 @@
 //! `lop-bench`: benchmarks of the lop pipeline. One module per subcommand (`latency`, `models`,
 //! `lop`, `interaction`, `haptics`, `soak`, …); shared helpers in `stats` (the one quantile
-//! definition), `table` (percentile rows, aligned tables, notes), `plot` (SVG charts), `pipeline` (spawning `lopd` with a guard) and `cyclictest`
-//! (the machine's own wake-up latency, as a yardstick).
+//! definition), `table` (percentile rows, aligned tables, notes), `plot` (SVG charts),
+//! `pipeline` (spawning `lopd` with a guard), `scenes` (a scene copied with more tools) and
+//! `cyclictest` (the machine's own wake-up latency, as a yardstick).
 
 use std::process::ExitCode;
 
@@ -18,6 +19,7 @@ mod organs;
 mod parry;
 mod pipeline;
 mod plot;
+mod scenes;
 mod soak;
 mod stats;
 mod table;

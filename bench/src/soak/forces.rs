@@ -1,5 +1,10 @@
-//! What the hand felt: every tool state the haptic loop published (`PREFIX/tool`, one a tick)
-//! checked as it streams in, and the device's own force record read after the run.
+//! What the hand felt: every tool state the haptic loop published (`PREFIX/tool`, one a tick
+//! per tool) checked as it streams in, and each device's own force record read after the run.
+//!
+//! Every tool is audited on its own ([`ToolAudits`]): the loop publishes each tick one state per
+//! tool, all with the tick's sequence and each with its tool's index, so only the states of
+//! one tool follow each other tick by tick, and only they say what that tool's hand felt. A
+//! device's broken samples are its own (they flag its tool only), and so is its force log.
 //!
 //! Per tool state:
 //! - the force is finite and its magnitude within the clamp (safety invariant 1);
@@ -35,7 +40,7 @@ use serde::Serialize;
 
 use lop_drivers::mock::SampleFault;
 
-use super::report::{check, Check, Evidence};
+use super::report::{check, per_tool, Check, Evidence};
 use super::schedule::{SampleEvent, Schedule};
 use super::steps::{Follows, RestartKind, StepAudit, StepLimits, StepViolation};
 
@@ -427,8 +432,58 @@ impl ForceAudit {
     }
 }
 
-/// The device's record of the forces it was sent (`--force-log`, the mock's ring of the last
-/// two minutes), read after the run.
+/// The tool-state stream split by tool (`ToolState::tool`), one [`ForceAudit`] each.
+#[derive(Debug)]
+pub struct ToolAudits {
+    /// Tool `k`'s audit at `k`.
+    pub tools: Vec<ForceAudit>,
+    /// States naming a tool the run does not have.
+    pub foreign: u64,
+    /// Ticks on which every tool had a force on the hand (all in the tissue at once).
+    pub all_loaded_ticks: u64,
+    /// Per tool, the (haptic process, tick) of its last state with a force on the hand.
+    loaded_at: Vec<Option<(u64, u64)>>,
+}
+
+impl ToolAudits {
+    /// One audit per tool, in the scene's order.
+    pub fn new(tools: Vec<ForceAudit>) -> ToolAudits {
+        ToolAudits {
+            loaded_at: vec![None; tools.len()],
+            tools,
+            foreign: 0,
+            all_loaded_ticks: 0,
+        }
+    }
+
+    /// Checks one tool state in its tool's audit.
+    pub fn feed(&mut self, s: &ToolState) {
+        let k = s.tool as usize;
+        let Some(a) = self.tools.get_mut(k) else {
+            self.foreign += 1;
+            return;
+        };
+        a.feed(s);
+        if norm(s.force) > 0.0 {
+            let at = Some((a.segments, s.sequence));
+            self.loaded_at[k] = at;
+            // Counted on the last tool's state: a tick's states come in the tools' order.
+            if k + 1 == self.tools.len() && self.loaded_at.iter().all(|l| *l == at) {
+                self.all_loaded_ticks += 1;
+            }
+        }
+    }
+
+    /// Ends every tool's stream.
+    pub fn finish(&mut self) {
+        for a in &mut self.tools {
+            a.finish();
+        }
+    }
+}
+
+/// A device's record of the forces it was sent (`--force-log`, one file per device: the mock's
+/// ring of the last two minutes), read after the run.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct ForceLog {
     /// Rows read.
@@ -489,9 +544,13 @@ impl ForceLog {
 /// The run is judged only if the bench saw at least this share of the tool states.
 const MIN_COVERAGE: f64 = 0.5;
 
-/// The tool stream's part of the report: what the audit saw.
+/// One tool's stream in the report: what its audit saw.
 #[derive(Debug, Clone, Serialize)]
 pub struct ToolStreamReport {
+    /// The tool's index (`ToolState::tool`).
+    pub tool: usize,
+    /// Its name in the scene.
+    pub name: String,
     pub received: u64,
     pub missed: u64,
     pub coverage: f64,
@@ -517,11 +576,14 @@ pub struct ToolStreamReport {
 }
 
 impl ToolStreamReport {
-    /// The audit's figures, against the plan's broken samples.
-    pub fn new(a: &ForceAudit, plan: &Schedule) -> ToolStreamReport {
+    /// Tool `tool`'s (named `name`) audit's figures, against its device's planned broken
+    /// samples.
+    pub fn new(tool: usize, name: &str, a: &ForceAudit, plan: &Schedule) -> ToolStreamReport {
         let (seen, flagged) = a.planned_samples();
         let coverage = a.received as f64 / (a.received + a.missed).max(1) as f64;
         ToolStreamReport {
+            tool,
+            name: name.to_string(),
             received: a.received,
             missed: a.missed,
             coverage,
@@ -539,7 +601,7 @@ impl ToolStreamReport {
             longest_episode_ticks: a.episodes.iter().map(|e| e.ticks).max().unwrap_or(0),
             restarts: a.steps.restarts.len() as u64,
             largest_rise_excess_n: a.steps.largest_rise_excess,
-            planned_samples: plan.samples.len(),
+            planned_samples: plan.samples.get(tool).map_or(0, Vec::len),
             planned_samples_seen: seen,
             planned_samples_flagged: flagged,
             violations: a.counts.clone(),
@@ -548,29 +610,30 @@ impl ToolStreamReport {
     }
 }
 
-/// Safety invariant 1 on both records: every published force and every force the device
-/// received finite and within the clamp.
+/// Safety invariant 1 on both records of every tool: every published force and every force
+/// the device received finite and within the clamp.
 pub(super) fn within_clamp(e: &Evidence<'_>) -> Check {
-    let (a, settings) = (e.audit, e.settings);
-    let (log_ok, log_detail) = match e.force_log {
-        Ok(l) => (
-            l.non_finite == 0 && l.over_clamp == 0 && l.rows > 0,
-            format!(
-                "force log {} rows (the device's last {:.0} s), {} with a force, max {:.3} N, {} \
-                 non-finite, {} over",
-                l.rows,
-                l.rows as f64 / settings.rate_hz,
-                l.loaded_rows,
-                l.max_force,
-                l.non_finite,
-                l.over_clamp
+    let settings = e.settings;
+    let mut pass = true;
+    let detail = per_tool(settings, |k| {
+        let a = &e.audits[k];
+        let (log_ok, log_detail) = match &e.force_logs[k] {
+            Ok(l) => (
+                l.non_finite == 0 && l.over_clamp == 0 && l.rows > 0,
+                format!(
+                    "force log {} rows (the device's last {:.0} s), {} with a force, max {:.3} N, \
+                     {} non-finite, {} over",
+                    l.rows,
+                    l.rows as f64 / settings.rate_hz,
+                    l.loaded_rows,
+                    l.max_force,
+                    l.non_finite,
+                    l.over_clamp
+                ),
             ),
-        ),
-        Err(e) => (false, format!("force log unreadable: {e}")),
-    };
-    check(
-        "every force finite and within the clamp",
-        a.counts.non_finite == 0 && a.counts.over_clamp == 0 && log_ok,
+            Err(e) => (false, format!("force log unreadable: {e}")),
+        };
+        pass &= a.counts.non_finite == 0 && a.counts.over_clamp == 0 && log_ok;
         format!(
             "{} tool states ({} with a force on the hand), max |F| {:.3} N, clamp {:.2} N, {} \
              non-finite, {} over; {log_detail}",
@@ -580,18 +643,35 @@ pub(super) fn within_clamp(e: &Evidence<'_>) -> Check {
             settings.clamp_n,
             a.counts.non_finite,
             a.counts.over_clamp
+        )
+    });
+    let together = match settings.devices {
+        1 => String::new(),
+        _ => format!(
+            "; {} ticks with a force on every hand at once",
+            e.all_loaded_ticks
         ),
+    };
+    check(
+        "every force finite and within the clamp",
+        pass,
+        detail + &together,
     )
 }
 
-/// Safety invariant 3: the device's last force is zero.
+/// Safety invariant 3: every device's last force is zero.
 pub(super) fn zero_at_stop(e: &Evidence<'_>) -> Check {
-    let last = e.force_log.as_ref().ok().and_then(|l| l.last);
+    let mut pass = true;
+    let detail = per_tool(e.settings, |k| {
+        let last = e.force_logs[k].as_ref().ok().and_then(|l| l.last);
+        pass &= last == Some([0.0; 3]);
+        format!("last force in the device's record: {last:?}")
+    });
     check(
         "zero force written when the haptic process stopped",
-        last == Some([0.0; 3]),
+        pass,
         format!(
-            "last force in the device's record: {last:?}; haptic exits: 1 (at the end){}",
+            "{detail}; haptic exits: 1 (at the end){}",
             match e.supervisor.haptic_restarts {
                 Some(n) if n > 0 => format!(" + {n} restarts (earlier force logs overwritten)"),
                 _ => String::new(),
@@ -600,16 +680,16 @@ pub(super) fn zero_at_stop(e: &Evidence<'_>) -> Check {
     )
 }
 
-/// Safety invariant 2: every episode ramps (see the module docs).
+/// Safety invariant 2: every episode of every tool ramps (see the module docs).
 pub(super) fn ramped(e: &Evidence<'_>) -> Check {
-    let (a, settings, t) = (e.audit, e.settings, e.tool);
-    check(
-        "force ramped down on every stale frame and broken sample (not cut, not held, zero in time)",
-        a.counts.ramp() == 0 && t.episodes > 0,
+    let settings = e.settings;
+    let mut pass = true;
+    let detail = per_tool(settings, |k| {
+        let (a, t) = (&e.audits[k], &e.tools[k]);
+        pass &= a.counts.ramp() == 0 && t.episodes > 0;
         format!(
-            "{} episodes ({} with a force on the hand), {} stale-frame, {} broken-sample, longest \
-             {} ticks; violations: {} not flagged ramping, {} cut, {} held, {} late (ramp {} \
-             ticks: at most {:.3} N a tick, zero from its {}th tick)",
+            "{} episodes ({} with a force on the hand), {} stale-frame, {} broken-sample, \
+             longest {} ticks; violations: {} not flagged ramping, {} cut, {} held, {} late",
             t.episodes,
             t.episodes_loaded,
             t.episodes_stale,
@@ -619,6 +699,13 @@ pub(super) fn ramped(e: &Evidence<'_>) -> Check {
             a.counts.cut,
             a.counts.held,
             a.counts.late,
+        )
+    });
+    check(
+        "force ramped down on every stale frame and broken sample (not cut, not held, zero in time)",
+        pass,
+        format!(
+            "{detail} (ramp {} ticks: at most {:.3} N a tick, zero from its {}th tick)",
             settings.ramp_ticks,
             settings.clamp_n / settings.ramp_ticks as f64,
             settings.ramp_ticks
@@ -626,41 +713,62 @@ pub(super) fn ramped(e: &Evidence<'_>) -> Check {
     )
 }
 
-/// Every planned broken sample flagged on its ticks, and no device error elsewhere.
+/// Every device's planned broken samples flagged on its tool's ticks, and no device error
+/// elsewhere (a device's broken sample flags its own tool only).
 pub(super) fn samples_caught(e: &Evidence<'_>) -> Check {
-    let (a, plan) = (e.audit, e.plan);
-    let (seen, flagged) = (e.tool.planned_samples_seen, e.tool.planned_samples_flagged);
-    let by_kind = |k: SampleFault| plan.samples.iter().filter(|s| s.fault == k).count();
-    check(
-        "every planned broken sample caught, and no other device error",
-        a.counts.sample_not_flagged == 0 && flagged == seen && a.unexpected_device_errors == 0,
+    let plan = e.plan;
+    let mut pass = true;
+    let detail = per_tool(e.settings, |k| {
+        let (a, t) = (&e.audits[k], &e.tools[k]);
+        let samples = plan.samples.get(k).map_or(&[][..], Vec::as_slice);
+        let by_kind = |f: SampleFault| samples.iter().filter(|s| s.fault == f).count();
+        let (seen, flagged) = (t.planned_samples_seen, t.planned_samples_flagged);
+        pass &=
+            a.counts.sample_not_flagged == 0 && flagged == seen && a.unexpected_device_errors == 0;
         format!(
-            "{} runs planned ({} NaN, {} out of the workspace), {seen} seen, {flagged} flagged on \
-             every tick; {} planned ticks not flagged; {} device-error ticks elsewhere",
-            plan.samples.len(),
+            "{} runs planned ({} NaN, {} out of the workspace), {seen} seen, {flagged} flagged \
+             on every tick; {} planned ticks not flagged; {} device-error ticks elsewhere",
+            samples.len(),
             by_kind(SampleFault::Nan),
             by_kind(SampleFault::OutOfWorkspace),
             a.counts.sample_not_flagged,
             a.unexpected_device_errors
-        ),
+        )
+    });
+    check(
+        "every planned broken sample caught, and no other device error",
+        pass,
+        detail,
     )
 }
 
-/// The bench saw enough of the tool stream for the checks above to mean something.
+/// The bench saw enough of every tool's stream for the checks above to mean something, and
+/// every state it saw belongs to a tool of the run.
 pub(super) fn stream_observed(e: &Evidence<'_>) -> Check {
-    let a = e.audit;
-    let coverage = e.tool.coverage;
-    check(
-        "the tool stream was observed",
-        coverage >= MIN_COVERAGE,
+    let mut pass = e.foreign == 0;
+    let detail = per_tool(e.settings, |k| {
+        let (a, t) = (&e.audits[k], &e.tools[k]);
+        pass &= t.coverage >= MIN_COVERAGE;
         format!(
-            "{} of {} tool states received ({:.2} %), {} haptic ticks in all",
+            "{} of {} tool states received ({:.2} %)",
             a.received,
             a.received + a.missed,
-            100.0 * coverage,
+            100.0 * t.coverage,
+        )
+    });
+    check(
+        "the tool stream was observed",
+        pass,
+        format!(
+            "{detail}; {} haptic ticks in all{}",
             e.supervisor
                 .haptic_ticks
-                .map_or("?".into(), |t| t.to_string())
+                .map_or("?".into(), |t| t.to_string()),
+            if e.foreign > 0 {
+                format!("; {} states of a tool the run does not have", e.foreign)
+            } else {
+                String::new()
+            }
         ),
     )
 }
@@ -780,6 +888,99 @@ mod tests {
         b.feed(&state(5, 0.0, 0));
         assert_eq!(b.planned_samples(), (1, 0));
         assert_eq!(b.counts.sample_not_flagged, 1);
+    }
+
+    /// Two tools as the loop publishes them: each tick tool 0's state then tool 1's, with the
+    /// tick's sequence and stamp. Tool 0 presses 2 N and ramps down on a stale stretch; tool 1
+    /// presses 1 N and reads its device's planned broken samples; the loop restarts once.
+    /// Each tool's audit sees its own stream only: no restart but the one, every ramp clean,
+    /// the broken samples on tool 1 alone; a state of a third tool is foreign.
+    #[test]
+    fn each_tool_is_audited_on_its_own_stream() {
+        let stale = 30..42u64;
+        let broken = SampleEvent {
+            first_tick: 50,
+            ticks: 3,
+            fault: SampleFault::OutOfWorkspace,
+        };
+        let dev = TOOL_FLAG_RAMPING | TOOL_FLAG_DEVICE_ERROR;
+        let limits = StepLimits {
+            max_step: 0.1,
+            stiffness: 300.0,
+            stale_ns: 100_000_000,
+        };
+        let mut audits = ToolAudits::new(vec![
+            ForceAudit::new(3.0, 5, &[], limits),
+            ForceAudit::new(3.0, 5, &[broken], limits),
+        ]);
+        // The safety's ramp on the `n`-th unhealthy tick of an episode (ramp of 5 ticks).
+        let ramp = |f: f64, n: u64| {
+            let level = (5 - n.min(5)) as f64;
+            f * (level - 1.0).max(0.0) / level.max(1.0)
+        };
+        // One tick of the loop: tool 0 rises 0.1 N a tick to 2 N, tool 1 0.05 N to 1 N; both
+        // ramp down while the frame is stale, tool 1 alone on its broken samples.
+        let tick = |audits: &mut ToolAudits, f: &mut [f64; 2], seq: u64, stamp: u64| {
+            let mut a = ToolState {
+                tool: 0,
+                stamp_ns: stamp,
+                ..state(seq, 0.0, 0)
+            };
+            let mut b = ToolState { tool: 1, ..a };
+            if stale.contains(&seq) {
+                f[0] = ramp(f[0], seq - stale.start);
+                f[1] = ramp(f[1], seq - stale.start);
+                (a.flags, b.flags) = (UNHEALTHY, UNHEALTHY);
+            } else if broken.covers(seq) {
+                f[0] = (f[0] + 0.1f64).min(2.0);
+                f[1] = ramp(f[1], seq - broken.first_tick);
+                b.flags = dev;
+            } else {
+                f[0] = (f[0] + 0.1f64).min(2.0);
+                f[1] = (f[1] + 0.05f64).min(1.0);
+            }
+            (a.force[1], b.force[1]) = (f[0], f[1]);
+            audits.feed(&a);
+            audits.feed(&b);
+        };
+        let mut f = [0.0; 2];
+        for seq in 0..80 {
+            tick(&mut audits, &mut f, seq, seq * 1_000_000);
+        }
+        // The loop killed and restarted: its sequence starts over, both forces from zero.
+        let mut f = [0.0; 2];
+        for seq in 0..10 {
+            tick(&mut audits, &mut f, seq, (500 + seq) * 1_000_000);
+        }
+        audits.feed(&ToolState {
+            tool: 2,
+            ..state(10, 0.0, 0)
+        });
+        audits.finish();
+
+        for (k, a) in audits.tools.iter().enumerate() {
+            assert_eq!((a.received, a.missed), (90, 0), "tool {k}");
+            assert_eq!(a.counts.total(), 0, "tool {k}: {:?}", a.violations);
+            assert_eq!(a.segments, 1, "tool {k}");
+            assert_eq!(a.steps.restarts.len(), 1, "tool {k}");
+            assert_eq!(a.unexpected_device_errors, 0, "tool {k}");
+        }
+        let (t0, t1) = (&audits.tools[0], &audits.tools[1]);
+        assert_eq!((t0.max_force, t1.max_force), (2.0, 1.0));
+        assert_eq!(t0.steps.restarts[0].force_before, 2.0);
+        assert_eq!(t1.steps.restarts[0].force_before, 1.0);
+        assert_eq!((t0.device_error_ticks, t1.device_error_ticks), (0, 3));
+        assert_eq!(t1.planned_samples(), (1, 1));
+        assert_eq!((t0.episodes.len(), t1.episodes.len()), (1, 2));
+        assert!(t0
+            .episodes
+            .iter()
+            .chain(&t1.episodes)
+            .all(|e| e.loaded() && !e.violated));
+        assert_eq!(audits.foreign, 1);
+        // Both pressing on every tick but those of the stale stretch from its 5th tick on
+        // (both at zero; tool 1's three broken samples only take its force down to 0.2 N).
+        assert_eq!(audits.all_loaded_ticks, 90 - 8);
     }
 
     #[test]

@@ -1,6 +1,9 @@
 //! The process faults the soak delivers (SIGKILL, or SIGSTOP then SIGCONT, to the deformation
-//! or the haptic process), and the checks that each was answered: a stale-frame ramp for the
-//! deformation process's, a loop that started its force over from zero for the haptic one's.
+//! or the haptic process), and the checks that each was answered **on every tool**: a
+//! stale-frame ramp for the deformation process's, a loop that started every device's force
+//! over from zero for the haptic one's. Each injection keeps what each tool showed of it
+//! ([`ToolAnswer`]): whether it answered, and for a haptic fault the force the tool had before
+//! (in the tissue or not) and its first force after.
 
 use std::time::Instant;
 
@@ -8,8 +11,8 @@ use serde::Serialize;
 
 use super::forces::ForceAudit;
 use super::memory;
-use super::report::{check, Check, Evidence};
-use super::steps::RestartKind;
+use super::report::{check, per_tool, Check, Evidence};
+use super::steps::{Restart, RestartKind};
 
 /// An injection is answered by a stale-frame episode that begins at most this long after it.
 const ANSWER_WITHIN_NS: u64 = 2_000_000_000;
@@ -35,9 +38,41 @@ pub struct Injection {
     /// `CLOCK_MONOTONIC` at delivery, ns.
     #[serde(skip)]
     pub start_ns: u64,
-    /// Whether it was answered: a stale-frame ramp (deformation process), the loop back with
-    /// its force from zero (haptic process). `None`: the bench saw no tool state then.
+    /// Whether it was answered on every tool: a stale-frame ramp (deformation process), the
+    /// loop back with its force from zero (haptic process). `None`: on some tool the bench saw
+    /// no tool state then (and on none was it unanswered).
     pub answered: Option<bool>,
+    /// What each tool showed of it (tool `k`'s at `k`).
+    pub tools: Vec<ToolAnswer>,
+}
+
+/// What one tool's stream showed of an injection.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct ToolAnswer {
+    /// Whether it answered (`None`: the bench missed this tool's states then).
+    pub answered: Option<bool>,
+    /// A haptic fault: `|F|` on the last tick before the loop went away, N (`> 0`: the tool was
+    /// in the tissue, pressing or holding).
+    pub force_before_n: Option<f64>,
+    /// A haptic fault: `|F|` on the loop's first tick back, N (`None`: that tick was missed).
+    pub first_force_n: Option<f64>,
+}
+
+impl Injection {
+    /// Records what each tool's audit (`audits[k]`: tool `k`'s) showed of it, and whether it
+    /// was answered on every tool.
+    pub(super) fn judge(&mut self, audits: &[ForceAudit]) {
+        self.tools = audits.iter().map(|a| answer(self, a)).collect();
+        self.answered = if self.at_s.is_none() {
+            None
+        } else if self.tools.iter().any(|t| t.answered == Some(false)) {
+            Some(false)
+        } else if self.tools.iter().all(|t| t.answered == Some(true)) {
+            Some(true)
+        } else {
+            None
+        };
+    }
 }
 
 /// Sends `sig` to `pid` if it is still the run's `role` process (`deform`, `haptic`).
@@ -62,14 +97,18 @@ impl Drop for StoppedProcess {
     }
 }
 
-/// Whether the injection was answered (see [`Injection::answered`]): by a stale-frame episode
-/// that overlaps its moment and began at most [`ANSWER_WITHIN_NS`] after it (the deformation
-/// process's); by a new haptic process (the sequence started over) within
+/// What one tool's `audit` showed of the injection (see [`Injection::answered`]): answered by
+/// a stale-frame episode that overlaps its moment and began at most [`ANSWER_WITHIN_NS`] after
+/// it (the deformation process's); by a new haptic process (the sequence started over) within
 /// [`HAPTIC_BACK_WITHIN_NS`] of a kill, or the same loop back after a pause within a stop and
 /// 2 s (the haptic process's; whether its force started from zero is the audit's rule on
-/// every restart). `None` if the bench missed the tool states then.
-pub(super) fn answered(inj: &Injection, audit: &ForceAudit) -> Option<bool> {
-    inj.at_s?;
+/// every restart, and the restart's forces are kept). `None` if the bench missed the tool
+/// states then.
+fn answer(inj: &Injection, audit: &ForceAudit) -> ToolAnswer {
+    let mut out = ToolAnswer::default();
+    if inj.at_s.is_none() {
+        return out;
+    }
     let within = match (inj.process, inj.kind) {
         ("haptic", "kill") => HAPTIC_BACK_WITHIN_NS,
         ("haptic", _) => (inj.stop_s.unwrap_or(0.0) * 1e9) as u64 + 2_000_000_000,
@@ -82,22 +121,29 @@ pub(super) fn answered(inj: &Injection, audit: &ForceAudit) -> Option<bool> {
         } else {
             RestartKind::Pause
         };
-        audit
+        let restart: Option<&Restart> = audit
             .steps
             .restarts
             .iter()
-            .any(|r| r.kind == kind && r.first_ns >= from && r.first_ns <= to)
+            .find(|r| r.kind == kind && r.first_ns >= from && r.first_ns <= to);
+        if let Some(r) = restart {
+            out.force_before_n = Some(r.force_before);
+            out.first_force_n = r.first_force;
+        }
+        restart.is_some()
     } else {
         audit
             .episodes
             .iter()
             .any(|e| e.stale && e.first_ns <= to && e.last_ns >= from)
     };
-    if hit {
-        return Some(true);
-    }
     let blind = audit.gaps.iter().any(|&(a, b)| a <= to && b >= from);
-    (!blind).then_some(false)
+    out.answered = if hit {
+        Some(true)
+    } else {
+        (!blind).then_some(false)
+    };
+    out
 }
 
 /// How many injections of `kind` (`kill`, `stop`) were delivered to `process`.
@@ -124,7 +170,7 @@ fn outcomes(injections: &[Injection], process: &str) -> (usize, usize, usize) {
 // The checks on this evidence.
 
 /// Safety invariant 2 seen from the injections: every stop and kill of the deformation
-/// process made the frames stale and the force ramp.
+/// process made the frames stale and every tool's force ramp.
 pub(super) fn check_answered(e: &Evidence<'_>) -> Check {
     let (unanswered, blind, skipped) = outcomes(e.injections, "deform");
     let kills = delivered(e.injections, "deform", "kill");
@@ -134,46 +180,84 @@ pub(super) fn check_answered(e: &Evidence<'_>) -> Check {
         unanswered == 0 && kills + stops > 0,
         format!(
             "{kills} kills, {stops} stops (0.3–3 s) delivered, {skipped} skipped (no process), \
-             {unanswered} without a stale-frame episode, {blind} unseen (the bench missed those \
-             ticks)"
+             {unanswered} without a stale-frame episode{}, {blind} unseen (the bench missed \
+             those ticks)",
+            if e.settings.devices > 1 {
+                " on some tool"
+            } else {
+                ""
+            }
         ),
     )
 }
 
 /// The haptic process's own faults (issue of the restart): every kill answered by a new
-/// process and every stop by the loop coming back, each starting its force over from zero
-/// (the audit's rule on every restart), and the force never rising faster than the step limit
-/// plus the stylus's motion anywhere in the run.
+/// process and every stop by the loop coming back, on every tool, each device's force started
+/// over from zero (the audit's rule on every restart), and no tool's force rising faster than
+/// the step limit plus its stylus's motion anywhere in the run.
 pub(super) fn check_haptic_restarts(e: &Evidence<'_>) -> Check {
     let (unanswered, blind, _) = outcomes(e.injections, "haptic");
     let kills = delivered(e.injections, "haptic", "kill");
     let stops = delivered(e.injections, "haptic", "stop");
-    let a = e.audit;
-    let loaded = a
-        .steps
-        .restarts
-        .iter()
-        .filter(|r| r.force_before > 0.0)
-        .count();
-    let first_max = a
-        .steps
-        .restarts
-        .iter()
-        .filter_map(|r| r.first_force)
-        .fold(0.0, f64::max);
-    check(
-        "the haptic loop, killed or stopped, came back with its force from zero; no force rose \
-         faster than the step limit and the stylus's motion",
-        unanswered == 0 && kills + stops > 0 && a.counts.not_from_zero == 0 && a.counts.jump == 0,
+    let mut pass = unanswered == 0 && kills + stops > 0;
+    let detail = per_tool(e.settings, |k| {
+        let a = &e.audits[k];
+        pass &= a.counts.not_from_zero == 0 && a.counts.jump == 0;
+        let loaded = a
+            .steps
+            .restarts
+            .iter()
+            .filter(|r| r.force_before > 0.0)
+            .count();
+        let first_max = a
+            .steps
+            .restarts
+            .iter()
+            .filter_map(|r| r.first_force)
+            .fold(0.0, f64::max);
         format!(
-            "{kills} kills, {stops} stops (0.2–1.5 s) delivered, {unanswered} not seen coming \
-             back, {blind} unseen; {} restarts in the stream ({loaded} with a force on the hand \
-             before), largest first force after one {first_max:.4} N, {} not from zero; {} \
-             rises over the limit (largest rise beyond its allowance {:+.4} N)",
+            "{} restarts in the stream ({loaded} with a force on the hand before), largest \
+             first force after one {first_max:.4} N, {} not from zero; {} rises over the limit \
+             (largest rise beyond its allowance {:+.4} N)",
             a.steps.restarts.len(),
             a.counts.not_from_zero,
             a.counts.jump,
             a.steps.largest_rise_excess
+        )
+    });
+    let in_tissue = if e.settings.devices > 1 {
+        let haptic = || {
+            e.injections
+                .iter()
+                .filter(|i| i.process == "haptic" && i.answered == Some(true))
+        };
+        let loaded = |i: &Injection| {
+            i.tools
+                .iter()
+                .filter(|t| t.force_before_n.is_some_and(|f| f > 0.0))
+                .count()
+        };
+        format!(
+            "; of those come back, {} caught every tool with a force on the hand, {} at least \
+             one",
+            haptic().filter(|i| loaded(i) == i.tools.len()).count(),
+            haptic().filter(|i| loaded(i) > 0).count()
+        )
+    } else {
+        String::new()
+    };
+    check(
+        "the haptic loop, killed or stopped, came back with its force from zero; no force rose \
+         faster than the step limit and the stylus's motion",
+        pass,
+        format!(
+            "{kills} kills, {stops} stops (0.2–1.5 s) delivered, {unanswered} not seen coming \
+             back{}, {blind} unseen{in_tissue}; {detail}",
+            if e.settings.devices > 1 {
+                " on every tool"
+            } else {
+                ""
+            }
         ),
     )
 }

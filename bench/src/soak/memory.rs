@@ -43,7 +43,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use super::report::{check, Check, Evidence};
+use super::report::{check, not_applicable, Check, Evidence};
 
 /// Fixed allowance for RSS growth after warm-up, KiB.
 pub const RSS_ALLOWANCE_KIB: u64 = 4096;
@@ -57,6 +57,12 @@ pub const MIN_OBSERVED_S: f64 = 10.0;
 /// dragged, every model switch), plus [`WARMUP_LOAD_S`] for its start-up.
 pub fn warmup_s(period_s: f64) -> f64 {
     period_s + WARMUP_LOAD_S
+}
+
+/// The shortest soak whose memory is judged when the script loops every `period_s`: the
+/// warm-up, the least watch and a second, in whole seconds.
+pub fn shortest_judged_s(period_s: f64) -> f64 {
+    (warmup_s(period_s) + MIN_OBSERVED_S + 1.0).ceil()
 }
 
 /// The start-up part of the warm-up, s: a process starting, the scene loaded, the first frame.
@@ -339,8 +345,20 @@ pub fn kib(k: u64) -> String {
 /// Every long-lived process's memory and threads flat after its warm-up (the bound and why:
 /// the module docs).
 pub(super) fn check_flat(e: &Evidence<'_>) -> Check {
+    const NAME: &str = "memory and threads of every process flat after warm-up";
     let memory = e.memory;
     let warmup = e.settings.warmup_s;
+    if e.settings.seconds < e.settings.memory_from_s {
+        return not_applicable(
+            NAME,
+            format!(
+                "not judged: the run lasted {:.0} s, and a process's memory is judged after a \
+                 warm-up of {warmup:.0} s (a loop of the script and the start-up), then watched \
+                 for at least {MIN_OBSERVED_S:.0} s: from {:.0} s on",
+                e.settings.seconds, e.settings.memory_from_s
+            ),
+        );
+    }
     let judged: Vec<&Verdict> = memory.iter().filter(|m| m.rss_flat.is_some()).collect();
     let grew: Vec<String> = judged
         .iter()
@@ -375,7 +393,7 @@ pub(super) fn check_flat(e: &Evidence<'_>) -> Check {
         .filter(|r| **r != "haptic" || haptic_judgeable)
         .all(|r| judged.iter().any(|m| m.role == *r));
     check(
-        "memory and threads of every process flat after warm-up",
+        NAME,
         grew.is_empty() && long_lived,
         format!(
             "{} of {} process instances judged (warm-up {:.0} s, then at least {:.0} s \

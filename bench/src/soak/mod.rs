@@ -4,37 +4,45 @@
 //! The bench starts `lopd run` on the scene (default `abdomen`) with the mock device playing the
 //! scene's four shipped scripts in a loop (`script.rs`), the web viewer (`--view`), a recording
 //! of the device stream (`--record`) and the device's force record (`--force-log`), all under a
-//! private service prefix. From the first frame on it injects, on a plan drawn from `--seed`
-//! (`schedule.rs`):
+//! private service prefix. With `--devices 2` the scene gets a second tool (a copy of the
+//! first whose device maps 20 mm along −x, `crate::scenes`), each tool its own mock device
+//! (the second plays the same loop from its second script, so both tools are in the tissue
+//! at once for much of it), its own broken samples and its own force record; nothing is
+//! recorded (`lopd run --record` takes one device: the recording check says N/A). From the
+//! first frame on it injects, on a plan drawn from `--seed` (`schedule.rs`):
 //! - the deformation process killed (SIGKILL; the supervisor restarts it) or stopped (SIGSTOP
 //!   for 0.3–3 s, then SIGCONT), which makes the frames go stale;
 //! - the haptic process killed (the supervisor restarts it) or stopped (0.2–1.5 s), wherever
-//!   the stylus is then (in the tissue too);
-//! - NaN and out-of-workspace device samples, 1–40 ticks long (the script's `[[fault]]` windows
-//!   with `sample =`);
+//!   the styluses are then (in the tissue too);
+//! - NaN and out-of-workspace device samples, 1–40 ticks long, on every device at its own
+//!   ticks (each script's `[[fault]]` windows with `sample =`);
 //! - control requests hammered through `PREFIX/control`, and bursts of `lopd ctl`
 //!   (`control.rs`);
 //! - viewers connecting and disconnecting, with the printed token, without, with a wrong one,
 //!   and from another origin (`viewers.rs`).
 //!
-//! and checks, printing PASS/FAIL with the figures, writing `soak.json` and `soak.txt`, and
-//! exiting non-zero on any FAIL:
-//! - every force published (`PREFIX/tool`, every tick) and every force the device received
+//! and checks, printing PASS/FAIL (N/A for a check the run cannot make, with the reason) with
+//! the figures, per tool where they are a tool's, writing `soak.json` and `soak.txt`, and
+//! exiting non-zero on any FAIL. The tool stream is audited per tool (`forces.rs`: states
+//! grouped by their tool's index), and every check on it holds for every tool:
+//! - every force published (`PREFIX/tool`, every tick) and every force each device received
 //!   (`--force-log`: the mock's ring of the last two minutes) finite and within the clamp;
-//! - zero force written last, when the haptic process stopped;
+//! - zero force written last to every device, when the haptic process stopped;
 //! - the force ramped down — not cut, not held, zero in time — on every stale frame and every
-//!   broken sample, every planned broken sample caught, and every stop and kill of the
-//!   deformation process answered by a stale-frame ramp (`forces.rs`);
-//! - the force never rose faster than the safety's step limit plus what the stylus's motion
-//!   explains, and every killed or stopped haptic loop came back with its force from zero
+//!   broken sample, every planned broken sample caught on its own device's tool and no device
+//!   error elsewhere, and every stop and kill of the deformation process answered by a
+//!   stale-frame ramp on every tool (`forces.rs`);
+//! - no force rose faster than the safety's step limit plus what its stylus's motion explains,
+//!   and every killed or stopped haptic loop came back with every device's force from zero
 //!   (`steps.rs`);
 //! - the supervisor restarted every killed process, and no other;
 //! - no bad control request accepted, no good one refused as bad, the viewer's access rules
 //!   held in every session;
-//! - the recording readable and complete;
+//! - the recording readable and complete (one device);
 //! - after the run, no process, iceoryx2 service or node of the run left (`leftovers.rs`);
 //! - the resident memory and the thread count of every process flat after its warm-up
-//!   (`memory.rs` states the bound and why).
+//!   (`memory.rs` states the bound and why; a run shorter than the warm-up and a watch, 45 s
+//!   on `abdomen`, says N/A).
 //!
 //! Each check is a `fn(&Evidence) -> Check` beside its evidence (`forces.rs`, `injections.rs`,
 //! `supervisor.rs`, `control.rs`, `viewers.rs`, `recording.rs`, `leftovers.rs`, `memory.rs`;
@@ -73,8 +81,9 @@ use lop_drivers::mock::MockDevice;
 use serde::Serialize;
 
 use crate::pipeline::{self, Lopd, LopdOptions};
+use crate::scenes;
 use control::{CtlReport, HammerReport};
-use forces::{ForceAudit, ForceLog, ToolStreamReport};
+use forces::{ForceAudit, ForceLog, ToolAudits, ToolStreamReport};
 use injections::{Injection, StoppedProcess};
 use leftovers::Leftovers;
 use memory::ProcessWatch;
@@ -91,8 +100,9 @@ pub struct SoakArgs {
     /// Minutes to run after the first frame.
     #[arg(long, conflicts_with = "seconds")]
     minutes: Option<f64>,
-    /// Seconds to run after the first frame (short runs, CI); at least one loop of the script
-    /// plus 20 s (45 s on `abdomen`).
+    /// Seconds to run after the first frame (short runs, CI); at least 20 s. The processes'
+    /// memory is judged from one loop of the script plus 21 s on (45 s on `abdomen`); a
+    /// shorter run says N/A there.
     #[arg(long)]
     seconds: Option<f64>,
     /// Seed of the fault plan.
@@ -101,6 +111,11 @@ pub struct SoakArgs {
     /// A shipped scene (its poke, grab, heat and drag scripts are played).
     #[arg(long, default_value = "abdomen")]
     scene: String,
+    /// Devices, 1 or 2: with 2 the scene gets a second tool (its device mapped 20 mm along
+    /// −x), each tool its own mock device playing the scripts (the second from `grab` on),
+    /// its own broken samples and its own force log; nothing is recorded.
+    #[arg(long, default_value_t = 1)]
+    devices: usize,
     /// Where soak.json, soak.txt, the script, the force log, the recording and lopd's log go.
     #[arg(long, default_value = "target/lop-bench/soak")]
     out: PathBuf,
@@ -121,6 +136,14 @@ const BACKSTOP_EXTRA_S: f64 = 300.0;
 /// A planned deformation fault is skipped if no deformation process is running for this long
 /// after its time (it is restarting).
 const POSTPONE_S: f64 = 10.0;
+/// The most devices a soak runs (`--devices`).
+const MAX_DEVICES: usize = 2;
+/// Where the second tool's device maps, along x from the first's, m: 20 mm to the −x side,
+/// where the shipped scripts still reach the tissue and the two tools' contacts stay apart. On
+/// `abdomen` (30 s runs) both hands felt a force on 28–30 % of the ticks at 15–30 mm along −x,
+/// each about 40 %; 16–17 % at 0 and +12 mm; at +30 mm the second tool's grab misses the
+/// liver.
+const SECOND_TOOL_X_M: f64 = -0.02;
 
 impl SoakArgs {
     fn seconds(&self) -> Result<f64> {
@@ -138,13 +161,19 @@ impl SoakArgs {
         if !(1..=10_000).contains(&self.hammer_ms) {
             bail!("--hammer-ms {}: must be 1 to 10000", self.hammer_ms);
         }
+        if !(1..=MAX_DEVICES).contains(&self.devices) {
+            bail!(
+                "--devices {}: the soak runs with 1 or {MAX_DEVICES} devices",
+                self.devices
+            );
+        }
         Ok(s)
     }
 }
 
 /// Everything observed while the pipeline ran.
 struct Observed {
-    audit: ForceAudit,
+    audits: ToolAudits,
     telemetry: Option<HapticTelemetry>,
     hammer: HammerReport,
     ctl: CtlReport,
@@ -157,9 +186,14 @@ struct Observed {
 #[derive(Debug, Clone, Serialize)]
 struct Settings {
     scene: String,
+    /// Devices, one per tool.
+    devices: usize,
+    /// The tools' names, in the scene's order.
+    tool_names: Vec<String>,
     seconds: f64,
     seed: u64,
     prefix: String,
+    /// The clamp (every tool of a soak's scene is a copy of its first, so one for all), N.
     clamp_n: f64,
     ramp_ticks: u64,
     stale_ms: f64,
@@ -168,9 +202,12 @@ struct Settings {
     /// The scene's tool spring, N/m.
     tool_stiffness: f64,
     rate_hz: f64,
-    script_parts: Vec<String>,
+    /// The shipped scripts each device plays, in order (device `k`'s at `k`).
+    script_parts: Vec<Vec<String>>,
     script_period_s: f64,
     warmup_s: f64,
+    /// The shortest run whose processes' memory is judged, s (warm-up and a watch).
+    memory_from_s: f64,
     hammer_ms: u64,
     view: String,
 }
@@ -193,9 +230,25 @@ pub fn run(a: SoakArgs) -> Result<()> {
             view_bin.display()
         );
     }
-    let scene_path = lop_config::resolve_scene(&a.scene)?;
+    let shipped = lop_config::resolve_scene(&a.scene)?;
+    // With two devices, the scene with a second tool (removed when the run ends).
+    let copy = match a.devices {
+        1 => None,
+        n => Some(scenes::scene_with_tools(&shipped, n, SECOND_TOOL_X_M)?),
+    };
+    let scene_path = copy
+        .as_ref()
+        .map_or(shipped.clone(), |c| c.path().to_path_buf());
     let scene = lop_config::load_scene(&scene_path)
         .with_context(|| format!("loading scene {}", scene_path.display()))?;
+    if scene.tools.len() != a.devices {
+        bail!(
+            "scene {} has {} tools and the soak drives one device per tool: give --devices {}",
+            scene.name,
+            scene.tools.len(),
+            scene.tools.len()
+        );
+    }
     let rate = scene.rates.haptic_hz;
     let haptic = lop_config::DaemonConfig::default().haptic;
     let clamp = haptic
@@ -203,18 +256,17 @@ pub fn run(a: SoakArgs) -> Result<()> {
         .min(scene.tool().max_force)
         .min(MockDevice::omni_limits().max_force_n);
     let ramp_ticks = ((haptic.ramp_ms * 1e-3 * rate).round() as u64).max(1);
-    let plan = Schedule::draw(a.seed, seconds, rate);
-    let soak_script = script::build(&scene.name, &plan.samples, rate)?;
-    let shortest = (memory::warmup_s(soak_script.period_s) + memory::MIN_OBSERVED_S + 1.0).ceil();
-    if seconds < shortest {
-        bail!(
-            "a soak of {} runs at least {shortest:.0} s (asked: {seconds} s): its processes' \
-             memory is judged after a warm-up of one loop of the script ({:.1} s) and {:.0} s of \
-             start-up, then watched for at least {:.0} s",
-            scene.name,
-            soak_script.period_s,
-            memory::WARMUP_LOAD_S,
-            memory::MIN_OBSERVED_S
+    let plan = Schedule::draw(a.seed, seconds, rate, a.devices);
+    let scripts = (0..a.devices)
+        .map(|k| script::build(&scene.name, k, &plan.samples[k], rate))
+        .collect::<Result<Vec<_>>>()?;
+    let soak_script = &scripts[0];
+    let memory_from_s = memory::shortest_judged_s(soak_script.period_s);
+    if seconds < memory_from_s {
+        println!(
+            "lop-bench soak: a run of {seconds} s is too short to judge the processes' memory \
+             (from {memory_from_s:.0} s on {}): that check will say N/A",
+            scene.name
         );
     }
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
@@ -223,24 +275,37 @@ pub fn run(a: SoakArgs) -> Result<()> {
     // run's outputs first.
     for entry in std::fs::read_dir(&out)?.flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
-        let ours = matches!(
-            name.as_str(),
-            "soak.json" | "soak.txt" | "forces.csv" | "lopd.log" | "soak-script.toml"
-        ) || (name.starts_with("session") && name.ends_with(".rec"));
+        let ours = matches!(name.as_str(), "soak.json" | "soak.txt" | "lopd.log")
+            || (name.starts_with("forces") && name.ends_with(".csv"))
+            || (name.starts_with("soak-script") && name.ends_with(".toml"))
+            || (name.starts_with("session") && name.ends_with(".rec"));
         if ours {
             let _ = std::fs::remove_file(entry.path());
         }
     }
-    let script_path = out.join("soak-script.toml");
-    std::fs::write(&script_path, &soak_script.text)
-        .with_context(|| format!("writing {}", script_path.display()))?;
-    let force_log = out.join("forces.csv");
+    // Device k's script and force log: `soak-script.toml` and `forces.csv` for the first, as
+    // with one device, `soak-script-toolK.toml` and `forces-toolK.csv` for the others.
+    let suffix = |k: usize| match k {
+        0 => String::new(),
+        k => format!("-tool{k}"),
+    };
+    let mut script_paths = Vec::new();
+    for (k, s) in scripts.iter().enumerate() {
+        let path = out.join(format!("soak-script{}.toml", suffix(k)));
+        std::fs::write(&path, &s.text).with_context(|| format!("writing {}", path.display()))?;
+        script_paths.push(path);
+    }
+    let force_logs: Vec<PathBuf> = (0..a.devices)
+        .map(|k| out.join(format!("forces{}.csv", suffix(k))))
+        .collect();
     let recording = out.join("session.rec");
     let log_path = out.join("lopd.log");
     let bind = format!("127.0.0.1:{}", free_port()?);
     let prefix = pipeline::unique_prefix();
     let settings = Settings {
         scene: scene.name.clone(),
+        devices: a.devices,
+        tool_names: scene.tools.iter().map(|t| t.name.clone()).collect(),
         seconds,
         seed: a.seed,
         prefix: prefix.clone(),
@@ -250,41 +315,48 @@ pub fn run(a: SoakArgs) -> Result<()> {
         max_step_n: haptic.max_force_step_n,
         tool_stiffness: scene.tool().stiffness,
         rate_hz: rate,
-        script_parts: soak_script
-            .parts
+        script_parts: scripts
             .iter()
-            .map(|p| p.display().to_string())
+            .map(|s| s.parts.iter().map(|p| p.display().to_string()).collect())
             .collect(),
         script_period_s: soak_script.period_s,
         warmup_s: memory::warmup_s(soak_script.period_s),
+        memory_from_s,
         hammer_ms: a.hammer_ms,
         view: bind.clone(),
     };
     println!(
-        "lop-bench soak — scene {}, {:.0} s, seed {}, prefix {prefix}, out {}",
+        "lop-bench soak — scene {}, {} device(s), {:.0} s, seed {}, prefix {prefix}, out {}",
         scene.name,
+        a.devices,
         seconds,
         a.seed,
         out.display()
     );
 
     // 2. The pipeline, and the run with it.
+    // Every device a mock playing its script, each with its force log (`--device` and
+    // `--force-log` in the tools' order); the recording with one device only (`lopd run
+    // --record` takes one).
+    let mut extra_args = Vec::new();
+    for path in &script_paths[1..] {
+        extra_args.extend(["--device".into(), format!("mock:{}", path.display())]);
+    }
+    for path in &force_logs {
+        extra_args.extend(["--force-log".into(), path.display().to_string()]);
+    }
+    if a.devices == 1 {
+        extra_args.extend(["--record".into(), recording.display().to_string()]);
+    }
+    extra_args.extend(["--view".into(), "--view-bind".into(), bind.clone()]);
     let epoch = Instant::now();
     let mut lopd = Lopd::spawn(&LopdOptions {
         lopd: lopd_path.clone(),
         scene: scene_path.display().to_string(),
-        device: format!("mock:{}", script_path.display()),
+        device: format!("mock:{}", script_paths[0].display()),
         duration: Duration::from_secs_f64(seconds + BACKSTOP_EXTRA_S),
         prefix: prefix.clone(),
-        extra_args: vec![
-            "--force-log".into(),
-            force_log.display().to_string(),
-            "--record".into(),
-            recording.display().to_string(),
-            "--view".into(),
-            "--view-bind".into(),
-            bind.clone(),
-        ],
+        extra_args,
         log: Some(log_path.clone()),
     })?;
     let observed = observe(&mut lopd, &lopd_path, &settings, &plan, epoch);
@@ -298,10 +370,19 @@ pub fn run(a: SoakArgs) -> Result<()> {
         Err(e) => format!("{e:#}"),
     };
     let supervisor = SupervisorReport::read(exit, &log);
-    let force_log = std::fs::read_to_string(&force_log)
-        .map_err(|e| e.to_string())
-        .and_then(|t| ForceLog::parse(&t, clamp));
-    let recording = recording::read_recording(&log, &recording);
+    let force_logs: Vec<std::result::Result<ForceLog, String>> = force_logs
+        .iter()
+        .map(|path| {
+            std::fs::read_to_string(path)
+                .map_err(|e| format!("{}: {e}", path.display()))
+                .and_then(|t| ForceLog::parse(&t, clamp))
+        })
+        .collect();
+    let recording = match a.devices {
+        1 => recording::read_recording(&log, &recording),
+        _ => RecordingReport::default(),
+    };
+    drop(copy);
     let mut pids: BTreeSet<u32> = obs.watch.pids().into_iter().collect();
     pids.extend(&obs.ctl.pids);
     pids.insert(std::process::id());
@@ -309,7 +390,7 @@ pub fn run(a: SoakArgs) -> Result<()> {
 
     // 4. Judge and report.
     let report = judge(
-        settings, plan, obs, force_log, recording, supervisor, leftovers,
+        settings, plan, obs, force_logs, recording, supervisor, leftovers,
     );
     let text = report::render(&report);
     print!("{text}");
@@ -333,9 +414,9 @@ pub fn run(a: SoakArgs) -> Result<()> {
 /// Runs the tool-state audit on its own attachment until `stop`.
 fn watch_tools(
     prefix: String,
-    mut audit: ForceAudit,
+    mut audits: ToolAudits,
     stop: Arc<AtomicBool>,
-) -> Result<(ForceAudit, Option<HapticTelemetry>)> {
+) -> Result<(ToolAudits, Option<HapticTelemetry>)> {
     let mut att = Attachment::open(&prefix, START_TIMEOUT)?;
     let mut buf = Vec::with_capacity(1024);
     let mut telemetry = None;
@@ -344,7 +425,7 @@ fn watch_tools(
         buf.clear();
         att.tool_states(&mut buf);
         for s in &buf {
-            audit.feed(s);
+            audits.feed(s);
         }
         if let Some(t) = att.telemetry() {
             telemetry = Some(t);
@@ -354,8 +435,8 @@ fn watch_tools(
         }
         std::thread::sleep(Duration::from_millis(2));
     }
-    audit.finish();
-    Ok((audit, telemetry))
+    audits.finish();
+    Ok((audits, telemetry))
 }
 
 /// Waits for the first frame, starts the injectors and monitors, runs the plan, and stops them.
@@ -418,21 +499,29 @@ fn observe(
 
     // Monitors and injectors, each on its own thread with its own iceoryx2 node.
     let stop = Arc::new(AtomicBool::new(false));
-    let audit = ForceAudit::new(
-        settings.clamp_n,
-        settings.ramp_ticks,
-        &plan.samples,
-        StepLimits {
-            max_step: settings.max_step_n,
-            stiffness: settings.tool_stiffness,
-            stale_ns: (settings.stale_ms * 1e6) as u64,
-        },
+    // One audit per tool, each expecting its own device's broken samples.
+    let audits = ToolAudits::new(
+        plan.samples
+            .iter()
+            .map(|samples| {
+                ForceAudit::new(
+                    settings.clamp_n,
+                    settings.ramp_ticks,
+                    samples,
+                    StepLimits {
+                        max_step: settings.max_step_n,
+                        stiffness: settings.tool_stiffness,
+                        stale_ns: (settings.stale_ms * 1e6) as u64,
+                    },
+                )
+            })
+            .collect(),
     );
     let tools = {
         let (prefix, stop) = (settings.prefix.clone(), stop.clone());
         std::thread::Builder::new()
             .name("soak-tools".into())
-            .spawn(move || watch_tools(prefix, audit, stop))?
+            .spawn(move || watch_tools(prefix, audits, stop))?
     };
     let hammer = {
         let names = ServiceNames::new(&settings.prefix)?;
@@ -478,12 +567,12 @@ fn observe(
     let tools = tools.join();
     watch.sample(epoch.elapsed().as_secs_f64());
     let injections = ran?;
-    let (audit, telemetry) = match tools {
+    let (audits, telemetry) = match tools {
         Ok(r) => r?,
         Err(_) => bail!("the tool-state monitor panicked"),
     };
     Ok(Observed {
-        audit,
+        audits,
         telemetry,
         hammer,
         ctl,
@@ -503,7 +592,7 @@ fn drive(
     t0: Instant,
     epoch: Instant,
     watch: &mut ProcessWatch,
-    tools: &std::thread::JoinHandle<Result<(ForceAudit, Option<HapticTelemetry>)>>,
+    tools: &std::thread::JoinHandle<Result<(ToolAudits, Option<HapticTelemetry>)>>,
 ) -> Result<Vec<Injection>> {
     let mut events: Vec<(&'static str, ProcessEvent)> = plan
         .deform
@@ -551,6 +640,7 @@ fn drive(
                     pid: 0,
                     start_ns: 0,
                     answered: None,
+                    tools: Vec::new(),
                 };
                 if let Some(pid) = watch.live(role) {
                     let sig = match e.fault {
@@ -586,22 +676,29 @@ fn judge(
     settings: Settings,
     plan: Schedule,
     mut obs: Observed,
-    force_log: std::result::Result<ForceLog, String>,
+    force_logs: Vec<std::result::Result<ForceLog, String>>,
     recording: RecordingReport,
     supervisor: SupervisorReport,
     leftovers: Leftovers,
 ) -> SoakReport {
+    let audits = &obs.audits.tools;
     for inj in &mut obs.injections {
-        inj.answered = injections::answered(inj, &obs.audit);
+        inj.judge(audits);
     }
-    let tool = ToolStreamReport::new(&obs.audit, &plan);
+    let tools: Vec<ToolStreamReport> = audits
+        .iter()
+        .enumerate()
+        .map(|(k, a)| ToolStreamReport::new(k, &settings.tool_names[k], a, &plan))
+        .collect();
     let memory = obs.watch.verdicts(settings.warmup_s);
     let evidence = Evidence {
         settings: &settings,
         plan: &plan,
-        audit: &obs.audit,
-        tool: &tool,
-        force_log: &force_log,
+        audits,
+        foreign: obs.audits.foreign,
+        all_loaded_ticks: obs.audits.all_loaded_ticks,
+        tools: &tools,
+        force_logs: &force_logs,
         injections: &obs.injections,
         supervisor: &supervisor,
         hammer: &obs.hammer,
@@ -641,8 +738,9 @@ fn judge(
         settings,
         plan,
         injections: obs.injections,
-        tool_stream: tool,
-        force_log: force_log.ok(),
+        tool_streams: tools,
+        ticks_every_hand_loaded: obs.audits.all_loaded_ticks,
+        force_logs: force_logs.into_iter().map(|l| l.ok()).collect(),
         recording,
         supervisor,
         hammer: obs.hammer,

@@ -1,11 +1,14 @@
 //! The recording of the device stream (`lopd run --record`): what the haptic process logged
-//! about it, read back with the replay reader, and the check that it is complete.
+//! about it, read back with the replay reader, and the check that it is complete. A recording
+//! holds one device's stream (it replays as `--device replay:PATH` on one tool), so `lopd run`
+//! takes `--record` with one device only: a soak with two devices records nothing, and its
+//! report says so (N/A) instead of passing a check it did not make.
 
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use super::report::{check, Check, Evidence};
+use super::report::{check, not_applicable, Check, Evidence};
 use super::supervisor::{log_line, number_after};
 
 /// The recording's part of the report.
@@ -54,13 +57,24 @@ pub(super) fn read_recording(log: &str, planned: &Path) -> RecordingReport {
 
 /// The recording written, nothing lost, and every record read back.
 pub(super) fn check_complete(e: &Evidence<'_>) -> Check {
+    const NAME: &str = "recording written, complete and readable";
+    if e.settings.devices > 1 {
+        return not_applicable(
+            NAME,
+            format!(
+                "nothing recorded: `lopd run --record` takes one device (a recording is one \
+                 device's stream, replayed on one tool) and this run has {}",
+                e.settings.devices
+            ),
+        );
+    }
     let recording = e.recording;
     let rec_ok = recording.error.is_none()
         && recording.logged_lost == 0
         && recording.read_records.is_some()
         && recording.read_records == recording.logged_records;
     check(
-        "recording written, complete and readable",
+        NAME,
         rec_ok,
         format!(
             "{}: {:?} records written, {} lost, {:?} read back{}",

@@ -19,13 +19,15 @@ use super::supervisor::SupervisorReport;
 use super::viewers::ViewerReport;
 use super::Settings;
 
-/// A PASS/FAIL line.
+/// A PASS/FAIL line, or one that does not apply to the run (N/A, with the reason).
 #[derive(Debug, Clone, Serialize)]
 pub struct Check {
     /// What is checked.
     pub name: String,
-    /// Whether it held.
+    /// Whether it held (true for a check that does not apply: it fails nothing).
     pub pass: bool,
+    /// Whether it applies to this run (false: not checked, `detail` says why).
+    pub applies: bool,
     /// The figures behind it.
     pub detail: String,
 }
@@ -35,8 +37,31 @@ pub(super) fn check(name: &str, pass: bool, detail: String) -> Check {
     Check {
         name: name.into(),
         pass,
+        applies: true,
         detail,
     }
+}
+
+/// A check named `name` that this run cannot make, and `why`.
+pub(super) fn not_applicable(name: &str, why: String) -> Check {
+    Check {
+        name: name.into(),
+        pass: true,
+        applies: false,
+        detail: why,
+    }
+}
+
+/// The figures of every tool, `figures(k)` for tool `k`: as they are with one tool, each after
+/// its tool's index and name (`tool 1 (device2): …`) with several.
+pub(super) fn per_tool(settings: &Settings, mut figures: impl FnMut(usize) -> String) -> String {
+    if settings.devices == 1 {
+        return figures(0);
+    }
+    (0..settings.devices)
+        .map(|k| format!("tool {k} ({}): {}", settings.tool_names[k], figures(k)))
+        .collect::<Vec<_>>()
+        .join("; ")
 }
 
 /// Everything the checks read: what the run was asked to do, what the bench observed while it
@@ -44,12 +69,16 @@ pub(super) fn check(name: &str, pass: bool, detail: String) -> Check {
 pub(super) struct Evidence<'a> {
     pub(super) settings: &'a Settings,
     pub(super) plan: &'a Schedule,
-    /// The tool stream as it came in.
-    pub(super) audit: &'a ForceAudit,
-    /// Its figures.
-    pub(super) tool: &'a ToolStreamReport,
-    /// The device's force record, or why it could not be read.
-    pub(super) force_log: &'a Result<ForceLog, String>,
+    /// Each tool's stream as it came in (tool `k`'s at `k`).
+    pub(super) audits: &'a [ForceAudit],
+    /// Tool states of a tool the run does not have.
+    pub(super) foreign: u64,
+    /// Ticks on which every tool had a force on the hand.
+    pub(super) all_loaded_ticks: u64,
+    /// Each tool's figures.
+    pub(super) tools: &'a [ToolStreamReport],
+    /// Each device's force record (tool `k`'s at `k`), or why it could not be read.
+    pub(super) force_logs: &'a [Result<ForceLog, String>],
     /// The process faults, each with whether it was answered.
     pub(super) injections: &'a [Injection],
     pub(super) supervisor: &'a SupervisorReport,
@@ -70,8 +99,13 @@ pub(super) struct SoakReport {
     pub(super) settings: Settings,
     pub(super) plan: Schedule,
     pub(super) injections: Vec<Injection>,
-    pub(super) tool_stream: ToolStreamReport,
-    pub(super) force_log: Option<ForceLog>,
+    /// Each tool's stream.
+    pub(super) tool_streams: Vec<ToolStreamReport>,
+    /// Ticks seen on which every tool had a force on the hand (with one tool: its loaded
+    /// ticks).
+    pub(super) ticks_every_hand_loaded: u64,
+    /// Each device's force log (`null`: unreadable; its check says why).
+    pub(super) force_logs: Vec<Option<ForceLog>>,
     pub(super) recording: RecordingReport,
     pub(super) supervisor: SupervisorReport,
     pub(super) hammer: HammerReport,
@@ -98,9 +132,11 @@ pub(super) fn render(r: &SoakReport) -> String {
     const W: usize = 100;
     let s = &r.settings;
     let mut out = format!(
-        "\nlop-bench soak — scene {}, {:.1} min after the first frame, seed {}, haptic {:.0} Hz, \
-         clamp {:.2} N, ramp {} ticks, stale limit {:.0} ms\n",
+        "\nlop-bench soak — scene {}, {} device{}, {:.1} min after the first frame, seed {}, \
+         haptic {:.0} Hz, clamp {:.2} N, ramp {} ticks, stale limit {:.0} ms\n",
         s.scene,
+        s.devices,
+        if s.devices == 1 { "" } else { "s" },
         s.seconds / 60.0,
         s.seed,
         s.rate_hz,
@@ -112,14 +148,27 @@ pub(super) fn render(r: &SoakReport) -> String {
     out += &crate::table::note(
         &format!(
             "injected: {} deformation kills and {} stops, {} haptic kills and {} stops, {} runs \
-             of broken samples ({} ticks), {} viewer sessions, {} lopd ctl bursts, control \
+             of broken samples ({} ticks){}, {} viewer sessions, {} lopd ctl bursts, control \
              requests every {} ms; the script loops every {:.1} s",
             delivered(&r.injections, "deform", "kill"),
             delivered(&r.injections, "deform", "stop"),
             delivered(&r.injections, "haptic", "kill"),
             delivered(&r.injections, "haptic", "stop"),
-            p.samples.len(),
-            p.samples.iter().map(|e| e.ticks).sum::<u64>(),
+            p.samples.iter().map(Vec::len).sum::<usize>(),
+            p.samples.iter().flatten().map(|e| e.ticks).sum::<u64>(),
+            if s.devices == 1 {
+                String::new()
+            } else {
+                format!(
+                    " on the {} devices ({})",
+                    s.devices,
+                    p.samples
+                        .iter()
+                        .map(|d| d.len().to_string())
+                        .collect::<Vec<_>>()
+                        .join(" + ")
+                )
+            },
             p.viewers.len(),
             p.ctl.len(),
             s.hammer_ms,
@@ -129,7 +178,12 @@ pub(super) fn render(r: &SoakReport) -> String {
     );
     out += "\n";
     for c in &r.checks {
-        out += &format!("{} {}\n", if c.pass { "PASS" } else { "FAIL" }, c.name);
+        let verdict = match (c.applies, c.pass) {
+            (false, _) => "N/A ",
+            (true, true) => "PASS",
+            (true, false) => "FAIL",
+        };
+        out += &format!("{verdict} {}\n", c.name);
         out += &crate::table::note(&c.detail, W);
     }
     out += "\nmemory (VmRSS) of the process instances judged (peaks of the two halves of the \
@@ -186,7 +240,14 @@ pub(super) fn render(r: &SoakReport) -> String {
             kib(end.max().unwrap_or(0))
         );
     }
-    let mut violations: Vec<&String> = r.tool_stream.first_violations.iter().collect();
+    let mut violations: Vec<String> = Vec::new();
+    for t in &r.tool_streams {
+        violations.extend(t.first_violations.iter().map(|v| match r.settings.devices {
+            1 => v.clone(),
+            _ => format!("tool {}: {v}", t.tool),
+        }));
+    }
+    let mut violations: Vec<&String> = violations.iter().collect();
     violations.extend(&r.hammer.violations);
     violations.extend(&r.ctl.violations);
     violations.extend(&r.viewers.violations);

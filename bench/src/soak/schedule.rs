@@ -131,8 +131,9 @@ pub struct Schedule {
     pub deform: Vec<ProcessEvent>,
     /// Haptic-process kills and stops, in time order.
     pub haptic: Vec<ProcessEvent>,
-    /// Broken device samples, in tick order, never overlapping.
-    pub samples: Vec<SampleEvent>,
+    /// Broken device samples per device (`samples[k]`: the device of tool `k`), each in tick
+    /// order, never overlapping.
+    pub samples: Vec<Vec<SampleEvent>>,
     /// Viewer sessions, in time order.
     pub viewers: Vec<ViewerEvent>,
     /// `lopd ctl` bursts, in time order.
@@ -152,9 +153,9 @@ pub mod rates {
     /// Shortest and longest stop, s: beyond the 100 ms stale limit by 3×, up to a hang that
     /// a user would notice.
     pub const STOP_S: (f64, f64) = (0.3, 3.0);
-    /// Runs of NaN samples per minute (at least 2).
+    /// Runs of NaN samples per minute on each device (at least 2).
     pub const NAN: f64 = 4.0;
-    /// Runs of out-of-workspace samples per minute (at least 2).
+    /// Runs of out-of-workspace samples per minute on each device (at least 2).
     pub const OUT_OF_WORKSPACE: f64 = 4.0;
     /// Longest run of broken samples, ticks (a glitch, or a cable that comes loose for 40 ms).
     pub const SAMPLE_TICKS_MAX: u64 = 40;
@@ -224,10 +225,36 @@ fn process_faults(
     events
 }
 
+/// One device's broken samples: NaN and out-of-workspace runs interleaved in shuffled order,
+/// from 2 s of haptic time to the end of the run (the haptic loop starts before the first frame,
+/// so every planned tick is reached before the bench stops it).
+fn sample_runs(rng: &mut Rng, seconds: f64, end: f64, rate_hz: f64) -> Vec<SampleEvent> {
+    let nan = count(rates::NAN, seconds, 2);
+    let out = count(rates::OUT_OF_WORKSPACE, seconds, 2);
+    let mut faults: Vec<SampleFault> = std::iter::repeat_n(SampleFault::Nan, nan)
+        .chain(std::iter::repeat_n(SampleFault::OutOfWorkspace, out))
+        .collect();
+    for i in (1..faults.len()).rev() {
+        let j = rng.below(i + 1);
+        faults.swap(i, j);
+    }
+    let first_s = 2.0;
+    let starts = spread(rng, faults.len(), first_s, end, 0.5);
+    faults
+        .iter()
+        .zip(starts)
+        .map(|(&fault, at_s)| SampleEvent {
+            first_tick: (at_s * rate_hz).round() as u64,
+            ticks: 1 + rng.below(rates::SAMPLE_TICKS_MAX as usize) as u64,
+            fault,
+        })
+        .collect()
+}
+
 impl Schedule {
     /// Draws the plan of a run of `seconds` (≥ [`MIN_SECONDS`]) whose haptic loop ticks at
-    /// `rate_hz`.
-    pub fn draw(seed: u64, seconds: f64, rate_hz: f64) -> Schedule {
+    /// `rate_hz` with `devices` devices.
+    pub fn draw(seed: u64, seconds: f64, rate_hz: f64, devices: usize) -> Schedule {
         let mut rng = Rng::new(seed);
         let end = seconds.max(MIN_SECONDS);
 
@@ -243,29 +270,14 @@ impl Schedule {
             rates::STOP_S,
         );
 
-        // Broken samples, in ticks: NaN and out-of-workspace runs interleaved in shuffled
-        // order, from 2 s of haptic time to the end of the run (the haptic loop starts before
-        // the first frame, so every planned tick is reached before the bench stops it).
-        let nan = count(rates::NAN, seconds, 2);
-        let out = count(rates::OUT_OF_WORKSPACE, seconds, 2);
-        let mut faults: Vec<SampleFault> = std::iter::repeat_n(SampleFault::Nan, nan)
-            .chain(std::iter::repeat_n(SampleFault::OutOfWorkspace, out))
-            .collect();
-        for i in (1..faults.len()).rev() {
-            let j = rng.below(i + 1);
-            faults.swap(i, j);
+        // Broken samples, in ticks, on every device: the first device's from this generator,
+        // each other's from a generator of its own (so a seed's one-device plan is what it was
+        // before a second device could be faulted too, and the devices break apart).
+        let mut samples = vec![sample_runs(&mut rng, seconds, end, rate_hz)];
+        for k in 1..devices.max(1) {
+            let mut own = Rng::for_seed(seed, &format!("samples of device {k}"));
+            samples.push(sample_runs(&mut own, seconds, end, rate_hz));
         }
-        let first_s = 2.0;
-        let starts = spread(&mut rng, faults.len(), first_s, end, 0.5);
-        let samples = faults
-            .iter()
-            .zip(starts)
-            .map(|(&fault, at_s)| SampleEvent {
-                first_tick: (at_s * rate_hz).round() as u64,
-                ticks: 1 + rng.below(rates::SAMPLE_TICKS_MAX as usize) as u64,
-                fault,
-            })
-            .collect();
 
         // Viewer sessions: one of each kind first (in shuffled order), then any kind.
         let n = count(rates::VIEWERS, seconds, ViewerKind::ALL.len());
@@ -342,29 +354,45 @@ mod tests {
 
     #[test]
     fn same_seed_same_plan_other_seed_other_plan() {
-        let a = Schedule::draw(7, 120.0, 1000.0);
-        let b = Schedule::draw(7, 120.0, 1000.0);
+        let a = Schedule::draw(7, 120.0, 1000.0, 1);
+        let b = Schedule::draw(7, 120.0, 1000.0, 1);
         assert_eq!(a.deform, b.deform);
         assert_eq!(a.haptic, b.haptic);
         assert_eq!(a.samples, b.samples);
         assert_eq!(a.viewers, b.viewers);
         assert_eq!(a.ctl, b.ctl);
         assert_eq!(a.hammer_seed, b.hammer_seed);
-        let c = Schedule::draw(8, 120.0, 1000.0);
+        let c = Schedule::draw(8, 120.0, 1000.0, 1);
         assert_ne!(a.samples, c.samples);
+    }
+
+    #[test]
+    fn a_second_device_gets_its_own_broken_samples_and_changes_nothing_else() {
+        let one = Schedule::draw(7, 120.0, 1000.0, 1);
+        let two = Schedule::draw(7, 120.0, 1000.0, 2);
+        assert_eq!((one.samples.len(), two.samples.len()), (1, 2));
+        assert_eq!(one.samples[0], two.samples[0]);
+        assert_eq!(one.deform, two.deform);
+        assert_eq!(one.haptic, two.haptic);
+        assert_eq!(one.viewers, two.viewers);
+        assert_eq!(one.hammer_seed, two.hammer_seed);
+        // The second device breaks at other ticks, as many times.
+        assert_eq!(two.samples[1].len(), two.samples[0].len());
+        assert_ne!(two.samples[1], two.samples[0]);
     }
 
     #[test]
     fn a_short_run_still_has_every_kind_inside_its_window() {
         for seed in 0..50 {
-            let s = Schedule::draw(seed, 30.0, 1000.0);
+            let s = Schedule::draw(seed, 30.0, 1000.0, 2);
             assert!(s.kills() >= 1, "seed {seed}");
             assert!(s.deform.len() >= 2, "seed {seed}");
-            assert!(s
-                .samples
-                .iter()
-                .any(|e| e.fault == SampleFault::OutOfWorkspace));
-            assert!(s.samples.iter().any(|e| e.fault == SampleFault::Nan));
+            for samples in &s.samples {
+                assert!(samples
+                    .iter()
+                    .any(|e| e.fault == SampleFault::OutOfWorkspace));
+                assert!(samples.iter().any(|e| e.fault == SampleFault::Nan));
+            }
             for k in ViewerKind::ALL {
                 assert!(s.viewers.iter().any(|v| v.kind == k), "seed {seed}: {k:?}");
             }
@@ -404,23 +432,25 @@ mod tests {
                     }
                 }
             }
-            // Sample runs: in order, apart, inside the run's ticks.
-            for w in s.samples.windows(2) {
-                assert!(w[0].first_tick + w[0].ticks < w[1].first_tick, "{w:?}");
-            }
-            for e in &s.samples {
-                assert!(e.ticks >= 1 && e.ticks <= rates::SAMPLE_TICKS_MAX);
-                assert!(e.first_tick >= 2000 && e.first_tick + e.ticks <= 30_000);
+            // Sample runs of each device: in order, apart, inside the run's ticks.
+            for samples in &s.samples {
+                for w in samples.windows(2) {
+                    assert!(w[0].first_tick + w[0].ticks < w[1].first_tick, "{w:?}");
+                }
+                for e in samples {
+                    assert!(e.ticks >= 1 && e.ticks <= rates::SAMPLE_TICKS_MAX);
+                    assert!(e.first_tick >= 2000 && e.first_tick + e.ticks <= 30_000);
+                }
             }
         }
     }
 
     #[test]
     fn counts_follow_the_rates_on_a_long_run() {
-        let s = Schedule::draw(1, 1800.0, 1000.0);
+        let s = Schedule::draw(1, 1800.0, 1000.0, 1);
         assert_eq!(s.kills(), 30);
         assert_eq!(s.deform.len(), 60);
-        assert_eq!(s.samples.len(), 240);
+        assert_eq!(s.samples[0].len(), 240);
         assert_eq!(s.viewers.len(), 240);
         assert_eq!(s.ctl.len(), 60);
         assert_eq!(s.haptic.len(), 30);

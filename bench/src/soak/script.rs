@@ -1,5 +1,10 @@
-//! The soak's mock script: the scene's four shipped scripts (`poke`, `grab`, `heat`, `drag`)
-//! played one after the other in a loop, and the planned broken samples as `[[fault]]` windows.
+//! The soak's mock scripts: the scene's four shipped scripts (`poke`, `grab`, `heat`, `drag`)
+//! played one after the other in a loop, and the device's planned broken samples as `[[fault]]`
+//! windows. With two devices the second plays the same four starting from the second
+//! (`grab`, `heat`, `drag`, `poke`): the loops are equally long, and each script presses the
+//! tissue from about 1 s to 3.5 s after it starts, so the two tools are in the tissue at the
+//! same time for much of the loop (each in its own script's way), and a haptic fault often
+//! catches both there.
 //!
 //! Each shipped script is an `end = "loop"` script, so it starts and ends at the same rest point,
 //! which its authors placed in free space in front of the tissue (`config/scripts/*.toml` say
@@ -15,8 +20,14 @@ use lop_drivers::mock::{MockScript, SampleFault, Waypoint};
 
 use super::schedule::{SampleEvent, Schedule};
 
-/// The shipped scripts the soak plays, in order.
+/// The shipped scripts the soak plays, in the first device's order.
 pub const PARTS: [&str; 4] = ["poke", "grab", "heat", "drag"];
+
+/// The order in which device `device` plays [`PARTS`]: the first device's order started
+/// `device` scripts later.
+pub fn order(device: usize) -> [&'static str; 4] {
+    std::array::from_fn(|i| PARTS[(i + device) % PARTS.len()])
+}
 
 /// Seconds from one script's rest point to the next one's.
 pub const TRANSIT_S: f64 = 1.0;
@@ -51,12 +62,19 @@ fn waypoint(out: &mut String, t: f64, w: &Waypoint) {
     );
 }
 
-/// Builds the script for scene `scene` (a shipped scene name: its scripts are
-/// `SCENE-poke` … `SCENE-drag`) with the broken samples of `samples` at `rate_hz`.
-pub fn build(scene: &str, samples: &[SampleEvent], rate_hz: f64) -> Result<SoakScript> {
+/// Builds the script of device `device` (its parts in [`order`]) for scene `scene` (a shipped
+/// scene name: its scripts are `SCENE-poke` … `SCENE-drag`) with the broken samples of
+/// `samples` at `rate_hz`.
+pub fn build(
+    scene: &str,
+    device: usize,
+    samples: &[SampleEvent],
+    rate_hz: f64,
+) -> Result<SoakScript> {
     let mut parts = Vec::new();
     let mut scripts = Vec::new();
-    for part in PARTS {
+    let order = order(device);
+    for part in order {
         let name = format!("{scene}-{part}");
         let path = lop_config::resolve_script(&name).with_context(|| {
             format!(
@@ -72,8 +90,9 @@ pub fn build(scene: &str, samples: &[SampleEvent], rate_hz: f64) -> Result<SoakS
 
     let mut text = format!(
         "# Written by `lop-bench soak`: {} in a loop, {TRANSIT_S} s between two, and the\n\
-         # planned broken samples.\nname = \"soak\"\nend = \"loop\"\ninterpolation = \"smooth\"\n",
-        PARTS.map(|p| format!("{scene}-{p}")).join(", ")
+         # planned broken samples of device {device}.\nname = \"soak\"\nend = \"loop\"\n\
+         interpolation = \"smooth\"\n",
+        order.map(|p| format!("{scene}-{p}")).join(", ")
     );
     let mut t0 = 0.0;
     let first = scripts[0].waypoints()[0];
@@ -118,8 +137,9 @@ mod tests {
 
     #[test]
     fn the_abdomen_soak_script_loads_loops_and_holds_the_planned_faults() {
-        let schedule = Schedule::draw(3, 60.0, 1000.0);
-        let s = build("abdomen", &schedule.samples, 1000.0).unwrap();
+        let schedule = Schedule::draw(3, 60.0, 1000.0, 1);
+        let samples = &schedule.samples[0];
+        let s = build("abdomen", 0, samples, 1000.0).unwrap();
         let script = MockScript::parse(&s.text, Path::new("soak.toml")).unwrap();
         assert_eq!(script.duration(), s.period_s);
         let total: f64 = s
@@ -129,8 +149,8 @@ mod tests {
             .sum();
         assert!((s.period_s - total - PARTS.len() as f64 * TRANSIT_S).abs() < 1e-9);
         // Every planned tick reads a broken sample, and its neighbours do not.
-        assert_eq!(script.sample_faults().len(), schedule.samples.len());
-        for e in &schedule.samples {
+        assert_eq!(script.sample_faults().len(), samples.len());
+        for e in samples {
             let at = |k: u64| script.sample_fault_at(k as f64 / 1000.0);
             assert_eq!(at(e.first_tick), Some(e.fault));
             assert_eq!(at(e.first_tick + e.ticks - 1), Some(e.fault));
@@ -143,8 +163,20 @@ mod tests {
     }
 
     #[test]
+    fn the_second_device_plays_the_same_loop_from_its_second_script() {
+        let first = build("abdomen", 0, &[], 1000.0).unwrap();
+        let second = build("abdomen", 1, &[], 1000.0).unwrap();
+        assert_eq!(second.parts[..3], first.parts[1..]);
+        assert_eq!(second.parts[3], first.parts[0]);
+        assert!((second.period_s - first.period_s).abs() < 1e-9);
+        let a = MockScript::parse(&first.text, Path::new("a.toml")).unwrap();
+        let b = MockScript::parse(&second.text, Path::new("b.toml")).unwrap();
+        assert_ne!(a.waypoints()[2].position_mm, b.waypoints()[2].position_mm);
+    }
+
+    #[test]
     fn a_scene_without_the_four_scripts_is_refused_by_name() {
-        let e = build("nosuchscene", &[], 1000.0).err().unwrap();
+        let e = build("nosuchscene", 0, &[], 1000.0).err().unwrap();
         assert!(format!("{e:#}").contains("nosuchscene-poke"), "{e:#}");
     }
 }

@@ -60,18 +60,24 @@ pub(super) fn number_after(line: &str, label: &str) -> Option<u64> {
 pub(super) fn check_restarts(e: &Evidence<'_>) -> Check {
     let kills = super::injections::delivered(e.injections, "deform", "kill");
     let haptic_kills = super::injections::delivered(e.injections, "haptic", "kill");
+    let segments: Vec<String> = e.audits.iter().map(|a| a.segments.to_string()).collect();
     check(
         "supervisor restarted every killed process, and only those",
         e.supervisor.deform_restarts == Some(kills as u64)
             && e.supervisor.haptic_restarts == Some(haptic_kills as u64)
-            && e.audit.segments == haptic_kills as u64,
+            && e.audits.iter().all(|a| a.segments == haptic_kills as u64),
         format!(
             "deform restarts {:?} for {kills} kills, haptic restarts {:?} for {haptic_kills} \
-             kills ({} new haptic processes seen in the tool stream), {} deformation and {} \
+             kills ({} new haptic processes seen in the tool stream{}), {} deformation and {} \
              haptic processes in all",
             e.supervisor.deform_restarts,
             e.supervisor.haptic_restarts,
-            e.audit.segments,
+            segments.join(" / "),
+            if segments.len() > 1 {
+                " of each tool"
+            } else {
+                ""
+            },
             e.watch.instances_of("deform"),
             e.watch.instances_of("haptic")
         ),

@@ -22,7 +22,8 @@
 //!   [`ForceSafety::with_continuous`]): the motors heat with the square of the force, so the
 //!   root mean square of the output over the last seconds (an exponential average) is kept at
 //!   or under that limit by lowering the clamp towards it while the average is over. Peaks up to
-//!   the peak force stay possible; holding more than the continuous force for long is not.
+//!   the peak force stay possible; holding more than the continuous force for long is not. A
+//!   ramp to zero starts from the last force all the same (never cut to the lowered clamp).
 
 /// Force conditioning state. Pure and allocation-free.
 #[derive(Debug, Clone)]
@@ -132,7 +133,16 @@ impl ForceSafety {
         }
         let gain = self.level as f64 / self.ramp_ticks as f64;
         let target = if healthy { desired } else { self.last };
-        let mut f = clamp_norm(target, self.clamp_now());
+        // A ramp starts from the force last written, under the peak clamp only: re-clamped to
+        // a continuous limit that has just come down (the healthy path walks down to it at the
+        // step limit), its first tick would cut the force at once. The ramp is over within
+        // `ramp_ticks`, far too short to heat a motor.
+        let clamp = if healthy {
+            self.clamp_now()
+        } else {
+            self.max_force
+        };
+        let mut f = clamp_norm(target, clamp);
         if healthy {
             f = limit_step(self.last, f, self.max_step + motion);
             f = scale(f, gain);
@@ -284,6 +294,34 @@ mod tests {
             last = s.condition([0.0, 3.0, 0.0], true)[1];
         }
         assert_eq!(last, 3.0);
+    }
+
+    #[test]
+    fn a_ramp_under_a_continuous_limit_that_came_down_starts_from_the_last_force() {
+        // Held at 3 N until the continuous limit brings the clamp down faster than the output
+        // may follow (0.05 N a tick).
+        let mut s = ForceSafety::new(3.0, 0.05, 5).with_continuous(0.88, 1000);
+        let mut last = 0.0;
+        for _ in 0..100_000 {
+            last = norm(s.condition([0.0, 3.0, 0.0], true));
+            if last - s.clamp_now() > 0.5 {
+                break;
+            }
+        }
+        assert!(
+            last - s.clamp_now() > 0.5,
+            "{last} against {}",
+            s.clamp_now()
+        );
+        // Then unhealthy: linear from the last force, a fifth of it off a tick (the soak's
+        // audit saw 1.71 N cut to 0.99 N, the lowered clamp's 4/5, in one tick).
+        let ramp: Vec<f64> = (0..5)
+            .map(|_| norm(s.condition([0.0, 3.0, 0.0], false)))
+            .collect();
+        for (k, f) in ramp.iter().enumerate() {
+            let want = last * (4 - k) as f64 / 5.0;
+            assert!((f - want).abs() < 1e-9, "{last} N, then {ramp:?}");
+        }
     }
 
     #[test]
