@@ -245,8 +245,9 @@ fn two_grabs_on_a_free_body_pull_with_equal_and_opposite_forces() {
 fn jaws_on_a_clamped_body_hold_the_static_force() {
     let jaw = 1.5e-3;
     let k = 300.0;
-    // Not Verlet: its patch (presses and grabs alike) holds its rest off this reference
-    // (measured: shape 4.7e-2, force 1.3e-1), an open question of the explicit patch.
+    // Not Verlet: its patch's impulse after each kick-drift-kick sub-step holds its rest off
+    // this reference by `(ω h)²` and damping terms (`lop_sim::grasp`, "Verlet's rest under a
+    // hold"; measured: shape 4.7e-2, force 1.3e-1).
     for kind in KINDS.into_iter().filter(|&k| k != Kind::MsdVerlet) {
         let mesh = clamped_cube();
         let mut w = world(mesh.clone(), kind);
