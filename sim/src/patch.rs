@@ -244,7 +244,7 @@ impl PatchSolve {
             if k < m {
                 spread(patch, k, 1.0, first_dof, col);
             } else {
-                PatchSolve::spread_hold(patch, k - m, first_dof, col);
+                PatchSolve::spread_hold(patch, k - m, 1.0, first_dof, col);
             }
         }
         solve_columns(cols, m + g);
@@ -399,6 +399,26 @@ impl PatchSolve {
             }
         }
         self.correction.iter().all(|d| d.is_finite())
+    }
+
+    /// After [`PatchSolve::solve`]: adds the solved forces `C λ` (points' and holds') to the
+    /// DOF vector `out`.
+    pub(crate) fn add_forces(
+        &self,
+        patch: &ToolPatch<'_>,
+        first_dof: impl Fn(u32) -> Option<usize> + Copy,
+        out: &mut [f64],
+    ) {
+        for (j, &l) in self.lcp.lambda().iter().enumerate() {
+            if l != 0.0 {
+                spread(patch, j, l, first_dof, out);
+            }
+        }
+        for (r, &l) in self.holds.lambda[..self.holds.rows].iter().enumerate() {
+            if l != 0.0 {
+                PatchSolve::spread_hold(patch, r, l, first_dof, out);
+            }
+        }
     }
 }
 
@@ -619,7 +639,7 @@ fn spread(
 }
 
 /// `c_jᵀ z` for a DOF vector `z` (see [`spread`]).
-fn project(
+pub(crate) fn project(
     patch: &ToolPatch<'_>,
     j: usize,
     first_dof: impl Fn(u32) -> Option<usize>,

@@ -97,6 +97,11 @@ impl Fem {
                 fill[k as usize] += 1;
             }
         }
+        let refine = if params.mode == FemMode::Corotational {
+            vec![0.0; n_dof]
+        } else {
+            Vec::new()
+        };
         let s = Box::new(Scratch {
             batch: Batches::new(&elements, &system.dof, lambda, mu),
             node_rot: vec![QUAT_IDENTITY; n],
@@ -128,6 +133,9 @@ impl Fem {
             inv_clock: 0,
             patch: crate::patch::PatchSolve::new(n_dof),
             patch_applied: false,
+            refine_b: refine.clone(),
+            refine_free: refine.clone(),
+            refine_gap: refine,
             pc_slot_of: vec![NONE; n],
             pc_node: Vec::new(),
             pc_used: Vec::new(),

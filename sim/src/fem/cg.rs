@@ -124,6 +124,33 @@ impl Fem {
         if self.one_iteration_runs < 2 {
             self.warm_start(pressed);
         }
+        self.cg_iterate(pressed, max, give_up_early, tol2, true)
+    }
+
+    /// CG for `K̃_w sol = rhs` (no tool in the operator) from the start already in `sol`,
+    /// until `‖r‖² ≤ tol2`, without a give-up or a refactorisation: the patch's correction
+    /// rounds (`patch.rs`), whose start is close. Returns the iterations, or as an error those
+    /// done when `max` did not reach the tolerance (`sol` holds the last iterate) or the numbers
+    /// went non-finite.
+    pub(super) fn cg_from_start(&mut self, max: usize, tol2: f64) -> Result<usize, usize> {
+        self.s.cg_p.copy_from_slice(&self.s.sol);
+        self.apply_dynamic(None);
+        for ((r, b), q) in self.s.cg_r.iter_mut().zip(&self.s.rhs).zip(&self.s.cg_q) {
+            *r = b - q;
+        }
+        self.cg_iterate(None, max, false, tol2, false)
+    }
+
+    /// CG's iterations from the start in `sol` with its residual in `cg_r` (see [`Fem::cg`]);
+    /// `track_runs` counts the runs its first iteration settles (the warm start's choice).
+    fn cg_iterate(
+        &mut self,
+        pressed: Option<Pressed>,
+        max: usize,
+        give_up_early: bool,
+        tol2: f64,
+        track_runs: bool,
+    ) -> Result<usize, usize> {
         let r2_start = dot_n(&self.s.cg_r, &self.s.cg_r);
         if !r2_start.is_finite() {
             return Err(0);
@@ -150,7 +177,7 @@ impl Fem {
             if !r2.is_finite() {
                 return Err(it);
             }
-            if it == 1 {
+            if it == 1 && track_runs {
                 self.one_iteration_runs = if r2 <= CG_TOLERANCE * CG_TOLERANCE * r2_start {
                     self.one_iteration_runs.saturating_add(1)
                 } else {

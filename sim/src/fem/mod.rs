@@ -378,6 +378,13 @@ struct Scratch {
     /// CG's warm start then takes it off its extrapolation, since CG solves the step without
     /// the tool (`Fem::cg`).
     patch_applied: bool,
+    /// Corotational mode only (empty otherwise), per DOF: the step's right-hand side `b`,
+    /// its increment without the tool `K̃⁻¹ b`, and the gap between the increment with the
+    /// patch's forces and the lagged factor's prediction of it; written and read by
+    /// `patch::refine_patch`.
+    refine_b: Vec<f64>,
+    refine_free: Vec<f64>,
+    refine_gap: Vec<f64>,
     /// Linear mode: the patch's cache of `K̃⁻¹` columns, three per node (`patch::patch_slot`):
     /// per node its slot or `NONE`, per slot its node and last use (grown to
     /// `PATCH_CACHE_NODES` on use), the columns.

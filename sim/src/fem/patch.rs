@@ -3,6 +3,7 @@
 //! problem gives the forces, and `K̃⁻¹ C λ` is added to the increment.
 
 use super::system::NONE;
+use super::cg::dot_n;
 use super::{Factor, Fem, PatchCorrection};
 use crate::interaction::ContactReport;
 use crate::patch::{PatchSolve, ToolPatch};
@@ -26,11 +27,13 @@ impl Fem {
     /// With `sol` the increment of the step without the tool: solves the patch with the
     /// current factor of `K̃` and adds its response to `sol`. A linear body keeps `K̃⁻¹`'s
     /// columns of the patch's nodes across steps (`patch_slot`); otherwise the points' columns
-    /// are solved together each step. In the lagged-factor CG mode the factor is the lagged
-    /// one, so the gaps close to its accuracy; the forces still balance the tool spring
-    /// exactly. A patch that cannot be solved (non-finite data) applies no force. Tools
-    /// grabbing the body come as the patch's holds (`crate::grasp`), solved with its points.
-    pub(super) fn patch_correct(&mut self, patch: &ToolPatch<'_>) -> ContactReport {
+    /// are solved together each step. In the lagged-factor CG mode (`lagged`) the factor is
+    /// the lagged one, so the gaps close to its accuracy; the forces still balance the tool
+    /// spring exactly. Tools grabbing the body come as the patch's holds (`crate::grasp`),
+    /// solved with its points; in the lagged mode the patch is then corrected against CG's
+    /// operator ([`Fem::refine_patch`]). A patch that cannot be solved (non-finite data)
+    /// applies no force.
+    pub(super) fn patch_correct(&mut self, patch: &ToolPatch<'_>, lagged: bool) -> ContactReport {
         self.s.patch_applied = false;
         let Some(patch) = PatchSolve::limit(patch) else {
             return ContactReport::default();
@@ -75,13 +78,114 @@ impl Fem {
         if !finite {
             return ContactReport::default();
         }
+        if lagged && !patch.holds.is_empty() {
+            if !self.refine_patch(&patch) {
+                return ContactReport::default();
+            }
+        } else {
+            let s = &mut *self.s;
+            s.sol
+                .iter_mut()
+                .zip(&s.patch.correction)
+                .for_each(|(d, c)| *d += c);
+        }
         let s = &mut *self.s;
-        s.sol
-            .iter_mut()
-            .zip(&s.patch.correction)
-            .for_each(|(d, c)| *d += c);
         s.patch_applied = true;
         s.patch.report(&patch, 0)
+    }
+
+    /// The patch solved with the lagged factor's compliance made consistent with the step's
+    /// operator `K̃` (CG's), when grabs share the body (module docs of `crate::grasp`). With
+    /// `sol = K̃⁻¹ b` (CG) and the patch solved once with `Z = K̃_lag⁻¹ C` (`correction = Z λ₀`),
+    /// each round solves the step with the patch's forces, `K̃ d = b + C λ_j`, by CG from the
+    /// last increment; the rows' gaps at that `d` differ from the lagged prediction by
+    /// `Cᵀ e`, `e = d − K̃⁻¹ b − Z λ_j`, so the problem is solved again with its free gaps
+    /// moved by `Cᵀ e` (its matrix kept), and `d = K̃⁻¹ b + e + Z λ_{j+1}`. A fixed point is
+    /// the mixed problem with the step's own operator; the rounds contract by the lagged
+    /// compliance's mismatch (a few rounds: [`PATCH_ROUNDS`], until the forces move by less
+    /// than [`PATCH_FORCE_TOLERANCE`] of themselves). The gaps close at the increment applied
+    /// (each grab's force is its spring's), and `K̃ d` misses `b + C λ` by that mismatch times
+    /// the last round's change of `λ` and CG's residual ([`PATCH_CG_TOLERANCE`]). Leaves the
+    /// increment in `sol` and `correction = d − K̃⁻¹ b`; false (`sol` the step without the
+    /// tool) if a round cannot be solved.
+    fn refine_patch(&mut self, patch: &ToolPatch<'_>) -> bool {
+        let n = self.system.n_dof;
+        {
+            let s = &mut *self.s;
+            if s.refine_b.len() != n {
+                // Not a corotational body: nothing to refine.
+                s.sol
+                    .iter_mut()
+                    .zip(&s.patch.correction)
+                    .for_each(|(d, c)| *d += c);
+                return true;
+            }
+            s.refine_b.copy_from_slice(&s.rhs);
+            s.refine_free.copy_from_slice(&s.sol);
+            s.sol
+                .iter_mut()
+                .zip(&s.patch.correction)
+                .for_each(|(d, c)| *d += c);
+        }
+        let b2 = dot_n(&self.s.refine_b, &self.s.refine_b);
+        let mut iterations = 0;
+        let mut solved = true;
+        for _ in 0..PATCH_ROUNDS {
+            // rhs = b + C λ_j.
+            let tol2 = {
+                let (dof, s) = (&self.system.dof, &mut *self.s);
+                s.rhs.copy_from_slice(&s.refine_b);
+                s.patch.add_forces(patch, |k| first_dof(dof, k), &mut s.rhs);
+                let f2: f64 = s
+                    .rhs
+                    .iter()
+                    .zip(&s.refine_b)
+                    .map(|(r, b)| (r - b) * (r - b))
+                    .sum();
+                PATCH_CG_TOLERANCE * PATCH_CG_TOLERANCE * (b2 + f2)
+            };
+            let run = self.cg_from_start(PATCH_CG_MAX_ITERATIONS, tol2);
+            iterations += match run {
+                Ok(it) | Err(it) => it,
+            };
+            let (dof, s) = (&self.system.dof, &mut *self.s);
+            if !s.sol.iter().all(|d| d.is_finite()) {
+                solved = false;
+                break;
+            }
+            for k in 0..n {
+                s.refine_gap[k] = s.sol[k] - s.refine_free[k] - s.patch.correction[k];
+            }
+            s.patch.keep_forces();
+            if !s
+                .patch
+                .resolve_shifted(patch, |k| first_dof(dof, k), &s.refine_gap)
+                || !s.patch.correction_by_solves(1.0)
+            {
+                solved = false;
+                break;
+            }
+            for k in 0..n {
+                s.sol[k] = s.refine_free[k] + s.refine_gap[k] + s.patch.correction[k];
+            }
+            let moved = s.patch.forces_moved();
+            if run.is_err() || moved <= PATCH_FORCE_TOLERANCE {
+                break;
+            }
+        }
+        let s = &mut *self.s;
+        s.rhs.copy_from_slice(&s.refine_b);
+        self.last_iterations += iterations;
+        self.counters.cg_iterations += iterations as u64;
+        if !solved {
+            s.sol.copy_from_slice(&s.refine_free);
+            return false;
+        }
+        // What the patch added to the step, for CG's next warm start.
+        for k in 0..n {
+            s.patch.correction[k] = s.sol[k] - s.refine_free[k];
+        }
+        true
     }
 
     /// Puts every free node of the patch in the column cache; false if they do not all fit.
@@ -214,6 +318,16 @@ impl ColumnCache<'_> {
         &self.cols[(3 * slot + c) * self.n..(3 * slot + c + 1) * self.n]
     }
 }
+
+/// Most correction rounds of [`Fem::refine_patch`] in one step.
+const PATCH_ROUNDS: usize = 8;
+/// The rounds stop once no force of the patch moves by more than this fraction of the largest.
+const PATCH_FORCE_TOLERANCE: f64 = 1e-6;
+/// A round's CG stops at `‖r‖ ≤ PATCH_CG_TOLERANCE · (‖b‖² + ‖C λ‖²)^½`: at rest `b ≈ −C λ`,
+/// so this is the share of the patch's forces the body's balance may miss.
+const PATCH_CG_TOLERANCE: f64 = 1e-8;
+/// A round's CG iterations at most (its start is the last round's increment).
+const PATCH_CG_MAX_ITERATIONS: usize = 40;
 
 /// The first DOF of node `i`, if it is free.
 fn first_dof(dof: &[u32], i: u32) -> Option<usize> {

@@ -80,8 +80,13 @@ impl Fem {
                 CorotationalSolver::LaggedFactorPcg => self.solve_pcg(pressed),
             },
         };
+        // CG solved the step with the lagged factor as preconditioner: the patch's
+        // compliance is that factor's, not the step's operator.
+        let lagged = !colliding
+            && self.params.mode == FemMode::Corotational
+            && self.solver == CorotationalSolver::LaggedFactorPcg;
         let solved = match (solved, patch) {
-            (Ok(_), Some(p)) => Ok(self.patch_correct(&p)),
+            (Ok(_), Some(p)) => Ok(self.patch_correct(&p, lagged)),
             (r, _) => {
                 self.s.patch_applied = false;
                 r

@@ -78,6 +78,23 @@ impl Lcp {
         for j in 0..m {
             self.a[j * m + j] += 1e-12 * diag_max;
         }
+        self.pivot()
+    }
+
+    /// After a [`solve`](Self::solve), solves again for a new `q` (written through
+    /// [`Lcp::q`]) with the same `A` (its ridge already added): the same problem size, the
+    /// active set found afresh. False (and `λ = 0`) as [`solve`](Self::solve).
+    pub fn resolve(&mut self) -> bool {
+        if !self.q.iter().all(|x| x.is_finite()) || self.a.len() != self.m * self.m {
+            self.lambda.iter_mut().for_each(|l| *l = 0.0);
+            return false;
+        }
+        self.pivot()
+    }
+
+    /// The principal pivoting of [`solve`](Self::solve) on `A` as it stands.
+    fn pivot(&mut self) -> bool {
+        let m = self.m;
         let q_scale = self.q.iter().fold(0.0f64, |s, x| s.max(x.abs()));
         let w_tol = 1e-10 * q_scale;
         self.active.clear();

@@ -13,10 +13,13 @@
 //!   reference shape is the reported one.
 //!
 //! The corotational FEM's default solve (CG with a lagged factor) solves the patch with the
-//! lagged factor's compliance, so its rest is off the static equilibrium by the factor's
-//! mismatch: its tolerances are looser ([`tol`]); refactorised every step it is exact.
+//! lagged factor's compliance, then corrects it against CG's operator in a few rounds: it
+//! meets the same references to the rounds' and CG's tolerances ([`tol`]); refactorised every
+//! step it is exact.
 //! - A press beside a grab on a free body: the press acts (it moves the tissue and reports a
-//!   force) and the two forces balance at rest.
+//!   force), its contact points close their gaps at rest (none inside its sphere, the nearest
+//!   on it: the holds' elimination moves the presses' free gaps by what the grabs do), and the
+//!   two forces balance at rest.
 //! - The jaws hold a footprint of several nodes; with a radius → 0 they are the point grab
 //!   (the new patch solve against the one-point Woodbury update of a lone grab).
 //! - Stepping with grabs, jaws and a press is allocation-free after warm-up.
@@ -27,10 +30,11 @@ use lop_sim::grasp::{jaw_hold, Grip};
 use lop_sim::mesh::TetMesh;
 use lop_sim::model::{Model, ToolAnchor};
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
-use lop_sim::patch::GatherScratch;
+use lop_sim::interaction::ContactReport;
+use lop_sim::patch::{gather, GatherScratch, GatherSphere, MAX_PATCH};
 use lop_sim::world::{BodyTool, Coupling, World};
 use lop_test_support::alloc;
-use lop_test_support::vec3::{add, norm, scale, sub};
+use lop_test_support::vec3::{add, dot, norm, scale, sub};
 
 /// The cube's edge, m (1 mm cells).
 const EDGE: f64 = 0.006;
@@ -171,9 +175,10 @@ fn node_triangles(mesh: &TetMesh) -> Vec<Vec<u32>> {
 }
 
 /// A test's tolerance: `exact` for the solves with the step's own factor, `lagged` for the
-/// corotational CG, whose patch (presses and grabs alike) is solved with the lagged factor's
-/// compliance: its gaps close, but the step's fixed point is off the static equilibrium by the
-/// factor's mismatch (`lop_sim::grasp` docs), so its balances are looser.
+/// corotational CG, whose patch is solved with the lagged factor's compliance and corrected
+/// against CG's operator in rounds (`lop_sim::grasp` docs): its balances are met to the
+/// rounds' tolerance (forces moving by less than 1e-6 of themselves) and CG's (1e-8), not to
+/// rounding.
 fn tol(kind: Kind, exact: f64, lagged: f64) -> f64 {
     if kind == Kind::FemCorotational {
         lagged
@@ -208,19 +213,26 @@ fn two_grabs_on_a_free_body_pull_with_equal_and_opposite_forces() {
         let (fa, fb) = (c[0].force_on_tissue, c[1].force_on_tissue);
         assert!(norm(fa) > 1e-3, "{kind:?}: a real pull, {fa:?}");
         let balance = norm(add(fa, fb)) / norm(fa);
+        let mut springs = [0.0; 2];
         for (t, f) in [(0, fa), (1, fb)] {
             let spring = rel(f, spring_force(&w, &tools[t]));
+            springs[t] = spring;
+            // The lagged factor is single precision: `Cᵀ K̃_lag⁻¹ C` is symmetric to ~1e-7 only
+            // and the holds' block is solved by its lower triangle, so the gaps close to that
+            // (measured 4e-8).
             assert!(
                 spring < tol(kind, 1e-9, 1e-6),
                 "{kind:?}: tool {t} reports {f:?}, spring error {spring:e}"
             );
         }
         println!(
-            "{kind:?}: |F| {:.4} N, |Fa + Fb| / |F| {balance:.2e}",
-            norm(fa)
+            "{kind:?}: |F| {:.4} N, |Fa + Fb| / |F| {balance:.2e}, spring errors {:.1e} {:.1e}",
+            norm(fa),
+            springs[0],
+            springs[1]
         );
         assert!(
-            balance < tol(kind, 1e-6, 2e-3),
+            balance < tol(kind, 1e-6, 1e-8),
             "{kind:?}: |Fa + Fb| / |F| = {balance:e}"
         );
     }
@@ -233,8 +245,9 @@ fn two_grabs_on_a_free_body_pull_with_equal_and_opposite_forces() {
 fn jaws_on_a_clamped_body_hold_the_static_force() {
     let jaw = 1.5e-3;
     let k = 300.0;
-    // Not Verlet: its patch (presses and grabs alike) holds its rest off this reference
-    // (measured: shape 4.7e-2, force 1.3e-1), an open question of the explicit patch.
+    // Not Verlet: its patch's impulse after each kick-drift-kick sub-step holds its rest off
+    // this reference by `(ω h)²` and damping terms (`lop_sim::grasp`, "Verlet's rest under a
+    // hold"; measured: shape 4.7e-2, force 1.3e-1).
     for kind in KINDS.into_iter().filter(|&k| k != Kind::MsdVerlet) {
         let mesh = clamped_cube();
         let mut w = world(mesh.clone(), kind);
@@ -301,11 +314,11 @@ fn jaws_on_a_clamped_body_hold_the_static_force() {
             norm(f)
         );
         assert!(
-            shape < tol(kind, 1e-5, 5e-3),
+            shape < tol(kind, 1e-5, 1e-9),
             "{kind:?}: shape off the reference by {shape:e}"
         );
         assert!(
-            force < tol(kind, 1e-5, 0.1),
+            force < tol(kind, 1e-5, 1e-6),
             "{kind:?}: force off the reference by {force:e}"
         );
     }
@@ -337,10 +350,12 @@ fn a_press_beside_a_grab_acts_and_balances_it() {
             run(&mut w, &tools, 2500);
             let b = &w.bodies[0];
             let bottom_z = b.model.positions()[bottom_node(&b.mesh)][2];
-            (b.contacts, bottom_z)
+            let gap = press.then(|| press_gap(&w, &bottom, &b.contacts[1]));
+            (b.contacts, bottom_z, gap)
         };
-        let (c, z) = run_with(true);
-        let (alone, z_alone) = run_with(false);
+        let (c, z, gap) = run_with(true);
+        let (alone, z_alone, _) = run_with(false);
+        let gap = gap.unwrap();
         let (fg, fp) = (c[0].force_on_tissue, c[1].force_on_tissue);
         assert!(fp[2] > 5e-4, "{kind:?}: the press pushes up, {fp:?}");
         assert!(c[1].proxy.is_some(), "{kind:?}: the press is a patch");
@@ -348,7 +363,8 @@ fn a_press_beside_a_grab_acts_and_balances_it() {
         let moved = z - z_alone;
         let balance = norm(add(fg, fp)) / norm(fp);
         println!(
-            "{kind:?}: press {:.4} N, bottom moved {:.1} µm, |Fg + Fp| / |Fp| {balance:.2e}",
+            "{kind:?}: press {:.4} N, bottom moved {:.1} µm, |Fg + Fp| / |Fp| {balance:.2e}, \
+             smallest gap {gap:.1e} m",
             norm(fp),
             moved * 1e6
         );
@@ -356,13 +372,54 @@ fn a_press_beside_a_grab_acts_and_balances_it() {
             moved > 5e-6,
             "{kind:?}: the press moved the tissue by {moved:e} m"
         );
+        // Without the holds' share of the presses' gaps (`q_P − A_PG A_GG⁻¹ q_G`) the press
+        // sinks about 3 µm into the tissue; solved, the gaps close to rounding.
+        assert!(
+            gap.abs() < 1e-9,
+            "{kind:?}: the press's smallest gap is {gap:e} m"
+        );
         let limit = if kind == Kind::MsdVerlet {
             1e-5
         } else {
-            tol(kind, 1e-6, 1e-5)
+            tol(kind, 1e-6, 1e-7)
         };
         assert!(balance < limit, "{kind:?}: |Fg + Fp| / |Fp| = {balance:e}");
     }
+}
+
+/// The smallest gap `n_j · (p_j − s) − r_j` of a press's contact points at rest, m: the
+/// points gathered as the world gathers them (around the god-object's proxy), the sphere
+/// where the patch balanced it (`s`, its report's proxy). Zero where a point carries force,
+/// never negative (no point inside the sphere): with the press pushing, the smallest is zero.
+fn press_gap(w: &World, a: &ToolAnchor, report: &ContactReport) -> f64 {
+    let b = &w.bodies[0];
+    let x = b.model.positions();
+    let mut points = Vec::new();
+    gather(
+        &b.mesh.surface,
+        &node_triangles(&b.mesh),
+        x,
+        GatherSphere {
+            start: a.triangle,
+            proxy: a.proxy(&b.mesh.surface, x).unwrap(),
+            radius: R,
+            tool: 0,
+        },
+        MAX_PATCH,
+        &mut points,
+        &mut GatherScratch::new(b.mesh.surface.len(), b.mesh.nodes.len()),
+    );
+    assert!(!points.is_empty());
+    let s = report.proxy.unwrap();
+    points
+        .iter()
+        .map(|p| {
+            let at = (0..3).fold([0.0; 3], |acc, k| {
+                add(acc, scale(x[p.nodes[k] as usize], p.weights[k]))
+            });
+            dot(p.normal, sub(at, s)) - p.reach
+        })
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// The node at the middle of the bottom face.
@@ -439,8 +496,8 @@ fn jaws_hold_a_footprint_and_shrink_to_the_point_grab() {
         let force = rel(fj, fp);
         println!("{kind:?}: jaws → 0 against the point grab: shape {diff:.2e}, force {force:.2e}");
         assert!(norm(fp) > 2e-3, "{kind:?}: {fp:?}");
-        assert!(diff < tol(kind, 1e-7, 5e-3), "{kind:?}: shape {diff:e}");
-        assert!(force < tol(kind, 1e-7, 5e-3), "{kind:?}: force {force:e}");
+        assert!(diff < 1e-7, "{kind:?}: shape {diff:e}");
+        assert!(force < 1e-7, "{kind:?}: force {force:e}");
     }
 }
 
