@@ -32,14 +32,15 @@
 //! Passivity: energy one hand pushes into the cube may leave through the other tool, so it is
 //! the two ports together that a passive environment bounds, not each alone (in the pinch of a
 //! light and a firm hand, the firm one's environment port gives back more than it took while
-//! the two together never fall below zero). Both are reported. The stylus' own damping (the
-//! firm grip's) absorbs the sampled contact's small excess as the tools withdraw and the tissue
-//! follows them; a light grip on a bare stylus has none, and its port gives back a little at
-//! the release, with one tool as with two (the clamped comparison).
+//! the two together never fall below zero). Both are reported. As the tools withdraw the tissue
+//! follows them and a sampled contact would give back a little more than it took; the firm
+//! grip's stylus damping would absorb it, a light grip on a bare stylus has none: the passivity
+//! controller keeps each tool's account from being overdrawn
+//! (`lop_sim::haptic::PassivityController`, which predicts the coming period).
 //!
 //! Targets: every hand in contact through the measured hold; the balance within
-//! [`BALANCE_LIMIT`]; no energy generated at the device port of any firm-grip hand (the
-//! stability map's [`ENERGY_TOLERANCE`], as its target for the default hand).
+//! [`BALANCE_LIMIT`]; no energy generated at the device port of any hand, firm grip or light
+//! (the stability map's [`ENERGY_TOLERANCE`], as its target for the default hand).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -476,6 +477,17 @@ pub fn run(quick: bool, out: &Path) -> Result<PinchReport> {
         .iter()
         .map(|h| h.device_generated_j)
         .fold(0.0, f64::max);
+    // The light grips of the pinches and alone: only the rendered force can dissipate there.
+    let light: Vec<&PinchHand> = hands
+        .iter()
+        .copied()
+        .chain(lone.iter())
+        .filter(|h| h.grip == Grip::Light)
+        .collect();
+    let worst_light = light
+        .iter()
+        .map(|h| h.device_generated_j)
+        .fold(0.0, f64::max);
     let targets = vec![
         StabilityTarget {
             name: format!(
@@ -503,6 +515,15 @@ pub fn run(quick: bool, out: &Path) -> Result<PinchReport> {
             value: worst_firm,
             limit: ENERGY_TOLERANCE,
             pass: worst_firm <= ENERGY_TOLERANCE,
+        },
+        StabilityTarget {
+            name: format!(
+                "{} light-grip hands: most energy generated at a device port (J)",
+                light.len()
+            ),
+            value: worst_light,
+            limit: ENERGY_TOLERANCE,
+            pass: worst_light <= ENERGY_TOLERANCE,
         },
     ];
     println!("\nTargets (pinch)");

@@ -146,7 +146,7 @@ fn haptics_quick_reports_every_mesh_and_target() {
         assert!(r["balance_max"].as_f64().unwrap() < 0.01, "{r}");
     }
     let targets = pinch["targets"].as_array().unwrap();
-    assert_eq!(targets.len(), 3, "{pinch}");
+    assert_eq!(targets.len(), 4, "{pinch}");
     for t in targets {
         assert_eq!(t["pass"].as_bool(), Some(true), "{t}");
     }

@@ -12,10 +12,33 @@
 //!
 //! with `F` the force the device rendered on the hand over the last period (zero-order hold)
 //! and `x` the stylus position. A passive environment never has `E < 0`: it can only give back
-//! what the hand put in. When `E` falls below zero the controller adds a damping force
-//! `−α v` along the stylus' velocity `v = (x_n − x_{n−1}) / T`, with `α = −E / (T |v|²)`: the
-//! damping that dissipates the surplus over the next period, at most
-//! [`max_damping`](PassivityController::new). The observer is reset once no force has been
+//! what the hand put in.
+//!
+//! **The controller acts on the coming period, not the last one.** With the force held over a
+//! period, the observer learns what a force did only one tick after it was rendered; a
+//! controller that waits for `E < 0` (Hannaford and Ryu's) is always a period late, and at a
+//! release that period is the last one in contact: the tissue follows the tool out and gives
+//! back, through a force that then vanishes, what is left of the account and a little more
+//! (the sampled spring, the frame one tick old), and once the tool has let go there is no force
+//! left to dissipate the surplus with. A bare stylus passes it whole to the hand (measured on
+//! two light grips letting go of a pinched cube: 1.5 µJ at each device port, with the
+//! controller acting on every tick it could). So the controller predicts the period ahead:
+//! the stylus keeps moving by `Δx = x_n − x_{n−1}`, give or take [`MOTION_ALLOWANCE`], and the
+//! force `f` would carry `−f · Δx` into the environment. If that would take `E` below zero, it
+//! subtracts `α v` along the stylus' velocity `v = Δx / T`, in two parts:
+//!
+//! - the environment's push along the motion beyond what the account holds, `α v² T' =
+//!   f · v T' − E` (`T' = T (1 + MOTION_ALLOWANCE)`): the environment may give back what the
+//!   account holds, not more. This only takes away part of `f` along the motion, never more
+//!   than all of it, so it needs no cap and acts at any speed: a light hand slowing to a stop
+//!   against tissue that still pushes is where a capped damping (`α ≤ 5 N·s/m` at a few mm/s)
+//!   let 0.8 µJ through;
+//! - a surplus already there (`E < 0`: the stylus moved more than allowed): a damping
+//!   `α = −E / (T' |v|²)`, at most [`max_damping`](PassivityController::new), above
+//!   [`STILL_SPEED`].
+//!
+//! While the account holds more than a period can give back (a press, a hold), nothing
+//! changes. The observer is reset once no force has been
 //! rendered for [`RESET_AFTER_S`] (between contacts), so a long dissipative press does not
 //! bank energy that would hide a surplus in a later contact; a stylus bouncing on the tissue
 //! keeps one account over its bounces, since a bounce's release is where a sampled coupling
@@ -31,6 +54,13 @@ use crate::vec3::v;
 /// Below this speed the stylus is taken as still and no damping is added, m/s (1 µm per 1 ms
 /// tick: under the Omni's position resolution).
 const STILL_SPEED: f64 = 1e-3;
+
+/// How much farther than in the last period the stylus may move in the next one, as a
+/// fraction, when the controller predicts the energy the coming period carries: the account
+/// is kept at zero against the larger move, so a stylus speeding up at a release (the light
+/// grip's: 1–3 % per tick as the tissue lets go) cannot carry it below. A larger allowance
+/// only lets the controller start one period earlier, when the account is nearly spent.
+pub const MOTION_ALLOWANCE: f64 = 0.5;
 
 /// Out of contact this long, the observer forgets the contact's energy, s: longer than a
 /// stylus bouncing on tissue stays in the air (a few ms to tens of ms), shorter than a
@@ -53,7 +83,8 @@ pub struct PassivityController {
 }
 
 impl PassivityController {
-    /// A controller adding at most `max_damping` N·s/m (not finite or negative: none).
+    /// A controller adding at most `max_damping` N·s/m of damping to dissipate a surplus (not
+    /// finite, zero or negative: a controller that never acts, the observer alone).
     pub fn new(max_damping: f64) -> PassivityController {
         PassivityController {
             max_damping: if max_damping.is_finite() {
@@ -96,15 +127,28 @@ impl PassivityController {
             return force;
         }
         self.idle = 0.0;
-        if !(period > 0.0) || self.energy >= 0.0 {
-            return force;
-        }
         let vel = dx / period;
         let speed2 = vel.length_squared();
-        if !(speed2 > STILL_SPEED * STILL_SPEED) {
+        // `max_damping` 0 turns the controller off (the observer keeps counting).
+        if self.max_damping == 0.0 || !(period > 0.0) || !(speed2 > 0.0) || !speed2.is_finite()
+        {
             return force;
         }
-        let alpha = (-self.energy / (period * speed2)).min(self.max_damping);
+        // Over the coming period (the stylus moving by `Δx (1 + allowance)`), `f` would give
+        // back `give` (its push along the motion) or take `take` (its resistance).
+        let ahead = period * (1.0 + MOTION_ALLOWANCE);
+        let push = f.dot(vel) * ahead;
+        let (give, take) = (push.max(0.0), (-push).max(0.0));
+        // The push beyond what the account holds is taken away: never more than the push, so
+        // the force only loses its part along the motion, and needs no cap.
+        let excess = give - self.energy.max(0.0);
+        let mut alpha = excess.max(0.0) / (ahead * speed2);
+        // A surplus already there (the stylus moved more than allowed) is dissipated by a
+        // damping of at most `max_damping`, where the stylus moves enough to measure.
+        let deficit = (-self.energy).max(0.0) - take;
+        if deficit > 0.0 && speed2 > STILL_SPEED * STILL_SPEED {
+            alpha += (deficit / (ahead * speed2)).min(self.max_damping);
+        }
         if !(alpha > 0.0) {
             return force;
         }
