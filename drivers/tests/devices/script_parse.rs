@@ -59,9 +59,11 @@ fn every_shipped_script_loads_and_fits_the_omni_workspace() {
                 );
             }
             let pressed = script.waypoints().iter().fold(0, |acc, w| acc | w.buttons);
+            // A grab script and the two-handed scene's grasper hold; a heat script and its
+            // hook burn.
             let expected = match file.rsplit('-').next().unwrap() {
-                "grab" => BUTTON_GRAB,
-                "heat" => BUTTON_HEAT,
+                "grab" | "grasper" => BUTTON_GRAB,
+                "heat" | "hook" => BUTTON_HEAT,
                 _ => 0,
             };
             assert_eq!(pressed, expected, "{file}: buttons used");
@@ -77,6 +79,9 @@ fn every_shipped_script_loads_and_fits_the_omni_workspace() {
         .collect();
     // The cylinders' sideways push into the other cylinder (`lop-bench lop`'s collision trial).
     expected.push("cylinders-push".into());
+    // The two hands of `abdomen-two-hands`.
+    expected.push("abdomen-two-hands-grasper".into());
+    expected.push("abdomen-two-hands-hook".into());
     expected.sort();
     assert_eq!(names, expected);
 }
