@@ -200,7 +200,10 @@ fn two_light_grips_letting_go_of_a_pinched_cube_generate_no_energy() {
     let _ = std::fs::remove_dir_all(&dir);
     for (side, r) in ["left", "right"].iter().zip(&runs) {
         let e = r.port_energy();
-        eprintln!("light {side}: {e:?}, controller on {} ticks", r.passivity_ticks);
+        eprintln!(
+            "light {side}: {e:?}, controller on {} ticks",
+            r.passivity_ticks
+        );
         // The hand pressed and held: the test is about a real contact's release.
         assert!(
             r.ticks.iter().any(|t| t.contact && norm(t.force) > 0.1),

@@ -2,8 +2,8 @@
 //! patch's points after the step are linear in their forces through `K̃⁻¹`, the complementarity
 //! problem gives the forces, and `K̃⁻¹ C λ` is added to the increment.
 
-use super::system::NONE;
 use super::cg::dot_n;
+use super::system::NONE;
 use super::{Factor, Fem, PatchCorrection};
 use crate::interaction::ContactReport;
 use crate::patch::{PatchSolve, ToolPatch};

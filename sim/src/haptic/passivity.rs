@@ -130,8 +130,7 @@ impl PassivityController {
         let vel = dx / period;
         let speed2 = vel.length_squared();
         // `max_damping` 0 turns the controller off (the observer keeps counting).
-        if self.max_damping == 0.0 || !(period > 0.0) || !(speed2 > 0.0) || !speed2.is_finite()
-        {
+        if self.max_damping == 0.0 || !(period > 0.0) || !(speed2 > 0.0) || !speed2.is_finite() {
             return force;
         }
         // Over the coming period (the stylus moving by `Δx (1 + allowance)`), `f` would give

@@ -27,10 +27,10 @@
 use lop_sim::contact::{closest_on_surface, ForceLaw, ToolSphere};
 use lop_sim::fem::{box_mesh, CorotationalSolver, Fem, FemMode, FemParameters};
 use lop_sim::grasp::{jaw_hold, Grip};
+use lop_sim::interaction::ContactReport;
 use lop_sim::mesh::TetMesh;
 use lop_sim::model::{Model, ToolAnchor};
 use lop_sim::msd::{Integrator, MassSpring, MsdParameters, NodeMass};
-use lop_sim::interaction::ContactReport;
 use lop_sim::patch::{gather, GatherScratch, GatherSphere, MAX_PATCH};
 use lop_sim::world::{BodyTool, Coupling, World};
 use lop_test_support::alloc;
