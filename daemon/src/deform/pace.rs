@@ -1,0 +1,138 @@
+//! The deformation process's pace at load: each FEM body's starting period, from a touch
+//! rehearsed on it, and the warning for a body that cannot keep real time at any period.
+
+use lop_scene::ToolLaws;
+use lop_sim::fem::RefactorPolicy;
+use lop_sim::world::pace::{Pace, FIT, STAY};
+use lop_sim::world::World;
+
+use crate::rt;
+
+/// Steps from asking for a new period's factor to stepping with it (the factor is made on the
+/// body's factor thread meanwhile): long enough for the liver's factor at 1 ms steps, short
+/// enough that a body falling behind is helped within a few dozen milliseconds.
+pub(super) const PERIOD_CHANGE_DELAY_STEPS: u32 = 16;
+/// Steps timed at load to estimate a body's step cost from rest (after two untimed ones).
+const ESTIMATE_STEPS: usize = 8;
+/// The touch rehearsed at load ([`World::rehearse_touch`]): how far past the surface the device
+/// goes (m; with the shipped tool's 300 N/m, 0.6 N on a surface that does not give), the
+/// steps left untimed (the contact forming: the patch's first columns, the rotations starting
+/// cold) and the steps timed. 50 steps: 40 mm/s at 1 ms; a 20k organ's 50 steps of ~10 ms
+/// add half a second to its load.
+const REHEARSAL_DEPTH: f64 = 0.002;
+const REHEARSAL_WARM: usize = 20;
+const REHEARSAL_TIMED: usize = 30;
+
+/// Gives every body with an FEM model (running, or parked behind its levels-of-precision
+/// controller) a pace that may lengthen its period up to `max_period_ms`. The pace starts at
+/// the period a touched step's cost allows, from a touch rehearsed now with the first tool's
+/// law against the body ([`World::rehearse_touch`]: the body poked by the god-object's patch
+/// for 50 steps, then back at rest). A step from rest is 3–8 times cheaper than a touched
+/// step on the organs a lab brings (measured on the recipe's 2k–10k organs), so a pace
+/// started from it started every 5k organ at 1 ms and lost time at its first touch until its
+/// window moved it; both figures are logged. A body that cannot keep real time even at the
+/// longest period is warned about with the period it would need.
+///
+/// With two or more deformation threads (`threads`, a machine of three cores or more) the body
+/// also gets the factor thread that makes a new period's factor off the critical path
+/// ([`RefactorPolicy::Background`]). With one, it keeps the scene's policy and a period change
+/// factorises within one step: measured on the 2-core machine, the factor thread sharing the
+/// deformation core with the steps made the shipped liver's touched step dearer (median 0.76
+/// → 1.1–1.2 ms) and its poke's peak force 1.25–1.69 N instead of 0.71 N, every run, without
+/// any change of period — it refactorises whenever CG stalls, and each factor takes the step's
+/// core for milliseconds.
+pub(super) fn pace_bodies(
+    world: &mut World,
+    laws: &ToolLaws,
+    max_period_ms: u32,
+    threads: usize,
+) -> Vec<Option<Pace>> {
+    let longest = f64::from(max_period_ms) * 1e-3;
+    let gravity = world.gravity;
+    (0..world.bodies.len())
+        .map(|i| {
+            let name = world.bodies[i].name.clone();
+            let fem = world.fem_mut(i)?;
+            let base = fem.dt();
+            let mut pace = Pace::new(base, longest);
+            if pace.periods().len() == 1 {
+                return Some(pace);
+            }
+            if threads >= 2 {
+                fem.set_refactor_policy(RefactorPolicy::Background {
+                    delay_steps: PERIOD_CHANGE_DELAY_STEPS,
+                });
+            }
+            let rest = estimate_step(fem, gravity);
+            let law = laws.bodies.get(i).copied().unwrap_or(laws.tool);
+            let touched = world
+                .rehearse_touch(
+                    i,
+                    law,
+                    REHEARSAL_DEPTH,
+                    REHEARSAL_WARM,
+                    REHEARSAL_TIMED,
+                    &mut rt::now_ns,
+                )
+                .map(|r| r.median());
+            let cost = touched.unwrap_or(rest).max(rest);
+            let period = pace.start_at(cost);
+            if cost > STAY * longest {
+                warn_behind(&name, cost, longest);
+            }
+            match touched {
+                Some(t) => tracing::info!(
+                    "{name}: a touched step costs about {:.2} ms here (a rehearsed poke; \
+                     {:.2} ms from rest); it starts at {} ms",
+                    t * 1e3,
+                    rest * 1e3,
+                    period * 1e3
+                ),
+                None => tracing::info!(
+                    "{name}: a step from rest costs about {:.2} ms here (no touch rehearsed: \
+                     no surface triangle with all its nodes free); it starts at {} ms",
+                    rest * 1e3,
+                    period * 1e3
+                ),
+            }
+            if period != base {
+                if let Some(fem) = world.fem_mut(i) {
+                    if let Err(e) = fem.set_dt(period) {
+                        tracing::warn!("{name}: period not changed: {e}");
+                    }
+                }
+            }
+            Some(pace)
+        })
+        .collect()
+}
+
+/// Warns that body `name`, whose touched step costs `cost` (s), falls behind the wall clock even
+/// at the longest period `longest` (s), and what to do about it: at load from the estimate, live
+/// from the steps in contact.
+pub(super) fn warn_behind(name: &str, cost: f64, longest: f64) {
+    tracing::warn!(
+        "{name}: a step costs about {:.1} ms on this machine, more than the longest period \
+         ({} ms): it falls behind the wall clock while touched (it needs about {:.0} ms). Mesh \
+         it coarser (lopd mesh tetrahedralize --tets N) or raise [deform] max_period_ms",
+        cost * 1e3,
+        longest * 1e3,
+        (cost / FIT * 1e3).ceil()
+    );
+}
+
+/// The median wall time of a step of `fem` from rest under `gravity`, s; `fem` is back at rest
+/// afterwards. From rest, without the tool: the cheapest step the body takes.
+fn estimate_step(fem: &mut lop_sim::fem::Fem, gravity: [f64; 3]) -> f64 {
+    let mut costs = [0.0f64; ESTIMATE_STEPS];
+    for k in 0..ESTIMATE_STEPS + 2 {
+        let t0 = rt::now_ns();
+        let _ = fem.step(gravity, &[], None);
+        if k >= 2 {
+            costs[k - 2] = (rt::now_ns() - t0) as f64 * 1e-9;
+        }
+    }
+    fem.reset();
+    costs.sort_by(f64::total_cmp);
+    costs[ESTIMATE_STEPS / 2]
+}
