@@ -133,7 +133,7 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
     writeln!(
         csv,
         "body,step,sim_time_s,model,step_us,kinetic_energy_j,max_speed_m_s,contact_force_n,\
-         cg_iterations,factorizations"
+         cg_iterations,factorizations,preconditioner_solves,node_rotation_updates"
     )?;
 
     if opts.static_solve {
@@ -207,21 +207,24 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
                 times[i].push(us);
                 steps_done[i] += 1;
                 let f = b.force_on_tissue();
-                // An FEM step's CG iterations, and the factorisations its body has made so far
-                // (on the stepping thread or its factor thread): what makes a slow step slow.
-                let (iterations, factors) = match &b.model {
+                // An FEM step's CG iterations, and the factorisations, preconditioner solves and
+                // per-node rotation updates its body has made so far (factorisations on the
+                // stepping thread or its factor thread): what makes a slow step slow.
+                let (iterations, factors, solves, turns) = match &b.model {
                     Model::Fem(fem) => {
                         let c = fem.solver_counters();
                         (
                             fem.last_iterations() as u64,
                             c.factorizations + c.background_factorizations,
+                            c.preconditioner_solves,
+                            c.node_rotation_updates,
                         )
                     }
-                    _ => (0, 0),
+                    _ => (0, 0, 0, 0),
                 };
                 writeln!(
                     csv,
-                    "{},{},{:.6},{:?},{:.3},{:.6e},{:.6e},{:.6e},{},{}",
+                    "{},{},{:.6},{:?},{:.3},{:.6e},{:.6e},{:.6e},{},{},{},{}",
                     b.name,
                     steps_done[i],
                     b.time,
@@ -231,7 +234,9 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
                     b.model.max_speed(),
                     (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt(),
                     iterations,
-                    factors
+                    factors,
+                    solves,
+                    turns
                 )?;
                 if steps_done[i] >= opts.steps {
                     active[i] = false;

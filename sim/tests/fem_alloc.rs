@@ -60,9 +60,9 @@ fn step_is_allocation_free() {
         let g = [0.0, -9.81, 0.0];
         fem.step(g, &loads, None).unwrap();
         let landed = fem.solver_counters().background_factorizations;
+        let factored = fem.solver_counters().factorizations;
         let before = alloc::allocations();
         let mut touched = 0;
-        let mut refactors = 0;
         for s in 0..120 {
             // The tool presses, slides, and leaves, repeatedly.
             let tool = ToolSphere {
@@ -81,9 +81,9 @@ fn step_is_allocation_free() {
             let c = (s % 40 < 30).then_some(&contact);
             let report = fem.step(g, &loads, c).unwrap();
             touched += (report.depth > 0.0) as usize;
-            refactors += (fem.last_iterations() > 4) as usize;
         }
         let after = alloc::allocations();
+        let refactors = fem.solver_counters().factorizations - factored;
         assert!(
             touched > 10,
             "{mode:?}: the tool touched in {touched} steps"
@@ -95,6 +95,8 @@ fn step_is_allocation_free() {
                 "a factor landed: {c:?}"
             );
         } else if mode == FemMode::Corotational && solver == CorotationalSolver::LaggedFactorPcg {
+            // Counted by the body (a CG run's iteration count no longer tells: with the
+            // lagged factor refreshed within the step it converges in a few).
             assert!(refactors > 0, "a refactorisation happened in the window");
         }
         assert_eq!(

@@ -344,6 +344,10 @@ impl super::Fem {
         let dt = period.unwrap_or(self.params.dt);
         let corotational = self.params.mode == super::FemMode::Corotational;
         let single = corotational && self.solver == super::CorotationalSolver::LaggedFactorPcg;
+        if corotational && self.background.as_ref().is_some_and(|t| t.home.is_some()) {
+            // The snapshot's rotations are the element rotations it copies.
+            self.ensure_node_rotations();
+        }
         let due = self.counters.steps + u64::from(self.background.as_ref().map_or(0, |t| t.delay));
         let Some(t) = self.background.as_deref_mut() else {
             return;
@@ -404,6 +408,8 @@ impl super::Fem {
             .node_turn
             .iter_mut()
             .for_each(|t| *t = super::rotation::IDENTITY);
+        // The turn is from the landed factor's rotations now: made again before it is used.
+        self.s.node_rot_stale = true;
         if !ok {
             self.factor = super::Factor::Stale;
             return Err(super::Failed);

@@ -107,6 +107,7 @@ impl Fem {
             node_rot: vec![QUAT_IDENTITY; n],
             node_rot_lag: vec![QUAT_IDENTITY; n],
             node_sum: vec![[0.0; 4]; n],
+            node_rot_stale: true,
             node_turn: vec![rotation::IDENTITY; n_dof / 3],
             force: vec![[0.0; 3]; n],
             rhs: vec![0.0; n_dof],
@@ -392,6 +393,7 @@ impl Fem {
         self.one_iteration_runs = 0;
         self.s.batch.reset_rotations();
         self.s.node_rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
+        self.s.node_rot_stale = true;
     }
 
     /// Replaces the state (for levels-of-precision switching, or to prescribe boundary
@@ -417,6 +419,7 @@ impl Fem {
         self.one_iteration_runs = 0;
         self.s.batch.reset_rotations();
         self.s.node_rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
+        self.s.node_rot_stale = true;
     }
 
     /// Whether node `i` is held (fixed by the mesh, or used by no tetrahedron).

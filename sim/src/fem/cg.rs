@@ -25,7 +25,6 @@ impl Fem {
     /// Corotational, iterative: CG on `K̃_w + k' C Cᵀ` with the lagged factor as
     /// preconditioner (module docs).
     pub(super) fn solve_pcg(&mut self, pressed: Option<Pressed>) -> Result<ContactReport, Failed> {
-        self.update_node_rotations();
         if self.factor != Factor::WarpedDynamic && self.factor != Factor::RestDynamic {
             self.factor_dynamic(true)?;
         }

@@ -45,6 +45,8 @@ impl Fem {
 
     /// Fills `force` with `−f_int(x)` and (corotational) `grads` with the rotated gradients.
     pub(super) fn internal_forces(&mut self) {
+        // The element rotations move (corotational): the per-node ones follow when needed.
+        self.s.node_rot_stale = true;
         if let (FemMode::Corotational, Some(pool)) = (self.params.mode, &self.pool) {
             let (u, force) = (&self.u, &mut self.s.force);
             self.s

@@ -321,6 +321,12 @@ pub struct SolverCounters {
     pub background_factorizations: u64,
     /// Steps that had to wait for a background factor at their swap.
     pub factor_waits: u64,
+    /// Applications of the lagged-factor preconditioner (each a pair of triangular solves
+    /// with the factor), CG's and the contact term's.
+    pub preconditioner_solves: u64,
+    /// Updates of the per-node rotations that turn the lagged factor (one pass over the
+    /// elements); skipped by the steps that apply no preconditioner.
+    pub node_rotation_updates: u64,
 }
 
 /// Scratch of a [`Fem`]: every buffer `step` uses, allocated once.
@@ -337,6 +343,10 @@ struct Scratch {
     node_rot: Vec<[f64; 4]>,
     node_rot_lag: Vec<[f64; 4]>,
     node_sum: Vec<[f64; 4]>,
+    /// Whether `node_rot` and `node_turn` lag the element rotations: set when those move
+    /// (`internal_forces`), by a reset and by a factor landing; cleared by
+    /// `ensure_node_rotations`, which the preconditioner and a factor's snapshot call first.
+    node_rot_stale: bool,
     /// Scratch, per free node (DOF block): `R_now R_lagᵀ`, written by `update_node_rotations`,
     /// read by `precondition`.
     node_turn: Vec<element::Mat3>,

@@ -12,6 +12,8 @@ use crate::parallel::{chunk_range, SharedMut};
 impl Fem {
     /// `contact_pc[a] = (Q K̃_lag Qᵀ)⁻¹ c_a`, for the preconditioner.
     pub(super) fn prepare_contact_pc(&mut self, p: &Pressed) {
+        self.ensure_node_rotations();
+        self.counters.preconditioner_solves += p.m as u64;
         for a in 0..p.m {
             turned_solve(
                 &mut self.system,
@@ -28,6 +30,8 @@ impl Fem {
     /// (`node_turn`), plus the tool's rank-one stiffness by Sherman–Morrison with
     /// `contact_pc = (Q K̃_lag Qᵀ)⁻¹ c` (prepared by `solve_pcg`).
     pub(super) fn precondition(&mut self, pressed: Option<Pressed>) {
+        self.ensure_node_rotations();
+        self.counters.preconditioner_solves += 1;
         turned_solve(
             &mut self.system,
             &self.s.node_turn,
@@ -53,6 +57,20 @@ impl Fem {
                     }
                 }
             }
+        }
+    }
+
+    /// [`Fem::update_node_rotations`] if the element rotations moved since it last ran. The
+    /// per-node rotations are read only by the preconditioner and by a factor's snapshot, so a
+    /// step that applies neither (CG converged from its warm start: about one touched step in
+    /// seven on the recipe's 5k organs) does not pay for them. The results are those of
+    /// updating every step: the sign alignment against a node's previous rotation sees the
+    /// same hemisphere a few steps later.
+    pub(super) fn ensure_node_rotations(&mut self) {
+        if self.s.node_rot_stale {
+            self.counters.node_rotation_updates += 1;
+            self.update_node_rotations();
+            self.s.node_rot_stale = false;
         }
     }
 
@@ -128,6 +146,10 @@ impl Fem {
     /// Assembles and factorises `K̃`, warped (from `grads`) or at rest.
     pub(super) fn factor_dynamic(&mut self, warped: bool) -> Result<(), Failed> {
         let dt = self.params.dt;
+        if warped && self.solver == CorotationalSolver::LaggedFactorPcg {
+            // The factor's rotations are the ones the lag copies below.
+            self.ensure_node_rotations();
+        }
         self.factor = Factor::Stale;
         self.assemble(1.0 / (dt * dt) + self.params.damping / (2.0 * dt), warped);
         // The corotational preconditioner is factorised in single precision (half the memory
