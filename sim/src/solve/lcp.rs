@@ -4,6 +4,18 @@
 //! positive definite `A`. The tool's contact patch (`crate::patch`) is its user: its gaps after
 //! a model's implicit step are linear in the contact forces.
 
+/// The ridges added to `A`'s diagonal, relative to its largest diagonal entry, each tried when
+/// the one before leaves an active set that is not positive definite. The smallest keeps
+/// coincident points (two faces' shared edge) solvable. The larger ones are for rows that are
+/// dependent in exact arithmetic: on a flat patch a face point moves as the barycentric
+/// combination of its triangle's nodes, so with those nodes active its row adds nothing, and
+/// a matrix made from a single-precision factor's columns (errors ~1e-7 of its entries) can
+/// then be indefinite by far more than 1e-12. A block held by the god-object's patch at 1 ms
+/// found such a matrix on 3 steps of its press, and the patch then applied no force for a step.
+/// A ridge `ε · max diag` is a compliance in series with each point: at 1e-3 it moves a held
+/// point by a thousandth of what the stiffest point's compliance would.
+const RIDGES: [f64; 4] = [1e-12, 1e-9, 1e-6, 1e-3];
+
 /// A solver for the linear complementarity problem `w = q + A λ ≥ 0`, `λ ≥ 0`, `wᵀλ = 0`
 /// with `A` symmetric positive definite, in buffers sized once for a largest problem.
 #[derive(Debug, Clone)]
@@ -65,20 +77,26 @@ impl Lcp {
         &self.lambda
     }
 
-    /// Solves the problem; false (and `λ = 0`) if `A` or `q` is not finite, `A` is not
-    /// positive definite, or pivoting did not finish.
+    /// Solves the problem; false (and `λ = 0`) if `A` or `q` is not finite, or if even with
+    /// the largest of [`RIDGES`] `A` is not positive definite or pivoting did not finish.
     pub fn solve(&mut self) -> bool {
         let m = self.m;
         if !self.a.iter().chain(&self.q).all(|x| x.is_finite()) {
             self.lambda.iter_mut().for_each(|l| *l = 0.0);
             return false;
         }
-        // A tiny ridge keeps coincident points (two faces' shared edge) solvable.
         let diag_max = (0..m).map(|j| self.a[j * m + j]).fold(0.0, f64::max);
-        for j in 0..m {
-            self.a[j * m + j] += 1e-12 * diag_max;
+        let mut added = 0.0;
+        for r in RIDGES {
+            for j in 0..m {
+                self.a[j * m + j] += r * diag_max - added;
+            }
+            added = r * diag_max;
+            if self.pivot() {
+                return true;
+            }
         }
-        self.pivot()
+        false
     }
 
     /// After a [`solve`](Self::solve), solves again for a new `q` (written through
@@ -228,6 +246,24 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Two points whose rows are the same but for rounding (a face point on a flat patch and
+    /// its triangle's nodes): the matrix is indefinite by 1e-9 of its entries, beyond the
+    /// smallest ridge. The problem is solved with a larger one, to that ridge's accuracy.
+    #[test]
+    fn lcp_solves_rows_dependent_but_for_rounding() {
+        let mut lcp = Lcp::with_capacity(4);
+        let (d, e) = (1.0, 1e-9);
+        lcp.reset(2);
+        lcp.matrix().copy_from_slice(&[d, d + e, d + e, d]);
+        lcp.q().copy_from_slice(&[-1.0, -1.0]);
+        assert!(lcp.solve(), "solved");
+        let l = lcp.lambda().to_vec();
+        assert!(l.iter().all(|&x| x >= 0.0), "{l:?}");
+        // Together the two points carry the load: w = q + A λ = 0 to the ridge's accuracy.
+        let w = -1.0 + d * l[0] + (d + e) * l[1];
+        assert!(w.abs() < 1e-5, "w {w}, λ {l:?}");
     }
 
     #[test]
