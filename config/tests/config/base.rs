@@ -79,9 +79,11 @@ fn expect_err(path: &std::path::Path, needles: &[&str]) -> lop_config::ConfigErr
 
 #[test]
 fn a_bad_base_is_refused_naming_the_file_and_key() {
-    dir_with("base", &[("scene.toml", GOOD)]);
+    // A base of its own: the other test writes `base/` at the same time (tests run in
+    // parallel), and a file read while it is rewritten is empty.
+    dir_with("base-b", &[("scene.toml", GOOD)]);
     // Bodies over a base.
-    let text = format!("base = \"../base/scene.toml\"\n{GOOD}");
+    let text = format!("base = \"../base-b/scene.toml\"\n{GOOD}");
     let dir = dir_with("over-bodies", &[("s.toml", &text)]);
     let err = expect_err(&dir.join("s.toml"), &["s.toml", "body", "from the base"]);
     assert!(err.line().is_some());
@@ -104,12 +106,12 @@ fn a_bad_base_is_refused_naming_the_file_and_key() {
     let err = expect_err(&dir.join("s.toml"), &["base.toml", "young", "-1"]);
     assert_eq!(err.line(), Some(line_of(&bad, "young = ")));
     // A bad tool of this file: named here.
-    let text = "base = \"../base/scene.toml\"\n[tool]\nradius = 0.003\nstiffness = -2.0\n";
+    let text = "base = \"../base-b/scene.toml\"\n[tool]\nradius = 0.003\nstiffness = -2.0\n";
     let dir = dir_with("over-bad-tool", &[("s.toml", text)]);
     let err = expect_err(&dir.join("s.toml"), &["s.toml", "tool.stiffness", "-2"]);
     assert_eq!(err.line(), Some(4));
     // A base in text parsed on its own resolves against the given path's directory.
     let text = "base = \"scene.toml\"\n";
-    let scene = parse_scene(text, &fixture_dir().join("base").join("x.toml")).unwrap();
+    let scene = parse_scene(text, &fixture_dir().join("base-b").join("x.toml")).unwrap();
     assert_eq!(scene.name, "x");
 }

@@ -113,8 +113,7 @@ impl Fem {
             rhs: vec![0.0; n_dof],
             contact_dir: [vec![0.0; n_dof], vec![0.0; n_dof], vec![0.0; n_dof]],
             contact_pc: [vec![0.0; n_dof], vec![0.0; n_dof], vec![0.0; n_dof]],
-            v_before: vec![[0.0; 3]; n],
-            v_before2: vec![[0.0; 3]; n],
+            free_v: [vec![0.0; n_dof], vec![0.0; n_dof], vec![0.0; n_dof]],
             sol: vec![0.0; n_dof],
             cg_r: vec![0.0; n_dof],
             cg_z: vec![0.0; n_dof],
@@ -388,8 +387,7 @@ impl Fem {
         self.x.copy_from_slice(&self.rest);
         self.u.iter_mut().for_each(|u| *u = [0.0; 3]);
         self.v.iter_mut().for_each(|v| *v = [0.0; 3]);
-        self.s.v_before.iter_mut().for_each(|v| *v = [0.0; 3]);
-        self.s.v_before2.iter_mut().for_each(|v| *v = [0.0; 3]);
+        self.s.free_v.iter_mut().for_each(|w| w.fill(0.0));
         self.one_iteration_runs = 0;
         self.s.batch.reset_rotations();
         self.s.node_rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);
@@ -414,8 +412,13 @@ impl Fem {
         for (i, vi) in self.v.iter_mut().enumerate() {
             *vi = if self.held[i] { [0.0; 3] } else { v[i] };
         }
-        self.s.v_before.copy_from_slice(&self.v);
-        self.s.v_before2.copy_from_slice(&self.v);
+        for w in self.s.free_v.iter_mut() {
+            for (i, &d) in self.system.dof.iter().enumerate() {
+                if d != super::system::NONE {
+                    w[d as usize..d as usize + 3].copy_from_slice(&self.v[i]);
+                }
+            }
+        }
         self.one_iteration_runs = 0;
         self.s.batch.reset_rotations();
         self.s.node_rot.iter_mut().for_each(|q| *q = QUAT_IDENTITY);

@@ -361,11 +361,11 @@ struct Scratch {
     /// Scratch, per DOF and direction: `P⁻¹ c_a` for the preconditioner's contact term,
     /// written by `solve_pcg` / `cg_with_refactor`, read by `precondition`.
     contact_pc: [Vec<f64>; 3],
-    /// Per node: the velocities before the last step and the one before it (`v⁻`, `v⁻⁻`),
-    /// written by `step_colliding`, reset with the state; read by `cg` for its first guess,
-    /// the increment extrapolated from the last three, `Δt (3v − 3v⁻ + v⁻⁻)`.
-    v_before: Vec<[f64; 3]>,
-    v_before2: Vec<[f64; 3]>,
+    /// Per DOF, the last three steps' tool-free velocities `w = K̃⁻¹ b / Δt` (the solve before
+    /// the contact patch's correction; newest first): written by `step_colliding` (rotated,
+    /// no allocation), set from the velocities by `set_state`, zeroed by a reset; read by
+    /// `cg` for its first guess, the increment extrapolated from them, `Δt (3w − 3w⁻ + w⁻⁻)`.
+    free_v: [Vec<f64>; 3],
     /// Per DOF: CG's iterate (the increment `d`), residual, preconditioned residual,
     /// search direction and matrix product; written and read by `cg` only (and `sol` by
     /// `apply_increment`).

@@ -52,8 +52,7 @@ impl Fem {
             return Err(FemError::Unsupported);
         }
         self.v.iter_mut().for_each(|v| *v = [0.0; 3]);
-        self.s.v_before.iter_mut().for_each(|v| *v = [0.0; 3]);
-        self.s.v_before2.iter_mut().for_each(|v| *v = [0.0; 3]);
+        self.s.free_v.iter_mut().for_each(|w| w.fill(0.0));
         self.factor = Factor::Stale;
         let n_dof = self.system.n_dof;
         let mut load = vec![0.0; n_dof];

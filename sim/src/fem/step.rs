@@ -85,6 +85,15 @@ impl Fem {
         let lagged = !colliding
             && self.params.mode == FemMode::Corotational
             && self.solver == CorotationalSolver::LaggedFactorPcg;
+        if solved.is_ok() {
+            // The tool-free step (the patch's correction comes next): CG's next first guess.
+            let s = &mut *self.s;
+            s.free_v.rotate_right(1);
+            s.free_v[0]
+                .iter_mut()
+                .zip(&s.sol)
+                .for_each(|(w, d)| *w = d / dt);
+        }
         let solved = match (solved, patch) {
             (Ok(_), Some(p)) => Ok(self.patch_correct(&p, lagged)),
             (r, _) => {
@@ -100,8 +109,6 @@ impl Fem {
             if d == NONE {
                 continue;
             }
-            self.s.v_before2[i] = self.s.v_before[i];
-            self.s.v_before[i] = self.v[i];
             for c in 0..3 {
                 let inc = self.s.sol[d as usize + c];
                 self.u[i][c] += inc;

@@ -178,7 +178,9 @@ fn node_triangles(mesh: &TetMesh) -> Vec<Vec<u32>> {
 /// corotational CG, whose patch is solved with the lagged factor's compliance and corrected
 /// against CG's operator in rounds (`lop_sim::grasp` docs): its balances are met to the
 /// rounds' tolerance (forces moving by less than 1e-6 of themselves) and CG's (1e-8), not to
-/// rounding.
+/// rounding. A rest shape too: the jaws' held shape is 7.9e-9 (of the largest displacement)
+/// off the static one, as still after 6,000 steps as after 1,500, where the rounds' last force
+/// change leaves it.
 fn tol(kind: Kind, exact: f64, lagged: f64) -> f64 {
     if kind == Kind::FemCorotational {
         lagged
@@ -314,7 +316,7 @@ fn jaws_on_a_clamped_body_hold_the_static_force() {
             norm(f)
         );
         assert!(
-            shape < tol(kind, 1e-5, 1e-9),
+            shape < tol(kind, 1e-5, 1e-6),
             "{kind:?}: shape off the reference by {shape:e}"
         );
         assert!(

@@ -259,8 +259,9 @@ fn curved_liver_hand_feels_what_the_tissue_receives() {
 
 /// The liver at the haptic rate (1 ms) under the real-time refactor policy: pressed 4 mm and
 /// held, it never refactorises its lagged factor (the set-up's factorisation is the only one),
-/// CG stays at a couple of iterations per step (its warm start takes the patch's correction
-/// off: without that, four per step, and the amortized policy refactorised every 11 steps),
+/// CG stays at a couple of iterations per step (its warm start extrapolates the tool-free
+/// solves, which hold no patch correction: from the body's velocities with the correction
+/// left in, four per step, and the amortized policy refactorised every 11 steps),
 /// and the hold force is the amortized policy's within 1 %: the patch's gaps close through the
 /// lagged factor, whose age differs between the policies.
 #[test]
@@ -296,9 +297,13 @@ fn liver_at_the_haptic_rate_needs_no_refactorisation() {
 /// The patch's correction `K̃⁻¹ C λ` summed from the nodes' cached columns (what a large
 /// organ uses: fewer bytes than a solve) is the one solved with the same lagged factor: the
 /// liver pressed 4 mm and held feels the same force either way, tick by tick. The two differ
-/// by the factor's rounding carried along the press: under 1e-7 of the peak force on all but
-/// 7 of 4,300 ticks, and 1.3e-4 on those (a patch point met a tick apart). A correction
-/// without one node's columns, or one axis, is off by the whole correction.
+/// by the factor's rounding, which the next steps carry on to the tolerance of CG (1e-5 of
+/// the step's right-hand side): since CG starts from the tool-free solves' extrapolation, a
+/// step often ends where it starts, and the rounding is no longer iterated away. Measured:
+/// within 1e-5 of the peak force on 2,880 of 4,300 ticks, 1e-4 on all but 22, at most
+/// 1.3e-4 (a patch point met a tick apart; so it was with the earlier start, which kept all
+/// but 7 ticks within 1e-7). A correction without one node's columns, or one axis, is off by
+/// the whole correction.
 #[test]
 fn patch_correction_from_cached_columns_is_the_solved_one() {
     let mesh = read_mesh(&mesh_path("liver.node")).unwrap();
@@ -330,11 +335,11 @@ fn patch_correction_from_cached_columns_is_the_solved_one() {
             a.hand,
             b.hand
         );
-        apart += usize::from(d > 1e-6 * peak);
+        apart += usize::from(d > 1e-4 * peak);
     }
     assert!(
         apart * 100 <= runs[0].len(),
-        "{apart} of {} ticks differ by more than 1e-6 of the peak",
+        "{apart} of {} ticks differ by more than 1e-4 of the peak",
         runs[0].len()
     );
 }
