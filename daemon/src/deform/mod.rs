@@ -475,10 +475,15 @@ impl DeformLoop {
             if !running_fem || r.steps == 0 {
                 continue;
             }
-            // One observation per step taken (a round catching up takes several).
+            // One observation per step taken (a round catching up takes several), and whether
+            // a tool touched the body in them: only touched steps may bring the period down.
             let cost = r.step_ns as f64 * 1e-9 / f64::from(r.steps);
+            let touched = self.world.bodies[i]
+                .contacts
+                .iter()
+                .any(|c| c.force_on_tissue.iter().any(|&f| f != 0.0));
             let before = pace.period();
-            let changed = (0..r.steps).fold(None, |c, _| pace.observe(cost).or(c));
+            let changed = (0..r.steps).fold(None, |c, _| pace.observe(cost, touched).or(c));
             if let Some(period) = changed {
                 tracing::info!(
                     "{}: a step costs {:.2} ms here; period {} -> {} ms",

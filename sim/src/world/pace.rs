@@ -20,9 +20,15 @@
 //!   period that fits the median of the window so far, at least one rung up. Without it, an organ whose
 //!   step costs 1.2–1.5 ms at 1 ms lost time for a whole window (128 steps, 0.2–0.3 s) before
 //!   the median moved it: about 0.1 s dropped in that second, a real-time factor of 0.9.
-//! - **Shorter** only when the median of a full window fits in [`DOWN`] of the shorter period.
-//!   A step costs more at a longer period (the system is less dominated by the mass, so CG takes
+//! - **Shorter** only when the median of a full window fits in [`DOWN`] of the shorter period,
+//!   and every step of that window was touched (a tool pressing or holding the body). A step
+//!   costs more at a longer period (the system is less dominated by the mass, so CG takes
 //!   more iterations), so the margin is wide and the period does not hunt between two rungs.
+//!   The steps out of contact (the tool approaching a body the precise model already runs, or
+//!   gone and the body settling) cost a fraction of a touched one: judged by them, a 5k organ
+//!   that the deformation process's rehearsed touch started at 2 ms came down to 1 ms before
+//!   the tool arrived (a step at rest 0.22 ms) and lost time at the touch. They still move it
+//!   up when they are dear.
 //!
 //! The median, not a high quantile: a longer period is a cost to the feel (frames arrive less
 //! often and the coupling between hand and tissue sees an older surface), so it is taken only
@@ -84,6 +90,8 @@ pub struct Pace {
     skip: usize,
     /// Time lost at this period so far ([`DEBT`]), s.
     debt: f64,
+    /// Steps of the window so far taken untouched (they cannot bring the period down).
+    untouched: usize,
     changes: u64,
     /// The cost the last change was judged by, s.
     judged: f64,
@@ -110,6 +118,7 @@ impl Pace {
             over_cheapest: f64::INFINITY,
             skip: 0,
             debt: 0.0,
+            untouched: 0,
             changes: 0,
             judged: 0.0,
             behind: None,
@@ -120,6 +129,7 @@ impl Pace {
     /// the body); keeps the period.
     pub fn restart(&mut self) {
         self.len = 0;
+        self.untouched = 0;
         self.over = 0;
         self.over_cheapest = f64::INFINITY;
         self.debt = 0.0;
@@ -169,9 +179,9 @@ impl Pace {
         self.period()
     }
 
-    /// Records the wall time of one step taken at [`Pace::period`], s; returns the new period
-    /// when it changes (the caller applies it).
-    pub fn observe(&mut self, cost: f64) -> Option<f64> {
+    /// Records the wall time of one step taken at [`Pace::period`], s, and whether a tool
+    /// touched the body in it; returns the new period when it changes (the caller applies it).
+    pub fn observe(&mut self, cost: f64, touched: bool) -> Option<f64> {
         if self.skip > 0 {
             self.skip -= 1;
             return None;
@@ -191,6 +201,7 @@ impl Pace {
         if self.len < window {
             self.costs[self.len] = cost;
             self.len += 1;
+            self.untouched += usize::from(!touched);
         }
         let last = period == longest;
         if self.debt > DEBT.max(2.0 * period) && self.len >= DEBT_STEPS && !last {
@@ -207,6 +218,7 @@ impl Pace {
         }
         let median = median(&mut self.costs[..window]);
         self.len = 0;
+        let untouched = std::mem::take(&mut self.untouched);
         self.judged = median;
         self.behind = (last && median > STAY * period).then_some(median);
         if median > STAY * period && !last {
@@ -214,7 +226,7 @@ impl Pace {
             return self.change(to);
         }
         match self.fitting(median, DOWN) {
-            Some(to) if to < period => self.change(to),
+            Some(to) if to < period && untouched == 0 => self.change(to),
             _ => None,
         }
     }
@@ -248,6 +260,7 @@ impl Pace {
             .position(|&p| p >= period)
             .unwrap_or(self.periods.len() - 1);
         self.len = 0;
+        self.untouched = 0;
         self.over = 0;
         self.over_cheapest = f64::INFINITY;
         self.debt = 0.0;
@@ -321,7 +334,7 @@ mod tests {
     const MS: f64 = 1e-3;
 
     fn feed(p: &mut Pace, cost: f64, steps: usize) -> Vec<f64> {
-        (0..steps).filter_map(|_| p.observe(cost)).collect()
+        (0..steps).filter_map(|_| p.observe(cost, true)).collect()
     }
 
     #[test]
@@ -378,11 +391,11 @@ mod tests {
         // Dear steps paid back by cheaper ones: 0.8 and 1.15 ms in turn lose nothing.
         for i in 0..20 * WINDOW {
             let cost = if i % 2 == 0 { 0.8 * MS } else { 1.15 * MS };
-            assert_eq!(p.observe(cost), None, "step {i}");
+            assert_eq!(p.observe(cost, true), None, "step {i}");
         }
         // The same with 1.3 ms loses 0.05 ms every two steps: 6 ms after 240.
         let changes: Vec<f64> = (0..2 * WINDOW)
-            .filter_map(|i| p.observe(if i % 2 == 0 { 0.8 * MS } else { 1.3 * MS }))
+            .filter_map(|i| p.observe(if i % 2 == 0 { 0.8 * MS } else { 1.3 * MS }, true))
             .collect();
         assert_eq!(changes, [2.0 * MS]);
     }
@@ -397,6 +410,30 @@ mod tests {
         assert!(feed(&mut p, 1.2 * MS, 10 * WINDOW).is_empty());
         // 0.35 ms: back to the configured period.
         assert_eq!(feed(&mut p, 0.35 * MS, 2 * WINDOW), [MS]);
+    }
+
+    /// Started at a longer period by the rehearsed touch, a body stepped out of contact (the
+    /// tool approaching) stays there however cheap those steps; touched, it comes down.
+    #[test]
+    fn only_touched_steps_bring_it_down() {
+        let mut p = Pace::new(MS, 10.0 * MS);
+        p.start_at(1.2 * MS); // 2 ms
+        assert_eq!(p.period(), 2.0 * MS);
+        let untouched: Vec<f64> = (0..10 * WINDOW)
+            .filter_map(|_| p.observe(0.2 * MS, false))
+            .collect();
+        assert!(untouched.is_empty(), "{untouched:?}");
+        // One untouched step in a window of touched ones is enough to hold it.
+        let mixed: Vec<f64> = (0..WINDOW)
+            .filter_map(|i| p.observe(0.2 * MS, i != 5))
+            .collect();
+        assert!(mixed.is_empty(), "{mixed:?}");
+        assert_eq!(feed(&mut p, 0.2 * MS, WINDOW), [MS]);
+        // Dear steps out of contact still move it up.
+        let up: Vec<f64> = (0..SETTLE_STEPS + FAST_STEPS)
+            .filter_map(|_| p.observe(2.5 * MS, false))
+            .collect();
+        assert_eq!(up, [4.0 * MS]);
     }
 
     #[test]
@@ -422,7 +459,7 @@ mod tests {
                 _ if (113..123).contains(&k) => 1.5 * MS,
                 _ => 0.6 * MS,
             };
-            assert_eq!(p.observe(cost), None, "step {i}");
+            assert_eq!(p.observe(cost, true), None, "step {i}");
         }
     }
 
@@ -437,12 +474,12 @@ mod tests {
         costs[20] = 12.0 * MS;
         costs[22] = 12.0 * MS;
         for c in costs.iter().cycle().take(10 * WINDOW) {
-            assert_eq!(p.observe(*c), None);
+            assert_eq!(p.observe(*c, true), None);
         }
         // Three close together lose 12.5 ms: more than two periods, so 10 ms.
         let changes: Vec<f64> = [2.5, 12.0, 12.0, 12.0]
             .iter()
-            .filter_map(|&c| p.observe(c * MS))
+            .filter_map(|&c| p.observe(c * MS, true))
             .collect();
         assert_eq!(changes, [10.0 * MS]);
     }
@@ -473,7 +510,7 @@ mod tests {
         feed(&mut p, 5.0 * MS, 50);
         assert_eq!(p.behind(), None);
         // Not a number is not a cost.
-        assert_eq!(p.observe(f64::NAN), None);
+        assert_eq!(p.observe(f64::NAN, true), None);
     }
 
     #[test]
