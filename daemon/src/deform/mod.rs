@@ -532,19 +532,8 @@ impl DeformLoop {
         header._pad2 = 0;
         header.contacts = [ContactFrame::default(); MAX_TOOLS];
         for (c, contact) in header.contacts.iter_mut().zip(contacts) {
-            let Some((body, proxy, local)) = *contact else {
-                continue;
-            };
-            (c.body, c.proxy) = (body, proxy);
-            if let Some(m) = local {
-                c.force = m.force;
-                c.device = m.device;
-                for (dst, row) in c.stiffness.chunks_exact_mut(3).zip(&m.stiffness) {
-                    dst.copy_from_slice(row);
-                }
-                c.drift = m.drift;
-                c.horizon = m.horizon;
-                c.local = 1;
+            if let Some((body, proxy, local)) = contact {
+                *c = crate::haptic::contact_frame(*body, *proxy, local.as_ref());
             }
         }
         for (i, b) in world.bodies.iter().enumerate() {

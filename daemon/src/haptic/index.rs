@@ -66,6 +66,27 @@ pub fn frame_local(h: &FrameHeader, tool: usize) -> Option<(usize, LocalModel)> 
     ))
 }
 
+/// What a frame carries for one tool's press (the inverse of [`frame_local`]): the contact
+/// patch's body and balanced proxy, and its local model when there is one.
+pub fn contact_frame(body: u32, proxy: [f64; 3], local: Option<&LocalModel>) -> ContactFrame {
+    let mut c = ContactFrame {
+        body,
+        proxy,
+        ..ContactFrame::default()
+    };
+    if let Some(m) = local {
+        c.force = m.force;
+        c.device = m.device;
+        for (dst, row) in c.stiffness.chunks_exact_mut(3).zip(&m.stiffness) {
+            dst.copy_from_slice(row);
+        }
+        c.drift = m.drift;
+        c.horizon = m.horizon;
+        c.local = 1;
+    }
+    c
+}
+
 /// The contact index of one topology: every body's surface, shared by the tools (a body's
 /// positions are copied in once per frame whichever tool reaches it first), and each tool's
 /// god-object over it.

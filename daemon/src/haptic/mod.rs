@@ -52,7 +52,7 @@ mod telemetry;
 
 use frames::FrameFeed;
 pub use frames::{FrameCopy, FramePlacement};
-pub use index::{frame_local, IndexSlot};
+pub use index::{contact_frame, frame_local, IndexSlot};
 use index::{ContactIndex, IndexFeed, LiveSurfaces};
 use telemetry::{telemetry, COMPUTE, FRAME_AGE, FRAME_AGE_CONTACT, JITTER};
 pub use telemetry::{TelemetryRx, TelemetryTx, TelemetryWindow};

@@ -132,17 +132,7 @@ impl DeformSide {
         h.tool_count = 1;
         h.contacts = [ContactFrame::default(); MAX_TOOLS];
         if let Some((body, proxy, m)) = local {
-            let c = &mut h.contacts[0];
-            c.body = body;
-            c.proxy = proxy;
-            c.force = m.force;
-            c.device = m.device;
-            for (dst, row) in c.stiffness.chunks_exact_mut(3).zip(&m.stiffness) {
-                dst.copy_from_slice(row);
-            }
-            c.drift = m.drift;
-            c.horizon = m.horizon;
-            c.local = 1;
+            h.contacts[0] = lop_daemon::haptic::contact_frame(body, proxy, Some(&m));
         }
         for (bf, (lo, hi)) in h.bodies.iter_mut().zip(&self.bounds) {
             bf.aabb_min = *lo;

@@ -80,13 +80,15 @@ impl Fem {
                 CorotationalSolver::LaggedFactorPcg => self.solve_pcg(pressed),
             },
         };
+        let iterative = self.params.mode == FemMode::Corotational
+            && self.solver == CorotationalSolver::LaggedFactorPcg;
         // CG solved the step with the lagged factor as preconditioner: the patch's
         // compliance is that factor's, not the step's operator.
-        let lagged = !colliding
-            && self.params.mode == FemMode::Corotational
-            && self.solver == CorotationalSolver::LaggedFactorPcg;
-        if solved.is_ok() {
+        let lagged = !colliding && iterative;
+        if solved.is_ok() && iterative {
             // The tool-free step (the patch's correction comes next): CG's next first guess.
+            // Only CG starts from it (a step with contact springs, solved directly, still
+            // adds to its history); the other solvers need none.
             let s = &mut *self.s;
             s.free_v.rotate_right(1);
             s.free_v[0]

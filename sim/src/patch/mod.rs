@@ -607,6 +607,21 @@ mod tests {
         }
     }
 
+    /// A random tissue for `m` points: its compliance `B Bᵀ + εI` (m/N, column-major; about
+    /// 0.01 m/N, 100 N/m per point) and free gaps pressing every point by 0.1–0.3 mm.
+    fn random_tissue(m: usize, rnd: &mut impl FnMut() -> f64) -> (Vec<f64>, Vec<f64>) {
+        let b: Vec<f64> = (0..m * m).map(|_| 0.01 * rnd()).collect();
+        let a_t = (0..m * m)
+            .map(|e| {
+                let (i, j) = (e % m, e / m);
+                (0..m).map(|l| b[i * m + l] * b[j * m + l]).sum::<f64>()
+                    + if i == j { 2e-3 } else { 0.0 }
+            })
+            .collect();
+        let q0 = (0..m).map(|_| -2e-4 + 1e-4 * rnd()).collect();
+        (a_t, q0)
+    }
+
     /// The response `∂R/∂c` is what a small move of the device does to the solved resultant
     /// (a finite difference, same touching points), symmetric, and no stiffer than the tool
     /// spring (the tissue in series with it).
@@ -628,17 +643,7 @@ mod tests {
                     }
                 })
                 .collect();
-            // A tissue compliance `B Bᵀ + εI`, m/N: about 0.01 m/N (100 N/m per point).
-            let b: Vec<f64> = (0..m * m).map(|_| 0.01 * rnd()).collect();
-            let a_t: Vec<f64> = (0..m * m)
-                .map(|e| {
-                    let (i, j) = (e % m, e / m);
-                    (0..m).map(|l| b[i * m + l] * b[j * m + l]).sum::<f64>()
-                        + if i == j { 2e-3 } else { 0.0 }
-                })
-                .collect();
-            // Free gaps at device 0: every point pressed by 0.1–0.3 mm.
-            let q0: Vec<f64> = (0..m).map(|_| -2e-4 + 1e-4 * rnd()).collect();
+            let (a_t, q0) = random_tissue(m, &mut rnd);
             let solve = |lcp: &mut Lcp, c: DVec3| -> (DVec3, Option<[[f64; 3]; 3]>) {
                 let tools = [PatchTool {
                     device: c.to_array(),
@@ -715,15 +720,7 @@ mod tests {
                 }
             })
             .collect();
-        let b: Vec<f64> = (0..m * m).map(|_| 0.01 * rnd()).collect();
-        let a_t: Vec<f64> = (0..m * m)
-            .map(|e| {
-                let (i, j) = (e % m, e / m);
-                (0..m).map(|l| b[i * m + l] * b[j * m + l]).sum::<f64>()
-                    + if i == j { 2e-3 } else { 0.0 }
-            })
-            .collect();
-        let q0: Vec<f64> = (0..m).map(|_| -2e-4 + 1e-4 * rnd()).collect();
+        let (a_t, q0) = random_tissue(m, &mut rnd);
         let solve = |lcp: &mut Lcp, c: [DVec3; 2]| {
             let tools = [0, 1].map(|t| PatchTool {
                 device: c[t].to_array(),
