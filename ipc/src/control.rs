@@ -431,14 +431,26 @@ impl ControlClient {
             }
             std::thread::sleep(std::time::Duration::from_millis(1));
         }
-        let pending =
-            self.client
-                .send_copy(*req)
-                .map_err(|e| crate::services::IpcError::Iceoryx {
-                    what: "send request on",
-                    service: self.service_name.clone(),
-                    reason: format!("{e:?}"),
-                })?;
+        // The server can be listed before the client's connection to it is usable: a request
+        // that reached no server is sent again (it reached nobody, so nothing acts on it twice).
+        let pending = loop {
+            let pending =
+                self.client
+                    .send_copy(*req)
+                    .map_err(|e| crate::services::IpcError::Iceoryx {
+                        what: "send request on",
+                        service: self.service_name.clone(),
+                        reason: format!("{e:?}"),
+                    })?;
+            if pending.number_of_server_connections() > 0 {
+                break pending;
+            }
+            drop(pending);
+            if start.elapsed() >= timeout {
+                return Err(no_answer());
+            }
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        };
         loop {
             if let Ok(Some(r)) = pending.receive() {
                 return Ok(*r.payload());
