@@ -373,7 +373,6 @@ pub struct ControlClient {
         ControlResponse,
         (),
     >,
-    service: ControlService,
 }
 
 impl ControlClient {
@@ -406,7 +405,6 @@ impl ControlClient {
         Ok(ControlClient {
             service_name,
             client,
-            service,
         })
     }
 
@@ -416,23 +414,15 @@ impl ControlClient {
         req: &ControlRequest,
         timeout: std::time::Duration,
     ) -> Result<ControlResponse, ControlError> {
-        use iceoryx2::service::port_factory::PortFactory as _;
         let start = std::time::Instant::now();
         let no_answer = || ControlError::NoAnswer {
             service: self.service_name.clone(),
             waited: timeout,
         };
-        // A request sent while the service exists but its server port does not yet (the daemon
-        // between creating the one and the other) reaches no server and is never answered:
-        // send once the server is there.
-        while self.service.dynamic_config().number_of_servers() == 0 {
-            if start.elapsed() >= timeout {
-                return Err(no_answer());
-            }
-            std::thread::sleep(std::time::Duration::from_millis(1));
-        }
-        // The server can be listed before the client's connection to it is usable: a request
-        // that reached no server is sent again (it reached nobody, so nothing acts on it twice).
+        // A request that reached no server is never answered: there is none yet (the daemon
+        // between creating the service and its server port), or one is listed but the
+        // client's connection to it is not usable yet. Such a request is sent again; it reached
+        // nobody, so nothing acts on it twice.
         let pending = loop {
             let pending =
                 self.client
