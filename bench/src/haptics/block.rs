@@ -115,10 +115,15 @@ pub fn block(size: f64, cache: &Path) -> Result<Block> {
     let cached =
         msh_path.exists() && std::fs::read_to_string(&geo_path).is_ok_and(|old| old == text);
     if !cached {
-        // Under this process's own names first, renamed into place after: two runs (or two
-        // tests) generating the same block at once never read a half-written file.
-        let tmp_geo = cache.join(format!("{stem}.{}.geo.tmp", std::process::id()));
-        let tmp_msh = cache.join(format!("{stem}.{}.msh.tmp", std::process::id()));
+        // Under names of this call's own first (the process id and a counter: two tests of
+        // one process share the id), renamed into place after: two runs or two tests
+        // generating the same block at once never read a half-written file, nor rename each
+        // other's.
+        static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let own = format!("{stem}.{}-{call}", std::process::id());
+        let tmp_geo = cache.join(format!("{own}.geo.tmp"));
+        let tmp_msh = cache.join(format!("{own}.msh.tmp"));
         std::fs::write(&tmp_geo, &text)
             .with_context(|| format!("writing {}", tmp_geo.display()))?;
         run_gmsh(&tmp_geo, &tmp_msh)?;
