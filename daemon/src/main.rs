@@ -260,16 +260,18 @@ struct SimulateArgs {
     /// Solve the static equilibrium (K u = f) of the FEM bodies instead of stepping.
     #[arg(long = "static")]
     static_solve: bool,
-    /// Mock script (name or path) that moves the tool on simulated time.
+    /// Mock script (name or path) that moves a tool on simulated time; repeatable, one per
+    /// tool of the scene in order (tools left without one have no device).
     #[arg(long, conflicts_with = "device")]
-    script: Option<String>,
-    /// The tool's trajectory from a device stream instead: `replay:PATH` (a session recording,
-    /// by tick index) or `mock:SCRIPT` (as --script); or `hand[:SCRIPT]`: the simulated hand
-    /// holds the stylus and the haptic loop and the deformation run closed-loop for one pass
-    /// of the script (`hand.csv`: every tick's force, stylus and the energy at the device
-    /// port; `hand_summary.json`).
+    script: Vec<String>,
+    /// A tool's trajectory from a device stream instead; repeatable, one per tool in order,
+    /// as `lopd run` takes them. `mock[:SCRIPT]` (as --script; without a script the tool's
+    /// own from the scene); or, as the only one, `replay:PATH` (a session recording, by tick
+    /// index) or `hand[:SCRIPT]`: the simulated hand holds the stylus and the haptic loop and
+    /// the deformation run closed-loop for one pass of the script (`hand.csv`: every tick's
+    /// force, stylus and the energy at the device port; `hand_summary.json`).
     #[arg(long)]
-    device: Option<String>,
+    device: Vec<String>,
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
@@ -579,14 +581,38 @@ fn cmd_deform(a: CommonArgs) -> Result<()> {
 fn cmd_simulate(a: SimulateArgs) -> Result<()> {
     let path = bad(resolve_scene(&a.scene))?;
     let scene = bad(load_scene(&path))?;
-    let mut script = match &a.script {
-        Some(s) => Some(bad(resolve_script(s))?),
-        None => None,
-    };
+    let mut scripts = (a.script.iter())
+        .map(|s| bad(resolve_script(s)))
+        .collect::<Result<Vec<_>>>()?;
     let mut replay = None;
-    if let Some(d) = &a.device {
-        match bad(d.parse::<DeviceSpec>())? {
-            DeviceSpec::Mock { script: Some(name) } => script = Some(bad(resolve_script(&name))?),
+    if a.script.len().max(a.device.len()) > scene.tools.len() {
+        bad(Err(anyhow::anyhow!(
+            "{} tool trajectories (--script or --device) for the {} tool(s) of scene {:?} \
+             ({}): give at most one per tool",
+            a.script.len().max(a.device.len()),
+            scene.tools.len(),
+            scene.name,
+            path.display()
+        )))?;
+    }
+    for (tool, d) in a.device.iter().enumerate() {
+        let spec = bad(d.parse::<DeviceSpec>())?;
+        match spec {
+            DeviceSpec::Mock { script: name } => {
+                let Some((_, path)) = device_script(name.as_deref(), &scene, tool)? else {
+                    bad(Err(anyhow::anyhow!(
+                        "--device {d}: tool {tool} of the scene has no script of its own; \
+                         name one (mock:SCRIPT)"
+                    )))?
+                };
+                scripts.push(path);
+            }
+            DeviceSpec::Hand { .. } | DeviceSpec::Replay { .. } if a.device.len() > 1 => {
+                bad(Err(anyhow::anyhow!(
+                    "--device {d}: a simulated hand or a replay drives the one tool of an \
+                     offline run; give it as the only --device"
+                )))?
+            }
             DeviceSpec::Hand { script: name } => {
                 let Some((script, path)) = device_script(name.as_deref(), &scene, 0)? else {
                     bad(Err(anyhow::anyhow!(
@@ -603,8 +629,8 @@ fn cmd_simulate(a: SimulateArgs) -> Result<()> {
                 replay = Some(path);
             }
             other => bad(Err(anyhow::anyhow!(
-                "--device {other}: an offline run takes its tool from `replay:PATH`, \
-                 `mock:SCRIPT` or `hand[:SCRIPT]`"
+                "--device {other}: an offline run takes its tools from `mock[:SCRIPT]`, \
+                 `replay:PATH` or `hand[:SCRIPT]`"
             )))?,
         }
     }
@@ -616,7 +642,7 @@ fn cmd_simulate(a: SimulateArgs) -> Result<()> {
         steps: a.steps,
         until_converged: a.until_converged,
         static_solve: a.static_solve,
-        script,
+        scripts,
         replay,
         out: a.out,
     })?;

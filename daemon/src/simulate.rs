@@ -5,11 +5,13 @@
 //! Every body takes steps of its own `dt`; `--steps N` means N steps of every body. The world
 //! advances by the rounds `lopd deform` runs (`World::round`: organ collision, the bodies due,
 //! heat), each round to the earliest next step time of the bodies still running, so every
-//! body due then takes one step. A mock script (`--script`, or a recording with `--device
-//! replay:PATH`) moves the device on simulated time and a god-object decides the contact, as
-//! the haptic loop does live (`lop_scene::OfflineSession`), with the tool law the device
-//! would render (`lop_scene::ToolLaws`, clamped to the mock's or the recording's stiffness
-//! limit); so a run is deterministic and can be compared bit for bit. `--static` solves the static equilibrium of the
+//! body due then takes one step. Mock scripts (`--script` or `--device mock[:SCRIPT]`, one per
+//! tool of the scene in order; or a recording with `--device replay:PATH` for the first tool)
+//! move the devices on simulated time and each tool's god-object decides its contact, as the
+//! haptic loop does live (`lop_scene::OfflineSession`), with the tool's law as its device
+//! would render it (`lop_scene::ToolLaws`, clamped to the mock's or the recording's stiffness
+//! limit) and its kind deciding what its buttons do; so a run is deterministic and can be
+//! compared bit for bit. `--static` solves the static equilibrium of the
 //! FEM bodies (K u = f) instead, for validation and calibration.
 
 use std::io::Write;
@@ -36,9 +38,11 @@ pub struct SimulateOptions {
     pub until_converged: bool,
     /// Solve the static equilibrium of FEM bodies instead of stepping.
     pub static_solve: bool,
-    /// Tool trajectory.
-    pub script: Option<PathBuf>,
-    /// Tool trajectory from a session recording (`--device replay:PATH`), by tick index.
+    /// Mock scripts, one per tool in the scene's order from the first (tools past the last
+    /// have no device); at most as many as the scene has tools.
+    pub scripts: Vec<PathBuf>,
+    /// The first tool's trajectory from a session recording (`--device replay:PATH`), by tick
+    /// index, instead of its script.
     pub replay: Option<PathBuf>,
     /// Output directory.
     pub out: PathBuf,
@@ -80,7 +84,8 @@ struct Summary {
     steps_per_body: u64,
     until_converged: bool,
     static_solve: bool,
-    script: Option<String>,
+    /// The trajectory of each tool with one (scripts, or the recording), in tool order.
+    scripts: Vec<String>,
     wall_s: f64,
     bodies: Vec<BodySummary>,
 }
@@ -105,18 +110,35 @@ pub struct Outcome {
 pub fn run(opts: SimulateOptions) -> Result<Outcome> {
     std::fs::create_dir_all(&opts.out)
         .with_context(|| format!("creating {}", opts.out.display()))?;
-    let script = ToolSource::load(opts.script.as_deref(), opts.replay.as_deref())?;
-    let workspace = opts.scene.tool().workspace.transform();
-    // What the first tool's buttons do (its kind).
-    let kind = opts.scene.tool().kind;
-    let laws = ToolLaws::new(
-        &opts.scene,
-        DeviceClamp {
-            max_stiffness_n_per_mm: script
-                .as_ref()
-                .map_or(f64::INFINITY, |s| s.limits().max_stiffness_n_per_mm),
-        },
-    );
+    if opts.scripts.len() > opts.scene.tools.len() {
+        bail!(
+            "{} scripts for the {} tool(s) of scene {:?}: give at most one per tool",
+            opts.scripts.len(),
+            opts.scene.tools.len(),
+            opts.scene.name
+        );
+    }
+    // Each tool's trajectory: the recording drives the first tool, else the scripts in order.
+    let sources: Vec<ToolSource> = match &opts.replay {
+        Some(r) => ToolSource::load(None, Some(r))?.into_iter().collect(),
+        None => (opts.scripts.iter())
+            .map(|p| Ok(ToolSource::load(Some(p), None)?.expect("a script was given")))
+            .collect::<Result<_>>()?,
+    };
+    // Per tool: where its device maps, what its buttons do (its kind) and its laws on the
+    // device its trajectory stands for; a session has at least the first tool.
+    let tools: Vec<_> = (0..sources.len().max(1))
+        .map(|k| {
+            let spec = &opts.scene.tools[k];
+            let clamp = DeviceClamp {
+                max_stiffness_n_per_mm: sources
+                    .get(k)
+                    .map_or(f64::INFINITY, |s| s.limits().max_stiffness_n_per_mm),
+            };
+            let laws = ToolLaws::of_tool(&opts.scene, k, clamp);
+            (spec.workspace.transform(), spec.kind, laws)
+        })
+        .collect();
     let loaded = lop_scene::load(opts.scene)?;
     let scene_name = loaded.scene.name.clone();
     let scene_path = loaded.scene.path.display().to_string();
@@ -159,7 +181,9 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
     } else {
         // Round by round, as the deformation process runs them: each round advances every body
         // due at the earliest next step time, after the god-object has moved (with a script).
-        let mut session = OfflineSession::new(world, laws);
+        let laws = tools.iter().map(|(_, _, l)| l.clone()).collect();
+        let mut session = OfflineSession::with_tools(world, laws);
+        let mut inputs: Vec<Option<RoundInput>> = vec![None; tools.len()];
         let mut active: Vec<bool> = vec![opts.steps > 0; n_bodies];
         let mut skip: Vec<bool> = vec![false; n_bodies];
         loop {
@@ -175,20 +199,20 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
                 .filter(|&i| active[i])
                 .map(|i| bodies[i].time)
                 .fold(f64::INFINITY, f64::min);
-            let tool = script.as_ref().map(|s| {
-                let sample = s.sample(now);
+            for (k, (source, (workspace, kind, _))) in sources.iter().zip(&tools).enumerate() {
+                let sample = source.sample(now);
                 let at = workspace.device_to_scene(sample.position_mm);
-                session.probe(at, kind.holds() && sample.pressed(BUTTON_GRAB));
-                RoundInput {
+                session.probe_tool(k, at, kind.holds() && sample.pressed(BUTTON_GRAB));
+                inputs[k] = Some(RoundInput {
                     center: at,
                     heat: kind.cauterizes() && sample.pressed(BUTTON_HEAT),
                     stiffness: None,
-                }
-            });
+                });
+            }
             for (s, a) in skip.iter_mut().zip(&active) {
                 *s = !a;
             }
-            session.advance(next, tool, &skip, || wall.elapsed().as_nanos() as u64);
+            session.advance_tools(next, &inputs, &skip, || wall.elapsed().as_nanos() as u64);
             let world = session.world();
             let report = world.last_round();
             for (i, r) in report.bodies.iter().enumerate() {
@@ -319,9 +343,10 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
         steps_per_body: opts.steps,
         until_converged: opts.until_converged,
         static_solve: opts.static_solve,
-        script: (opts.script.as_ref())
-            .or(opts.replay.as_ref())
-            .map(|p| p.display().to_string()),
+        scripts: (opts.replay.iter())
+            .chain(&opts.scripts)
+            .map(|p| p.display().to_string())
+            .collect(),
         wall_s: wall.elapsed().as_secs_f64(),
         bodies,
     };

@@ -164,3 +164,86 @@ fn the_simulated_hand_closes_the_loop_offline() {
     );
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// A scene of two tools runs offline with both hands: `--device mock` once per tool plays
+/// each tool's own script from the scene, the same run as naming the scripts with `--script`;
+/// a third trajectory for two tools is bad input.
+#[test]
+fn every_tool_of_a_two_handed_scene_plays_its_script_offline() {
+    let base = std::env::temp_dir().join(format!("lopd-simulate-two-{}", std::process::id()));
+    let run = |out: &Path, extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_lopd"))
+            .args([
+                "simulate",
+                "--scene",
+                "abdomen-two-hands",
+                "--steps",
+                "1800",
+            ])
+            .arg("--out")
+            .arg(out)
+            .args(extra)
+            .env("RUST_BACKTRACE", "0")
+            .env("LOP_LOG", "warn")
+            .output()
+            .expect("run lopd simulate")
+    };
+    let (a, b) = (base.join("a"), base.join("b"));
+    let o = run(&a, &["--device", "mock", "--device", "mock"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = run(
+        &b,
+        &[
+            "--script",
+            "abdomen-two-hands-grasper",
+            "--script",
+            "abdomen-two-hands-hook",
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        std::fs::read(a.join("final_positions.csv")).unwrap(),
+        std::fs::read(b.join("final_positions.csv")).unwrap(),
+        "the scene's scripts and the same scripts named differ"
+    );
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(a.join("summary.json")).unwrap()).unwrap();
+    let scripts = s["scripts"].as_array().unwrap();
+    assert_eq!(scripts.len(), 2, "{s}");
+    assert!(scripts[0]
+        .as_str()
+        .unwrap()
+        .ends_with("abdomen-two-hands-grasper.toml"));
+    assert!(scripts[1]
+        .as_str()
+        .unwrap()
+        .ends_with("abdomen-two-hands-hook.toml"));
+    // By 1.8 s the grasper has closed its jaws on the liver's edge (1.5 s) and started to
+    // retract it: the liver runs FEM and carries the grasper's pull.
+    let steps = std::fs::read_to_string(a.join("steps.csv")).unwrap();
+    let last = steps
+        .lines()
+        .rfind(|l| l.starts_with("liver,"))
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect::<Vec<_>>();
+    assert_eq!(last[3], "Fem", "{last:?}");
+    let force: f64 = last[7].parse().unwrap();
+    assert!(
+        force > 0.05,
+        "the liver's contact force at 1.8 s: {force} N"
+    );
+
+    let o = run(
+        &base.join("c"),
+        &["--device", "mock", "--device", "mock", "--device", "mock"],
+    );
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("3 tool trajectories") && err.contains("2 tool(s)"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&base);
+}

@@ -29,7 +29,7 @@ fn both_paths_agree(scene: &str, script_name: &str, steps: u64) {
         steps,
         until_converged: false,
         static_solve: false,
-        script: Some(script_path.clone()),
+        scripts: vec![script_path.clone()],
         replay: None,
         out: out.clone(),
     })
