@@ -62,11 +62,14 @@
 //!
 //! a splitting of the problem with `A = Cᵀ K̃⁻¹ C + …` preconditioned by `A_lag`, which
 //! contracts by the factor's mismatch (on the tests' cube a round gains about three digits
-//! at rest, a factor of five early in a large pull). The rounds stop when no force moves by more than 1e-6 of
-//! the largest: the gaps close at the increment applied, and the body's balance misses by the
-//! mismatch times that last change plus the rounds' CG tolerance (1e-8 of the forces). Two
-//! rounds a step at rest, each a CG run of one or two iterations from its start. A body with
-//! presses alone keeps its single lagged solve.
+//! at rest, a factor of five early in a large pull). The rounds stop when no force moves by
+//! more than 1e-6 of the largest: the gaps close at the increment applied, and the body's
+//! balance misses by the mismatch times that last change plus the rounds' CG tolerance (1e-6
+//! of the forces). Two or three rounds a step, each a CG run of a few iterations from its
+//! start, the last often none. The mismatch grows with the period (the stiffness's share of
+//! the system) and with a factor left stale: a body whose pace lengthens its period leaves
+//! the real-time refactor policy for the amortized one (`lop_scene::refactor_policy`). A body
+//! with presses alone keeps its single lagged solve.
 //!
 //! # Verlet's rest under a hold
 //! The explicit patch acts after each kick-drift-kick sub-step as an impulse: positions move

@@ -37,7 +37,7 @@ use lop_sim::world::{Coupling, World};
 
 mod pace;
 
-use pace::{pace_bodies, warn_behind};
+use pace::{pace_bodies, set_period, warn_behind};
 
 use crate::rt;
 use crate::signals;
@@ -280,6 +280,7 @@ impl DeformLoop {
 
         let paces = pace_bodies(
             &mut world,
+            &scene,
             &laws[0],
             opts.config.deform.max_period_ms,
             opts.config.deform.threads,
@@ -492,7 +493,7 @@ impl DeformLoop {
                     before * 1e3,
                     period * 1e3
                 );
-                if let Err(e) = self.world.set_fem_dt(i, period) {
+                if let Err(e) = set_period(&mut self.world, &self.scene, i, period) {
                     tracing::warn!("{}: period not changed: {e}", self.world.bodies[i].name);
                 }
             }

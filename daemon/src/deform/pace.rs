@@ -1,8 +1,9 @@
 //! The deformation process's pace at load: each FEM body's starting period, from a touch
 //! rehearsed on it, and the warning for a body that cannot keep real time at any period.
 
+use lop_config::Scene;
 use lop_scene::ToolLaws;
-use lop_sim::fem::RefactorPolicy;
+use lop_sim::fem::{FemError, RefactorPolicy};
 use lop_sim::world::pace::{Pace, FIT, STAY};
 use lop_sim::world::World;
 
@@ -43,6 +44,7 @@ const REHEARSAL_TIMED: usize = 30;
 /// core for milliseconds.
 pub(super) fn pace_bodies(
     world: &mut World,
+    scene: &Scene,
     laws: &ToolLaws,
     max_period_ms: u32,
     threads: usize,
@@ -96,15 +98,34 @@ pub(super) fn pace_bodies(
                 ),
             }
             if period != base {
-                if let Some(fem) = world.fem_mut(i) {
-                    if let Err(e) = fem.set_dt(period) {
-                        tracing::warn!("{name}: period not changed: {e}");
-                    }
+                if let Err(e) = set_period(world, scene, i, period) {
+                    tracing::warn!("{name}: period not changed: {e}");
                 }
             }
             Some(pace)
         })
         .collect()
+}
+
+/// Body `i`'s FEM model to period `period` (s), with the refactor policy of that period
+/// ([`lop_scene::refactor_policy`]: real-time at the haptic rate, amortized beyond), unless it
+/// has the factor thread ([`RefactorPolicy::Background`], kept at every period).
+///
+/// # Errors
+/// A period that is not finite and positive.
+pub(super) fn set_period(
+    world: &mut World,
+    scene: &Scene,
+    i: usize,
+    period: f64,
+) -> Result<(), FemError> {
+    let Some(fem) = world.fem_mut(i) else {
+        return Ok(());
+    };
+    if !matches!(fem.refactor_policy(), RefactorPolicy::Background { .. }) {
+        fem.set_refactor_policy(lop_scene::refactor_policy(scene, period));
+    }
+    fem.set_dt(period)
 }
 
 /// Warns that body `name`, whose touched step costs `cost` (s), falls behind the wall clock even

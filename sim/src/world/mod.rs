@@ -223,22 +223,6 @@ impl World {
         self.pool = pool;
     }
 
-    /// Changes the step period of body `i`'s FEM model — running now, or parked behind its
-    /// levels-of-precision controller — to `dt` (s), through [`crate::fem::Fem::set_dt`]:
-    /// under the background refactor policy the new period starts, with its factor made off
-    /// the critical path, a fixed number of steps later. Returns false if the body has no FEM
-    /// model.
-    ///
-    /// # Errors
-    /// [`crate::fem::FemError::InvalidParameter`] for a period that is not finite and positive.
-    pub fn set_fem_dt(&mut self, i: usize, dt: f64) -> Result<bool, crate::fem::FemError> {
-        let Some(fem) = self.fem_mut(i) else {
-            return Ok(false);
-        };
-        fem.set_dt(dt)?;
-        Ok(true)
-    }
-
     /// Body `i`'s FEM model, running now or parked behind its levels-of-precision controller,
     /// for changes between rounds (its refactor policy, its period); `None` if it has none.
     pub fn fem_mut(&mut self, i: usize) -> Option<&mut crate::fem::Fem> {
