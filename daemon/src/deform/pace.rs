@@ -36,8 +36,9 @@ const REHEARSAL_TIMED: usize = 30;
 ///
 /// With two or more deformation threads (`threads`, a machine of three cores or more) the body
 /// also gets the factor thread that makes a new period's factor off the critical path
-/// ([`RefactorPolicy::Background`]). With one, it keeps the scene's policy and a period change
-/// factorises within one step: measured on the 2-core machine, the factor thread sharing the
+/// ([`RefactorPolicy::Background`]). With one, a period change factorises within one step and
+/// the body takes the policy of its period ([`set_period`]: real-time at the haptic rate,
+/// amortized beyond): measured on the 2-core machine, the factor thread sharing the
 /// deformation core with the steps made the shipped liver's touched step dearer (median 0.76
 /// → 1.1–1.2 ms) and its poke's peak force 1.25–1.69 N instead of 0.71 N, every run, without
 /// any change of period — it refactorises whenever CG stalls, and each factor takes the step's
