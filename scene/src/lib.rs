@@ -281,19 +281,11 @@ pub fn haptic_rate(scene: &Scene, dt: f64) -> bool {
     dt * scene.rates.haptic_hz <= 1.0 + 1e-9
 }
 
-/// The refactor policy of a corotational FEM body of `scene` stepping at period `dt` (s): at
-/// the haptic rate [`RefactorPolicy::RealTime`] (no refactorisation spikes on the hand's
+/// The refactor policy of a corotational FEM body of `scene` configured at period `dt` (s):
+/// at the haptic rate [`RefactorPolicy::RealTime`] (no refactorisation spikes on the hand's
 /// path; the mass dominates the system, so the lagged factor keeps CG at a few iterations),
-/// at a longer period [`RefactorPolicy::Amortized`]. The deformation process applies it again
-/// whenever a body's pace changes its period: the real-time policy kept at a longer period
-/// lets the factor go stale as the stiffness's share of the system grows. Measured on the
-/// shipped two-handed scene's liver, grabbed and retracted (`lopd simulate --device mock
-/// --device mock`, the liver's period set in the scene; medians by phase of the script): at
-/// 5 ms a step took 2.2–3.5 ms (14–21 CG iterations, no factorisation) under the real-time
-/// policy against 1.1–1.5 ms (4.2–4.6 iterations, a factorisation every 11–17 steps) under the
-/// amortized one; at 2 ms 1.7–2.1 ms against 1.0–1.1 ms. Live, the liver's pace moved it
-/// 1 → 2 → 4 → 5 → 10 ms within a second of the grab; with the policy following the period it
-/// stays at 2 or 4 ms.
+/// at a longer period [`RefactorPolicy::Amortized`] (least work). The deformation process
+/// chooses again when a body's pace changes its period (`lopd deform`'s pace).
 pub fn refactor_policy(scene: &Scene, dt: f64) -> RefactorPolicy {
     if haptic_rate(scene, dt) {
         RefactorPolicy::RealTime

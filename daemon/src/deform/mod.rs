@@ -32,12 +32,12 @@ use lop_ipc::*;
 use lop_scene::{DeviceClamp, LoadedScene, ToolLaws, Topology};
 use lop_sim::haptic::LocalModel;
 use lop_sim::model::{Model, ModelKind, ToolAnchor};
-use lop_sim::world::pace::{Pace, RealTimeMeter};
+use lop_sim::world::pace::RealTimeMeter;
 use lop_sim::world::{Coupling, World};
 
 mod pace;
 
-use pace::{pace_bodies, set_period, warn_behind};
+use pace::{pace_bodies, set_period, warn_behind, Paced};
 
 use crate::rt;
 use crate::signals;
@@ -186,7 +186,7 @@ pub struct DeformLoop {
     step_ns: Vec<u32>,
     lagged: u64,
     /// Per body with an FEM model: the period its cost allows (`lop_sim::world::pace`).
-    paces: Vec<Option<Pace>>,
+    paces: Vec<Option<Paced>>,
     /// Per body: simulated over wall time.
     meters: Vec<RealTimeMeter>,
     /// Per body: whether it ran FEM in the last round.
@@ -467,9 +467,11 @@ impl DeformLoop {
             let running_fem = matches!(self.world.bodies[i].model, Model::Fem(_));
             let took_over = running_fem && !self.ran_fem[i];
             self.ran_fem[i] = running_fem;
-            let Some(pace) = self.paces[i].as_mut() else {
+            let Some(paced) = self.paces[i].as_mut() else {
                 continue;
             };
+            let factor_cost = paced.factor_cost;
+            let pace = &mut paced.pace;
             if took_over {
                 pace.restart(); // its first steps start cold
             }
@@ -493,7 +495,7 @@ impl DeformLoop {
                     before * 1e3,
                     period * 1e3
                 );
-                if let Err(e) = set_period(&mut self.world, &self.scene, i, period) {
+                if let Err(e) = set_period(&mut self.world, &self.scene, i, period, factor_cost) {
                     tracing::warn!("{}: period not changed: {e}", self.world.bodies[i].name);
                 }
             }

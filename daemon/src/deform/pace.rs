@@ -13,6 +13,17 @@ use crate::rt;
 /// body's factor thread meanwhile): long enough for the liver's factor at 1 ms steps, short
 /// enough that a body falling behind is helped within a few dozen milliseconds.
 pub(super) const PERIOD_CHANGE_DELAY_STEPS: u32 = 16;
+/// A body refreshes its lagged factor by amortized cost ([`RefactorPolicy::Amortized`]) at a
+/// period longer than the haptic one only when a factorisation costs at most this many
+/// periods ([`set_period`]): the step that factorises then costs at most about two periods.
+/// With 2 (a step of three periods, which the round's catch-up of three periods would absorb
+/// on paper) `lop-bench organs --sizes 5000,10000 --surfaces liver,kidney --threads 1` still
+/// gave step p99 13.8 ms (kidney-5000 at 5 ms), 25.4 ms (liver-10000 at 10 ms) and 38.8 ms
+/// with a real-time factor of 0.53 (kidney-10000 at 10 ms): the factor timed at rest at load
+/// is cheaper than live, and the spikes come every few dozen steps.
+pub(super) const FACTOR_SPIKE_PERIODS: f64 = 1.0;
+/// Factorisations timed at load; their median is the body's factor cost.
+const FACTOR_TIMINGS: usize = 3;
 /// Steps timed at load to estimate a body's step cost from rest (after two untimed ones).
 const ESTIMATE_STEPS: usize = 8;
 /// The touch rehearsed at load ([`World::rehearse_touch`]): how far past the surface the device
@@ -49,7 +60,7 @@ pub(super) fn pace_bodies(
     laws: &ToolLaws,
     max_period_ms: u32,
     threads: usize,
-) -> Vec<Option<Pace>> {
+) -> Vec<Option<Paced>> {
     let longest = f64::from(max_period_ms) * 1e-3;
     let gravity = world.gravity;
     (0..world.bodies.len())
@@ -59,8 +70,12 @@ pub(super) fn pace_bodies(
             let base = fem.dt();
             let mut pace = Pace::new(base, longest);
             if pace.periods().len() == 1 {
-                return Some(pace);
+                return Some(Paced {
+                    pace,
+                    factor_cost: 0.0,
+                });
             }
+            let factor_cost = time_factor(fem);
             if threads >= 2 {
                 fem.set_refactor_policy(RefactorPolicy::Background {
                     delay_steps: PERIOD_CHANGE_DELAY_STEPS,
@@ -86,9 +101,10 @@ pub(super) fn pace_bodies(
             match touched {
                 Some(t) => tracing::info!(
                     "{name}: a touched step costs about {:.2} ms here (a rehearsed poke; \
-                     {:.2} ms from rest); it starts at {} ms",
+                     {:.2} ms from rest), a factorisation {:.1} ms; it starts at {} ms",
                     t * 1e3,
                     rest * 1e3,
+                    factor_cost * 1e3,
                     period * 1e3
                 ),
                 None => tracing::info!(
@@ -99,18 +115,40 @@ pub(super) fn pace_bodies(
                 ),
             }
             if period != base {
-                if let Err(e) = set_period(world, scene, i, period) {
+                if let Err(e) = set_period(world, scene, i, period, factor_cost) {
                     tracing::warn!("{name}: period not changed: {e}");
                 }
             }
-            Some(pace)
+            Some(Paced { pace, factor_cost })
         })
         .collect()
 }
 
-/// Body `i`'s FEM model to period `period` (s), with the refactor policy of that period
-/// ([`lop_scene::refactor_policy`]: real-time at the haptic rate, amortized beyond), unless it
-/// has the factor thread ([`RefactorPolicy::Background`], kept at every period).
+/// A body's pace and what a factorisation of its system costs here (s, timed at load).
+pub(super) struct Paced {
+    pub(super) pace: Pace,
+    pub(super) factor_cost: f64,
+}
+
+/// Body `i`'s FEM model to period `period` (s), with the refactor policy for it given what a
+/// factorisation of its system costs here (`factor_cost`, s), unless it has the factor thread
+/// ([`RefactorPolicy::Background`], kept at every period): real-time at the haptic rate, and
+/// beyond it amortized when a factorisation costs at most [`FACTOR_SPIKE_PERIODS`] periods,
+/// else real-time ([`lop_scene::refactor_policy`] with the factor's cost).
+///
+/// The real-time policy (a new factor only when CG fails to converge) kept at a longer
+/// period lets the factor go stale as the stiffness's share of the system grows. Measured
+/// on the shipped two-handed scene's liver, grabbed and retracted (`lopd simulate --device
+/// mock --device mock`, the liver's period set in the scene; medians by phase of the
+/// script): at 5 ms a step took 2.2–3.5 ms (14–21 CG iterations, no factorisation) under
+/// the real-time policy against 1.1–1.5 ms (4.2–4.6 iterations, a factorisation every
+/// 11–17 steps) under the amortized one; at 2 ms 1.7–2.1 ms against 1.0–1.1 ms. Live, its
+/// pace moved it 1 → 2 → 4 → 5 → 10 ms within a second of the grab. But a factorisation
+/// within a step is a spike of its cost: the recipe's 5k organs factorise in 6–12 ms and
+/// its 10k organs in 14–61 ms (release, this 2-core machine), and with the amortized policy
+/// at every longer period `lop-bench organs --sizes 5000,10000 --surfaces liver,kidney
+/// --threads 1` gave step p99 11.5 ms against 3.4 (kidney-5000), 17.5 against 5.6
+/// (liver-10000) and 36.8 against 9.2 (kidney-10000), real-time factors 0.83–0.93.
 ///
 /// # Errors
 /// A period that is not finite and positive.
@@ -119,14 +157,32 @@ pub(super) fn set_period(
     scene: &Scene,
     i: usize,
     period: f64,
+    factor_cost: f64,
 ) -> Result<(), FemError> {
     let Some(fem) = world.fem_mut(i) else {
         return Ok(());
     };
     if !matches!(fem.refactor_policy(), RefactorPolicy::Background { .. }) {
-        fem.set_refactor_policy(lop_scene::refactor_policy(scene, period));
+        let spike = factor_cost > FACTOR_SPIKE_PERIODS * period;
+        fem.set_refactor_policy(if spike {
+            RefactorPolicy::RealTime
+        } else {
+            lop_scene::refactor_policy(scene, period)
+        });
     }
     fem.set_dt(period)
+}
+
+/// The median wall time of [`FACTOR_TIMINGS`] factorisations of `fem`'s system at rest, s.
+fn time_factor(fem: &mut lop_sim::fem::Fem) -> f64 {
+    let mut t = [0.0; FACTOR_TIMINGS];
+    for s in &mut t {
+        let start = rt::now_ns();
+        fem.refactorize_at_rest();
+        *s = rt::now_ns().saturating_sub(start) as f64 * 1e-9;
+    }
+    t.sort_by(f64::total_cmp);
+    t[FACTOR_TIMINGS / 2]
 }
 
 /// Warns that body `name`, whose touched step costs `cost` (s), falls behind the wall clock even
