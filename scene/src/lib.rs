@@ -260,7 +260,7 @@ pub fn precise_model(scene: &Scene, spec: &BodySpec, mesh: &TetMesh) -> Result<M
     if let (true, Some(params)) = (wants_fem, spec.fem) {
         let mut fem = Fem::new(mesh, params)
             .with_context(|| format!("{}: body {:?}: FEM", scene.path.display(), spec.name))?;
-        fem.set_refactor_policy(refactor_policy(scene, fem.dt()));
+        fem.set_refactor_policy(refactor_policy(scene, fem.dt(), None));
         return Ok(Model::Fem(fem));
     }
     let params = spec.msd.with_context(|| {
@@ -281,13 +281,27 @@ pub fn haptic_rate(scene: &Scene, dt: f64) -> bool {
     dt * scene.rates.haptic_hz <= 1.0 + 1e-9
 }
 
-/// The refactor policy of a corotational FEM body of `scene` configured at period `dt` (s):
-/// at the haptic rate [`RefactorPolicy::RealTime`] (no refactorisation spikes on the hand's
-/// path; the mass dominates the system, so the lagged factor keeps CG at a few iterations),
-/// at a longer period [`RefactorPolicy::Amortized`] (least work). The deformation process
-/// chooses again when a body's pace changes its period (`lopd deform`'s pace).
-pub fn refactor_policy(scene: &Scene, dt: f64) -> RefactorPolicy {
-    if haptic_rate(scene, dt) {
+/// A body refreshes its lagged factor by amortized cost at a period longer than the haptic
+/// one only when a factorisation costs at most this many periods ([`refactor_policy`]): the
+/// step that factorises then costs at most about two periods. With 2 (a step of three
+/// periods, which the deformation round's catch-up of three periods would absorb on paper)
+/// `lop-bench organs --sizes 5000,10000 --surfaces liver,kidney --threads 1` still gave step
+/// p99 13.8 ms (kidney-5000 at 5 ms), 25.4 ms (liver-10000 at 10 ms) and 38.8 ms with a
+/// real-time factor of 0.53 (kidney-10000 at 10 ms): the factor timed at rest at load is
+/// cheaper than live, and the spikes come every few dozen steps.
+pub const FACTOR_SPIKE_PERIODS: f64 = 1.0;
+
+/// The refactor policy of a corotational FEM body of `scene` stepping at period `dt` (s),
+/// whose factorisation costs `factor_cost` (s) on this machine when known:
+/// [`RefactorPolicy::RealTime`] at the haptic rate (no refactorisation spikes on the hand's
+/// path; the mass dominates the system, so the lagged factor keeps CG at a few iterations)
+/// and where a factorisation costs more than [`FACTOR_SPIKE_PERIODS`] periods (a spike the
+/// body would not catch up); else [`RefactorPolicy::Amortized`] (least work). The scene's
+/// loader chooses by the configured period alone; the deformation process chooses again, with
+/// the factor timed at load, whenever a body's pace changes its period (`lopd deform`'s pace).
+pub fn refactor_policy(scene: &Scene, dt: f64, factor_cost: Option<f64>) -> RefactorPolicy {
+    let spike = factor_cost.is_some_and(|f| f > FACTOR_SPIKE_PERIODS * dt);
+    if haptic_rate(scene, dt) || spike {
         RefactorPolicy::RealTime
     } else {
         RefactorPolicy::Amortized

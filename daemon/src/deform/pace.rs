@@ -13,15 +13,6 @@ use crate::rt;
 /// body's factor thread meanwhile): long enough for the liver's factor at 1 ms steps, short
 /// enough that a body falling behind is helped within a few dozen milliseconds.
 pub(super) const PERIOD_CHANGE_DELAY_STEPS: u32 = 16;
-/// A body refreshes its lagged factor by amortized cost ([`RefactorPolicy::Amortized`]) at a
-/// period longer than the haptic one only when a factorisation costs at most this many
-/// periods ([`set_period`]): the step that factorises then costs at most about two periods.
-/// With 2 (a step of three periods, which the round's catch-up of three periods would absorb
-/// on paper) `lop-bench organs --sizes 5000,10000 --surfaces liver,kidney --threads 1` still
-/// gave step p99 13.8 ms (kidney-5000 at 5 ms), 25.4 ms (liver-10000 at 10 ms) and 38.8 ms
-/// with a real-time factor of 0.53 (kidney-10000 at 10 ms): the factor timed at rest at load
-/// is cheaper than live, and the spikes come every few dozen steps.
-pub(super) const FACTOR_SPIKE_PERIODS: f64 = 1.0;
 /// Factorisations timed at load; their median is the body's factor cost.
 const FACTOR_TIMINGS: usize = 3;
 /// Steps timed at load to estimate a body's step cost from rest (after two untimed ones).
@@ -72,15 +63,19 @@ pub(super) fn pace_bodies(
             if pace.periods().len() == 1 {
                 return Some(Paced {
                     pace,
-                    factor_cost: 0.0,
+                    factor_cost: None,
                 });
             }
-            let factor_cost = time_factor(fem);
-            if threads >= 2 {
+            // A body with the factor thread keeps its policy at every period: no need to know
+            // what a factorisation costs.
+            let factor_cost = if threads >= 2 {
                 fem.set_refactor_policy(RefactorPolicy::Background {
                     delay_steps: PERIOD_CHANGE_DELAY_STEPS,
                 });
-            }
+                None
+            } else {
+                Some(time_factor(fem))
+            };
             let rest = estimate_step(fem, gravity);
             let law = laws.bodies.get(i).copied().unwrap_or(laws.tool);
             let touched = world
@@ -101,10 +96,13 @@ pub(super) fn pace_bodies(
             match touched {
                 Some(t) => tracing::info!(
                     "{name}: a touched step costs about {:.2} ms here (a rehearsed poke; \
-                     {:.2} ms from rest), a factorisation {:.1} ms; it starts at {} ms",
+                     {:.2} ms from rest{}); it starts at {} ms",
                     t * 1e3,
                     rest * 1e3,
-                    factor_cost * 1e3,
+                    factor_cost.map_or(String::new(), |f| format!(
+                        ", a factorisation {:.1} ms",
+                        f * 1e3
+                    )),
                     period * 1e3
                 ),
                 None => tracing::info!(
@@ -124,17 +122,18 @@ pub(super) fn pace_bodies(
         .collect()
 }
 
-/// A body's pace and what a factorisation of its system costs here (s, timed at load).
+/// A body's pace and what a factorisation of its system costs here (s, timed at load; `None`
+/// for a body with the factor thread or a pace that never changes its period).
 pub(super) struct Paced {
     pub(super) pace: Pace,
-    pub(super) factor_cost: f64,
+    pub(super) factor_cost: Option<f64>,
 }
 
-/// Body `i`'s FEM model to period `period` (s), with the refactor policy for it given what a
-/// factorisation of its system costs here (`factor_cost`, s), unless it has the factor thread
-/// ([`RefactorPolicy::Background`], kept at every period): real-time at the haptic rate, and
-/// beyond it amortized when a factorisation costs at most [`FACTOR_SPIKE_PERIODS`] periods,
-/// else real-time ([`lop_scene::refactor_policy`] with the factor's cost).
+/// Body `i`'s FEM model to period `period` (s), with the refactor policy of that period given
+/// what a factorisation of its system costs here (`factor_cost`, s;
+/// [`lop_scene::refactor_policy`]: real-time at the haptic rate, and beyond it amortized when
+/// a factorisation costs at most one period, else real-time), unless it has the factor thread
+/// ([`RefactorPolicy::Background`], kept at every period).
 ///
 /// The real-time policy (a new factor only when CG fails to converge) kept at a longer
 /// period lets the factor go stale as the stiffness's share of the system grows. Measured
@@ -157,18 +156,13 @@ pub(super) fn set_period(
     scene: &Scene,
     i: usize,
     period: f64,
-    factor_cost: f64,
+    factor_cost: Option<f64>,
 ) -> Result<(), FemError> {
     let Some(fem) = world.fem_mut(i) else {
         return Ok(());
     };
     if !matches!(fem.refactor_policy(), RefactorPolicy::Background { .. }) {
-        let spike = factor_cost > FACTOR_SPIKE_PERIODS * period;
-        fem.set_refactor_policy(if spike {
-            RefactorPolicy::RealTime
-        } else {
-            lop_scene::refactor_policy(scene, period)
-        });
+        fem.set_refactor_policy(lop_scene::refactor_policy(scene, period, factor_cost));
     }
     fem.set_dt(period)
 }
