@@ -149,16 +149,13 @@ mod tests {
 
         // A process whose arguments name the prefix.
         let prefix = format!("lopbench-leftover-test-{}", std::process::id());
+        // The shell waits on a builtin (`read` from a pipe), so it never forks: a forked child
+        // carries the shell's arguments until it execs, and a loaded machine catches it there.
         let mut child = std::process::Command::new("sh")
-            .args(["-c", "sleep 30", "--prefix", &prefix])
+            .args(["-c", "read _", "--prefix", &prefix])
+            .stdin(std::process::Stdio::piped())
             .spawn()
             .unwrap();
-        // Until exactly the shell is seen: for a moment after it forks `sleep`, the child still
-        // carries the shell's arguments (a loaded machine can catch it there).
-        let start = Instant::now();
-        while processes_of(&prefix).len() != 1 && start.elapsed() < Duration::from_secs(5) {
-            std::thread::sleep(Duration::from_millis(10));
-        }
         assert_eq!(processes_of(&prefix).len(), 1);
         let _ = child.kill();
         let _ = child.wait();
