@@ -89,6 +89,12 @@ pub struct LatencyArgs {
     /// per device count, beside the one device's of the same run.
     #[arg(long, default_value_t = 1)]
     devices: usize,
+    /// The scene on another host instead: `lopd run --remote` and a far side (`lopd remote
+    /// attach` into an iceoryx2 domain of its own, over loopback), with 0, 1, 4 and 16 far
+    /// viewers for --seconds each: frame latency far and local from the same frames, bytes a
+    /// frame and a second, the rig's haptic tick per phase.
+    #[arg(long)]
+    remote: bool,
 }
 
 /// Whether and how the loop got its real-time privileges.
@@ -178,6 +184,15 @@ enum CtPlan {
 
 /// Runs the benchmark, prints the table and writes the JSON.
 pub fn run(a: LatencyArgs) -> Result<()> {
+    if a.remote {
+        return crate::remote::run(
+            &a.scene,
+            a.seconds,
+            a.lopd.as_deref(),
+            a.config.as_deref(),
+            a.json.as_deref(),
+        );
+    }
     if !(1..=lop_ipc::MAX_TOOLS).contains(&a.devices) {
         bail!("--devices {}: 1 to {}", a.devices, lop_ipc::MAX_TOOLS);
     }
@@ -268,6 +283,7 @@ impl LatencyArgs {
             no_cyclictest: true,
             poll_us: 150,
             devices: 1,
+            remote: false,
         }
     }
 }

@@ -19,6 +19,7 @@ mod organs;
 mod parry;
 mod pipeline;
 mod plot;
+mod remote;
 mod scenes;
 mod soak;
 mod stats;
@@ -64,6 +65,9 @@ enum Command {
     /// Organ collision and tool queries: ours against parry3d-f64 (time, allocations, answers).
     #[cfg(feature = "parry")]
     Collide(parry::CollideArgs),
+    /// A far-side frame reader for `latency --remote` (run by it, in the far domain).
+    #[command(hide = true)]
+    RemoteReader(remote::ReaderArgs),
 }
 
 fn main() -> ExitCode {
@@ -80,6 +84,7 @@ fn main() -> ExitCode {
         Command::Timings(a) => timings::run(a),
         #[cfg(feature = "parry")]
         Command::Collide(a) => parry::run(a),
+        Command::RemoteReader(a) => remote::reader(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

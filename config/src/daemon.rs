@@ -18,6 +18,8 @@ pub struct DaemonConfig {
     pub status_interval_ms: u64,
     /// Device drivers (`[device]`).
     pub device: DeviceConfig,
+    /// The scene carried to other hosts (`[remote]`, `lopd run --remote`).
+    pub remote: crate::remote::RemoteConfig,
 }
 
 impl Default for DaemonConfig {
@@ -27,6 +29,7 @@ impl Default for DaemonConfig {
             deform: DeformConfig::default(),
             status_interval_ms: 500,
             device: DeviceConfig::default(),
+            remote: crate::remote::RemoteConfig::default(),
         }
     }
 }
@@ -282,6 +285,7 @@ pub fn parse_daemon_config(text: &str, path: &Path) -> Result<DaemonConfig, Conf
         },
         status_interval_ms,
         device: device_config(&c, raw.device, path)?,
+        remote: crate::remote::remote_config(&c, raw.remote, path)?,
     })
 }
 

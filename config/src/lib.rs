@@ -355,6 +355,7 @@ mod check;
 mod daemon;
 mod error;
 mod raw;
+mod remote;
 mod resolve;
 mod scene;
 mod source;
@@ -365,6 +366,10 @@ pub use daemon::{
     DeformConfig, DeviceConfig, HapticConfig,
 };
 pub use error::{ConfigError, Location};
+pub use remote::{
+    check_zenoh_endpoint, RemoteConfig, ZenohMode, DEFAULT_LISTEN, DEFAULT_REMOTE_FRAME_RATE_HZ,
+    DEFAULT_TUNNEL,
+};
 pub use resolve::{
     list_scenes, list_scenes_in, list_scripts, resolve_scene, resolve_scene_in, resolve_script,
     scene_dirs, script_dirs,

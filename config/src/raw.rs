@@ -242,6 +242,8 @@ pub(crate) struct RawDaemon {
     pub status_interval_ms: Option<u64>,
     #[serde(default)]
     pub device: RawDaemonDevice,
+    #[serde(default)]
+    pub remote: crate::remote::RawRemote,
 }
 
 #[derive(Debug, Default, Deserialize)]

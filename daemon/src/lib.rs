@@ -14,6 +14,7 @@ pub mod haptic;
 pub mod haptic_process;
 pub mod mesher;
 pub mod record;
+pub mod remote;
 pub mod rt;
 pub mod scene_new;
 pub mod servo;

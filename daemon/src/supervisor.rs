@@ -17,6 +17,8 @@
 //!   run (given, or 128 random bits on a loopback bind) so the printed URL stays valid across
 //!   the viewer's restarts; it reaches the viewer through `LOP_VIEW_TOKEN`, not the command
 //!   line other users can read.
+//! - `--remote`: `lopd remote serve` is a fourth child (`crate::remote`), restarted the same
+//!   way; it runs the Zenoh link tunnel as its own child and restarts it when it exits.
 
 use std::io::{IsTerminal, Write};
 use std::os::unix::process::CommandExt;
@@ -58,6 +60,9 @@ pub struct RunOptions {
     pub view_token: Option<String>,
     /// `--view-allow-origin`: origins the viewer accepts besides its own.
     pub view_allow_origins: Vec<String>,
+    /// `--remote`: the arguments of `lopd remote serve` (the tunnel already checked), run as
+    /// a fourth child and restarted like the others; the rig never waits on it.
+    pub remote: Option<Vec<String>>,
 }
 
 /// Environment variable through which the viewer gets its control token.
@@ -263,6 +268,11 @@ pub fn run(opts: RunOptions) -> Result<i32> {
         }
     };
 
+    let mut remote = opts
+        .remote
+        .as_ref()
+        .map(|args| Supervised::new("remote", args.clone()));
+
     let mut monitor = StatusMonitor::new(&names)?;
     let tty = std::io::stdout().is_terminal();
     let start = Instant::now();
@@ -275,6 +285,12 @@ pub fn run(opts: RunOptions) -> Result<i32> {
             v.check();
             if let Err(e) = v.maybe_start() {
                 tracing::warn!("web viewer: {e:#}");
+            }
+        }
+        if let Some(r) = &mut remote {
+            r.check();
+            if let Err(e) = r.maybe_start() {
+                tracing::warn!("remote: {e:#}");
             }
         }
         if let Err(e) = haptic.maybe_start().and_then(|()| deform.maybe_start()) {
@@ -307,11 +323,17 @@ pub fn run(opts: RunOptions) -> Result<i32> {
     if let Some(v) = &mut view {
         v.terminate();
     }
+    if let Some(r) = &mut remote {
+        r.terminate();
+    }
     let until = Instant::now() + STOP_GRACE;
     haptic.wait_or_kill(until);
     deform.wait_or_kill(until);
     if let Some(v) = &mut view {
         v.wait_or_kill(until);
+    }
+    if let Some(r) = &mut remote {
+        r.wait_or_kill(until);
     }
     drop(monitor);
 

@@ -28,6 +28,11 @@ pub use control::*;
 pub use services::{ServiceNames, SERVICE_PREFIX_DEFAULT};
 pub use types::*;
 
+/// The iceoryx2 version lop is built with (the workspace pins it exactly). Every process
+/// sharing a service runs the same version: the Python binding (`scripts/setup.sh`) and the
+/// Zenoh link tunnel (`lopd run --remote`) are checked against it.
+pub const ICEORYX2_VERSION: &str = "0.10.0";
+
 /// Version of the payload layouts (2: `BodyFrame::switches`; 3: `NodeSample::flags` with
 /// burned tissue, `TOOL_FLAG_GRAB` / `TOOL_FLAG_HEAT`; 4: `ToolState::tool_stiffness`;
 /// 5: `FrameHeader::contact_proxy` / `contact_body`;
@@ -41,3 +46,18 @@ pub use types::*;
 /// Bumped whenever a type in [`types`] changes shape or meaning; every payload carries it so a
 /// reader can refuse data it does not understand.
 pub const CONTRACT_VERSION: u32 = 10;
+
+#[cfg(test)]
+mod version_tests {
+    #[test]
+    fn the_iceoryx2_version_is_the_workspace_pin() {
+        let manifest =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../Cargo.toml"))
+                .expect("workspace Cargo.toml");
+        let line = manifest
+            .lines()
+            .find(|l| l.starts_with("iceoryx2 ="))
+            .expect("iceoryx2 in the workspace dependencies");
+        assert_eq!(line, format!("iceoryx2 = \"={}\"", super::ICEORYX2_VERSION));
+    }
+}

@@ -168,6 +168,22 @@ pub fn node(name: &str) -> Result<Node<ipc::Service>, IpcError> {
         .map_err(ice("create node", name))
 }
 
+/// A node like [`node`], in the iceoryx2 domain `config` describes instead of the process's
+/// global one (`lopd remote serve` publishes the scene for the tunnel in a domain of its own).
+pub fn node_in(
+    name: &str,
+    config: &iceoryx2::config::Config,
+) -> Result<Node<ipc::Service>, IpcError> {
+    set_log_level(LogLevel::Error);
+    let node_name = NodeName::new(name).map_err(ice("invalid node name", name))?;
+    NodeBuilder::new()
+        .name(&node_name)
+        .config(config)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(ice("create node", name))
+}
+
 /// Removes what crashed lop processes left behind (through `node`), so a restart never fails on
 /// stale resources. Returns how many dead nodes were cleaned.
 pub fn cleanup_dead_nodes(node: &Node<ipc::Service>) -> u64 {

@@ -56,7 +56,19 @@ pub struct Daemon {
 impl Daemon {
     /// Spawns `lopd ARGS` in its own process group with output to a log file.
     pub fn spawn(args: &[&str], prefix: &str, limit: Duration) -> Daemon {
-        let log = std::env::temp_dir().join(format!("{prefix}.log"));
+        Daemon::spawn_in(args, prefix, limit, None, "")
+    }
+
+    /// [`Daemon::spawn`] in the working directory `dir` (whose `config/iceoryx2.toml` names
+    /// the iceoryx2 domain), logging to `PREFIX{log_tag}.log`.
+    pub fn spawn_in(
+        args: &[&str],
+        prefix: &str,
+        limit: Duration,
+        dir: Option<&Path>,
+        log_tag: &str,
+    ) -> Daemon {
+        let log = std::env::temp_dir().join(format!("{prefix}{log_tag}.log"));
         let out = std::fs::File::create(&log).expect("log file");
         let err = out.try_clone().expect("log file");
         let mut cmd = Command::new(lopd_path());
@@ -65,6 +77,9 @@ impl Daemon {
             .stdout(Stdio::from(out))
             .stderr(Stdio::from(err))
             .env("RUST_BACKTRACE", "0");
+        if let Some(d) = dir {
+            cmd.current_dir(d);
+        }
         use std::os::unix::process::CommandExt;
         cmd.process_group(0);
         let child = cmd.spawn().expect("spawn lopd");

@@ -449,3 +449,48 @@ fn unknown_script_name_lists_directories() {
     );
     assert!(msg.contains("config/scripts"), "{msg}");
 }
+
+#[test]
+fn remote_section_names_the_bad_key_and_value() {
+    let cfg = parse_daemon_config(
+        "[remote]\nenabled = true\nlisten = [\"tcp/127.0.0.1:17447\"]\nconnect = [\"tcp/10.0.0.2:7447\"]\n",
+        Path::new("lopd.toml"),
+    )
+    .unwrap();
+    assert!(cfg.remote.enabled);
+    assert_eq!(cfg.remote.listen, ["tcp/127.0.0.1:17447"]);
+    assert_eq!(cfg.remote.connect, ["tcp/10.0.0.2:7447"]);
+    assert_eq!(
+        cfg.remote.tunnel,
+        std::path::PathBuf::from(lop_config::DEFAULT_TUNNEL)
+    );
+    daemon_err(
+        "[remote]\nlisten = [\"tcp/127.0.0.1:7447\", \"tcp/127.0.0.1\"]\n",
+        &["remote.listen[1]", "\"tcp/127.0.0.1\"", "has no port"],
+    );
+    daemon_err(
+        "[remote]\nconnect = [\"http/rig:80\"]\n",
+        &["remote.connect[0]", "unknown transport \"http\""],
+    );
+    daemon_err(
+        "[remote]\nmode = \"router\"\n",
+        &["remote.mode", "\"router\"", "peer"],
+    );
+    daemon_err(
+        "[remote]\nmode = \"client\"\n",
+        &["remote.connect", "router's endpoint"],
+    );
+    daemon_err(
+        "[remote]\nzenoh_config = \"nowhere.json5\"\n",
+        &[
+            "remote.zenoh_config",
+            "nowhere.json5",
+            "no such Zenoh configuration file",
+        ],
+    );
+    daemon_err(
+        "[remote]\nframe_rate_hz = 5000\n",
+        &["remote.frame_rate_hz", "5000", "at most 1000"],
+    );
+    daemon_err("[remote]\ncontrol = true\n", &["control"]);
+}

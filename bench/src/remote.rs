@@ -1,0 +1,431 @@
+//! `lop-bench latency --remote`: the scene on other hosts through the Zenoh tunnel, as two
+//! hosts on one machine (a far iceoryx2 domain of its own, joined over loopback).
+//!
+//! One `lopd run --remote` on the scene and one far side (`lopd remote attach` in a working
+//! directory whose `config/iceoryx2.toml` sets another iceoryx2 prefix). Then phases of
+//! `--seconds` each: no far viewer, then 1, 4 and 16 far viewers (this binary's hidden
+//! `remote-reader`, each with its own frame subscriber in the far domain). In every phase this
+//! process reads every frame in the rig's own domain beside them, so the local and far figures
+//! come from the same frames' `publish_ns` on one monotonic clock:
+//! - **frame latency**: receipt − publish, p50/p99, local and far (`frame_latency_local`,
+//!   `remote_frame_latency`), with the count and the frames received out of order;
+//! - **bytes** per frame (the frame header and 20 bytes per node) and per second per viewer;
+//! - the rig's **haptic tick** compute and jitter p99 over the phase (the telemetry's total
+//!   figures, differenced is not possible: the window's last second at the phase's end).
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use lop_client::services::{self, Role};
+use lop_client::{clock, Attachment, ServiceNames};
+use lop_client::{FrameHeader, NodeSample};
+use serde::Serialize;
+
+use crate::pipeline::{find_lopd, ChildGuard};
+use crate::stats::quantile_sorted;
+
+/// Far viewers per phase after the one without any.
+pub const VIEWERS: [usize; 3] = [1, 4, 16];
+
+/// Options of the hidden `lop-bench remote-reader` (run in the far domain).
+#[derive(Args, Debug, Clone)]
+pub struct ReaderArgs {
+    /// The rig's service prefix.
+    #[arg(long)]
+    prefix: String,
+    /// Seconds to read after the topology arrived.
+    #[arg(long)]
+    seconds: f64,
+}
+
+/// One row of the JSON: frame latency of one kind of client in one phase.
+#[derive(Debug, Clone, Serialize)]
+pub struct LatencyRow {
+    /// `frame_latency_local` or `remote_frame_latency`.
+    pub name: &'static str,
+    /// Far viewers in the phase.
+    pub viewers: usize,
+    /// Median receipt − publish, µs.
+    pub p50_us: f64,
+    /// 99th percentile, µs.
+    pub p99_us: f64,
+    /// Frames received (over all viewers of the kind).
+    pub count: usize,
+    /// Frames received after a later one (per viewer).
+    pub reordered: usize,
+}
+
+/// The rig during one phase.
+#[derive(Debug, Clone, Serialize)]
+pub struct PhaseRow {
+    /// Far viewers.
+    pub viewers: usize,
+    /// Haptic tick compute p99 over the last telemetry window of the phase, µs.
+    pub haptic_compute_p99_us: f64,
+    /// Haptic period jitter p99, same window, µs.
+    pub haptic_jitter_p99_us: f64,
+    /// Overruns of the haptic loop during the phase.
+    pub haptic_overruns: u64,
+    /// Frames a second one far viewer received (mean over the viewers).
+    pub far_frames_per_s: f64,
+    /// Bytes a second to one far viewer (frames only).
+    pub far_bytes_per_s: f64,
+}
+
+/// The whole report (`--json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct RemoteReport {
+    /// The scene.
+    pub scene: String,
+    /// Nodes per frame.
+    pub nodes: usize,
+    /// Bytes per frame: header and nodes.
+    pub bytes_per_frame: usize,
+    /// Seconds per phase.
+    pub seconds: f64,
+    /// Latency rows.
+    pub rows: Vec<LatencyRow>,
+    /// The rig per phase.
+    pub phases: Vec<PhaseRow>,
+}
+
+/// `lop-bench remote-reader`: prints `SEQUENCE LATENCY_NS` for every frame of the topology
+/// (after `topology`), then `done`.
+pub fn reader(a: ReaderArgs) -> Result<()> {
+    let names = ServiceNames::new(&a.prefix)?;
+    let mut att = Attachment::open(&a.prefix, Duration::from_secs(60))?;
+    let topology = att
+        .wait_topology(Duration::from_secs(60))?
+        .header
+        .topology_id;
+    let node = services::node(&format!("lop-bench-remote-reader-{}", std::process::id()))?;
+    let sub = services::frame_service(&node, &names, Role::Client)?
+        .subscriber_builder()
+        .buffer_size(services::FRAME_BUFFER)
+        .create()
+        .map_err(|e| lop_client::limits::subscriber_create_error(&names.frame, e))?;
+    println!("topology");
+    let end = Instant::now() + Duration::from_secs_f64(a.seconds);
+    let mut out = String::new();
+    while Instant::now() < end {
+        while let Ok(Some(s)) = sub.receive() {
+            let h = s.user_header();
+            if h.topology_id == topology {
+                let latency = clock::monotonic_ns() as i64 - h.publish_ns as i64;
+                out.push_str(&format!("{} {latency}\n", h.sequence));
+            }
+        }
+        std::thread::sleep(Duration::from_micros(100));
+    }
+    print!("{out}");
+    println!("done");
+    Ok(())
+}
+
+struct Frames {
+    latencies_us: Vec<f64>,
+    reordered: usize,
+}
+
+impl Frames {
+    fn new() -> Frames {
+        Frames {
+            latencies_us: Vec::new(),
+            reordered: 0,
+        }
+    }
+}
+
+/// A temporary far domain: a working directory with its own iceoryx2 prefix.
+struct FarDomain(PathBuf);
+
+impl FarDomain {
+    fn new() -> Result<FarDomain> {
+        let dir = std::env::temp_dir().join(format!("lop-bench-far-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("config"))?;
+        std::fs::write(
+            dir.join("config/iceoryx2.toml"),
+            format!(
+                "[global]\nprefix = \"lopbenchfar{}_\"\n",
+                std::process::id()
+            ),
+        )?;
+        Ok(FarDomain(dir))
+    }
+}
+
+impl Drop for FarDomain {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn free_port() -> Result<u16> {
+    Ok(std::net::TcpListener::bind("127.0.0.1:0")?
+        .local_addr()?
+        .port())
+}
+
+/// `lop-bench latency --remote`.
+pub fn run(
+    scene: &str,
+    seconds: f64,
+    lopd: Option<&Path>,
+    config: Option<&Path>,
+    json: Option<&Path>,
+) -> Result<()> {
+    let lopd = find_lopd(lopd)?;
+    let me = std::env::current_exe().context("locating lop-bench")?;
+    let prefix = format!("bench-remote-{}", std::process::id());
+    let names = ServiceNames::new(&prefix)?;
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
+    let mut cmd = Command::new(&lopd);
+    cmd.args(["run", "--scene", scene, "--prefix", &prefix, "--quiet"])
+        .args(["--remote", "--remote-listen", &endpoint])
+        .stdin(Stdio::null());
+    if let Some(c) = config {
+        cmd.arg("--config").arg(c);
+    }
+    let mut rig = ChildGuard::spawn("lopd run --remote", cmd, Duration::from_secs(10))?;
+    let far = FarDomain::new()?;
+    let mut cmd = Command::new(&lopd);
+    cmd.args([
+        "remote",
+        "attach",
+        "--prefix",
+        &prefix,
+        "--connect",
+        &endpoint,
+    ])
+    .current_dir(&far.0)
+    .stdin(Stdio::null())
+    .stdout(Stdio::null());
+    let mut attach = ChildGuard::spawn("lopd remote attach", cmd, Duration::from_secs(5))?;
+
+    let mut local =
+        Attachment::open(&prefix, Duration::from_secs(120)).context("attaching to the rig")?;
+    let nodes = local
+        .wait_topology(Duration::from_secs(120))?
+        .header
+        .node_count as usize;
+    let bytes_per_frame =
+        std::mem::size_of::<FrameHeader>() + nodes * std::mem::size_of::<NodeSample>();
+    let node = services::node("lop-bench-remote-local")?;
+    let local_sub = services::frame_service(&node, &names, Role::Client)?
+        .subscriber_builder()
+        .buffer_size(services::FRAME_BUFFER)
+        .create()
+        .map_err(|e| lop_client::limits::subscriber_create_error(&names.frame, e))?;
+    // Frames through the tunnel before measuring: one far reader must see the topology.
+    warm_up(&me, &far.0, &prefix)?;
+
+    let mut rows = Vec::new();
+    let mut phases = Vec::new();
+    for viewers in std::iter::once(0).chain(VIEWERS) {
+        if rig.try_wait().is_some() || attach.try_wait().is_some() {
+            bail!("the rig or the far side exited during the run");
+        }
+        eprintln!("lop-bench: {viewers} far viewer(s), {seconds} s");
+        let mut readers = Vec::new();
+        for _ in 0..viewers {
+            let mut cmd = Command::new(&me);
+            cmd.args(["remote-reader", "--prefix", &prefix, "--seconds"])
+                .arg(format!("{seconds}"))
+                .current_dir(&far.0)
+                .stdout(Stdio::piped())
+                .stdin(Stdio::null());
+            readers.push(ChildGuard::spawn(
+                "remote-reader",
+                cmd,
+                Duration::from_secs(5),
+            )?);
+        }
+        // Every reader has its topology before the phase's clock starts.
+        let mut outs = Vec::new();
+        for r in &mut readers {
+            let stdout = r
+                .child_mut()
+                .and_then(|c| c.stdout.take())
+                .context("reader stdout")?;
+            let mut lines = BufReader::new(stdout).lines();
+            match lines.next() {
+                Some(Ok(l)) if l == "topology" => outs.push(lines),
+                other => bail!("a far reader got no topology: {other:?}"),
+            }
+        }
+        let before = local.telemetry();
+        let mut local_frames = Frames::new();
+        let mut last_seq = 0;
+        let end = Instant::now() + Duration::from_secs_f64(seconds);
+        while Instant::now() < end {
+            while let Ok(Some(s)) = local_sub.receive() {
+                let h = s.user_header();
+                let latency = clock::monotonic_ns() as i64 - h.publish_ns as i64;
+                local_frames.latencies_us.push(latency as f64 / 1e3);
+                if h.sequence <= last_seq {
+                    local_frames.reordered += 1;
+                }
+                last_seq = h.sequence;
+            }
+            std::thread::sleep(Duration::from_micros(100));
+        }
+        let after = local.telemetry();
+        let mut far_frames = Frames::new();
+        let mut per_viewer = Vec::new();
+        for lines in outs {
+            let mut last = 0u64;
+            let mut n = 0usize;
+            let mut done = false;
+            for l in lines {
+                let l = l?;
+                if l == "done" {
+                    done = true;
+                    break;
+                }
+                let mut w = l.split_whitespace();
+                let seq: u64 = w.next().unwrap_or("0").parse()?;
+                let latency: f64 = w.next().unwrap_or("0").parse()?;
+                far_frames.latencies_us.push(latency / 1e3);
+                if seq <= last {
+                    far_frames.reordered += 1;
+                }
+                last = seq;
+                n += 1;
+            }
+            if !done {
+                bail!("a far reader stopped early");
+            }
+            per_viewer.push(n as f64 / seconds);
+        }
+        for r in &mut readers {
+            r.wait_for(Duration::from_secs(10));
+        }
+        rows.push(latency_row("frame_latency_local", viewers, local_frames));
+        if viewers > 0 {
+            rows.push(latency_row("remote_frame_latency", viewers, far_frames));
+        }
+        let far_frames_per_s = if per_viewer.is_empty() {
+            0.0
+        } else {
+            per_viewer.iter().sum::<f64>() / per_viewer.len() as f64
+        };
+        let (compute, jitter, overruns) = match (before, after) {
+            (Some(b), Some(a)) => (
+                a.window_compute.p99 as f64 / 1e3,
+                a.window_jitter.p99 as f64 / 1e3,
+                a.overruns.saturating_sub(b.overruns),
+            ),
+            (_, Some(a)) => (
+                a.window_compute.p99 as f64 / 1e3,
+                a.window_jitter.p99 as f64 / 1e3,
+                0,
+            ),
+            _ => (f64::NAN, f64::NAN, 0),
+        };
+        phases.push(PhaseRow {
+            viewers,
+            haptic_compute_p99_us: compute,
+            haptic_jitter_p99_us: jitter,
+            haptic_overruns: overruns,
+            far_frames_per_s,
+            far_bytes_per_s: far_frames_per_s * bytes_per_frame as f64,
+        });
+    }
+    drop(local);
+    attach.stop();
+    rig.stop();
+
+    let report = RemoteReport {
+        scene: scene.to_string(),
+        nodes,
+        bytes_per_frame,
+        seconds,
+        rows,
+        phases,
+    };
+    print!("{}", render(&report));
+    if let Some(path) = json {
+        std::fs::write(path, serde_json::to_string_pretty(&report)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// One far reader until it has the topology and a second of frames.
+fn warm_up(me: &Path, far: &Path, prefix: &str) -> Result<()> {
+    let out = Command::new(me)
+        .args(["remote-reader", "--prefix", prefix, "--seconds", "1"])
+        .current_dir(far)
+        .stdin(Stdio::null())
+        .output()
+        .context("warm-up reader")?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    if !out.status.success() || text.lines().count() < 3 {
+        bail!(
+            "no frames reached the far side in the warm-up: {}\n{text}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    Ok(())
+}
+
+fn latency_row(name: &'static str, viewers: usize, mut f: Frames) -> LatencyRow {
+    f.latencies_us.sort_by(f64::total_cmp);
+    let q = |p: f64| {
+        if f.latencies_us.is_empty() {
+            f64::NAN
+        } else {
+            quantile_sorted(&f.latencies_us, p)
+        }
+    };
+    LatencyRow {
+        name,
+        viewers,
+        p50_us: q(0.5),
+        p99_us: q(0.99),
+        count: f.latencies_us.len(),
+        reordered: f.reordered,
+    }
+}
+
+fn render(r: &RemoteReport) -> String {
+    let mut s = format!(
+        "remote frames: scene {}, {} nodes, {} bytes a frame, {} s a phase\n\n",
+        r.scene, r.nodes, r.bytes_per_frame, r.seconds
+    );
+    s.push_str("viewers  client  frames  latency p50 / p99 (us)  reordered\n");
+    for row in &r.rows {
+        s.push_str(&format!(
+            "{:>7}  {:<6}  {:>6}  {:>9.0} / {:<9.0}      {}\n",
+            row.viewers,
+            if row.name == "remote_frame_latency" {
+                "far"
+            } else {
+                "local"
+            },
+            row.count,
+            row.p50_us,
+            row.p99_us,
+            row.reordered
+        ));
+    }
+    s.push_str(
+        "\nviewers  haptic compute p99 (us)  jitter p99 (us)  overruns  far frames/s  far kB/s\n",
+    );
+    for p in &r.phases {
+        s.push_str(&format!(
+            "{:>7}  {:>23.1}  {:>15.1}  {:>8}  {:>12.1}  {:>8.0}\n",
+            p.viewers,
+            p.haptic_compute_p99_us,
+            p.haptic_jitter_p99_us,
+            p.haptic_overruns,
+            p.far_frames_per_s,
+            p.far_bytes_per_s / 1e3
+        ));
+    }
+    s
+}
