@@ -58,7 +58,16 @@ pub struct RemoteConfig {
     /// node (20 bytes each), and at the tissue's 1 kHz a 2,000-node scene is 40 MB/s per far
     /// host; a renderer draws at 60–120 Hz.
     pub frame_rate_hz: u32,
+    /// Which renderer-facing services cross (`[remote] services`): any of [`REMOTE_SERVICES`],
+    /// default all. `scene` (topology, frames, frame-ready) is always among them.
+    pub services: Vec<String>,
 }
+
+/// The groups of renderer-facing services `[remote] services` may name: `scene`
+/// (`PREFIX/scene/topology`, `PREFIX/scene/frame`, `PREFIX/scene/frame/ready`), `tool`
+/// (`PREFIX/tool`, tool states for drawing), `telemetry` (`PREFIX/telemetry/haptic`). Nothing
+/// else can cross: not the device, the control service or the daemon's tool blackboard.
+pub const REMOTE_SERVICES: [&str; 3] = ["scene", "tool", "telemetry"];
 
 /// `[remote] frame_rate_hz` when missing.
 pub const DEFAULT_REMOTE_FRAME_RATE_HZ: u32 = 120;
@@ -74,6 +83,7 @@ impl Default for RemoteConfig {
             zenoh_config: None,
             multicast_scouting: false,
             frame_rate_hz: DEFAULT_REMOTE_FRAME_RATE_HZ,
+            services: REMOTE_SERVICES.iter().map(|s| s.to_string()).collect(),
         }
     }
 }
@@ -133,6 +143,7 @@ pub(crate) struct RawRemote {
     pub zenoh_config: Option<PathBuf>,
     pub multicast_scouting: Option<bool>,
     pub frame_rate_hz: Option<u32>,
+    pub services: Option<Vec<String>>,
 }
 
 pub(crate) fn remote_config(
@@ -221,7 +232,29 @@ pub(crate) fn remote_config(
             "at most 1000 frames a second (the tissue's own rate), or 0 for every frame",
         ));
     }
+    let services = raw.services.unwrap_or(d.services);
+    for (i, name) in services.iter().enumerate() {
+        if !REMOTE_SERVICES.contains(&name.as_str()) {
+            return Err(c.invalid(
+                &k.key("services").index(i),
+                format!("{name:?}"),
+                format!(
+                    "services are any of {}: the device, control and the daemon's tool \
+                     blackboard never cross",
+                    REMOTE_SERVICES.join(", ")
+                ),
+            ));
+        }
+    }
+    if !services.iter().any(|s| s == "scene") {
+        return Err(c.invalid(
+            &k.key("services"),
+            format!("{services:?}"),
+            "the scene (topology and frames) always crosses: add \"scene\"",
+        ));
+    }
     Ok(RemoteConfig {
+        services,
         frame_rate_hz,
         enabled: raw.enabled.unwrap_or(false),
         mode,

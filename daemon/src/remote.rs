@@ -313,17 +313,33 @@ pub fn serve(names: &ServiceNames, remote: &RemoteConfig) -> Result<i32> {
     let export = export_config(Config::global_config())?;
     let (zenoh_text, zenoh_path) = zenoh_for(remote)?;
     let dir = TunnelDir::new("rig", &export, zenoh_text.as_deref())?;
-    let relay = Relay::open(names, &export, remote.frame_rate_hz)?;
-    let args = vec![
+    let carries = |group: &str| remote.services.iter().any(|s| s == group);
+    let relay = Relay::open(
+        names,
+        &export,
+        remote.frame_rate_hz,
+        carries("tool"),
+        carries("telemetry"),
+    )?;
+    let mut args = vec![
         "--zenoh-config".to_string(),
         zenoh_path.display().to_string(),
-        "--allow".to_string(),
-        format!("{}/*", names.prefix),
         "--listener".to_string(),
         names.frame_ready.clone(),
         "--poll".to_string(),
         RIG_TUNNEL_POLL_MS.to_string(),
     ];
+    // Only what the relay exports is there to cross; the allow-list says so once more.
+    let mut allow = vec![format!("{}/scene/*", names.prefix)];
+    if carries("tool") {
+        allow.push(names.tool.clone());
+    }
+    if carries("telemetry") {
+        allow.push(names.haptic_telemetry.clone());
+    }
+    for a in allow {
+        args.extend(["--allow".to_string(), a]);
+    }
     let mut tunnel = Tunnel::new(program, args, dir);
     let result = relay.run(|| tunnel.tend());
     tunnel.stop();
@@ -385,13 +401,11 @@ struct Relay {
     // The nodes outlive their ports (declared last).
     topology_sub: services::TopologySubscriber,
     frame_sub: services::FrameSubscriber,
-    tool_sub: services::ToolSubscriber,
-    telemetry_sub: services::TelemetrySubscriber,
+    tool: Option<(services::ToolSubscriber, services::ToolPublisher)>,
+    telemetry: Option<(services::TelemetrySubscriber, services::TelemetryPublisher)>,
     frame_ready: Option<iceoryx2::port::listener::Listener<ipc::Service>>,
     topology_pub: services::TopologyPublisher,
     frame_pub: services::FramePublisher,
-    tool_pub: services::ToolPublisher,
-    telemetry_pub: services::TelemetryPublisher,
     frame_notify: iceoryx2::port::notifier::Notifier<ipc::Service>,
     /// The shortest time between two frames sent on (`[remote] frame_rate_hz`); zero: all.
     frame_interval: Duration,
@@ -403,7 +417,13 @@ struct Relay {
 const RIG_WAIT: Duration = Duration::from_secs(120);
 
 impl Relay {
-    fn open(names: &ServiceNames, export: &Config, frame_rate_hz: u32) -> Result<Relay> {
+    fn open(
+        names: &ServiceNames,
+        export: &Config,
+        frame_rate_hz: u32,
+        tool: bool,
+        telemetry: bool,
+    ) -> Result<Relay> {
         let rig = services::node("lopd-remote")?;
         let out = services::node_in("lopd-remote", export)?;
         let sub_err = |service: &str| {
@@ -423,20 +443,38 @@ impl Relay {
                 .create()
                 .map_err(sub_err(&names.frame))
         })?;
-        let tool_sub = services::open_retry(&names.tool, RIG_WAIT, || {
-            services::tool_service(&rig, names, Role::Client)?
-                .subscriber_builder()
-                .buffer_size(services::TOOL_BUFFER)
+        let tool = if tool {
+            let sub = services::open_retry(&names.tool, RIG_WAIT, || {
+                services::tool_service(&rig, names, Role::Client)?
+                    .subscriber_builder()
+                    .buffer_size(services::TOOL_BUFFER)
+                    .create()
+                    .map_err(sub_err(&names.tool))
+            })?;
+            let publisher = services::tool_service(&out, names, Role::Owner)?
+                .publisher_builder()
                 .create()
-                .map_err(sub_err(&names.tool))
-        })?;
-        let telemetry_sub = services::open_retry(&names.haptic_telemetry, RIG_WAIT, || {
-            services::telemetry_service(&rig, names, Role::Client)?
-                .subscriber_builder()
-                .buffer_size(services::TELEMETRY_BUFFER)
+                .context("export tool publisher")?;
+            Some((sub, publisher))
+        } else {
+            None
+        };
+        let telemetry = if telemetry {
+            let sub = services::open_retry(&names.haptic_telemetry, RIG_WAIT, || {
+                services::telemetry_service(&rig, names, Role::Client)?
+                    .subscriber_builder()
+                    .buffer_size(services::TELEMETRY_BUFFER)
+                    .create()
+                    .map_err(sub_err(&names.haptic_telemetry))
+            })?;
+            let publisher = services::telemetry_service(&out, names, Role::Owner)?
+                .publisher_builder()
                 .create()
-                .map_err(sub_err(&names.haptic_telemetry))
-        })?;
+                .context("export telemetry publisher")?;
+            Some((sub, publisher))
+        } else {
+            None
+        };
         let frame_ready = match services::frame_ready_service(&rig, names)
             .map_err(anyhow::Error::from)
             .and_then(|s| Ok(s.listener_builder().create()?))
@@ -458,14 +496,6 @@ impl Relay {
             .max_loaned_samples(2)
             .create()
             .context("export frame publisher")?;
-        let tool_pub = services::tool_service(&out, names, Role::Owner)?
-            .publisher_builder()
-            .create()
-            .context("export tool publisher")?;
-        let telemetry_pub = services::telemetry_service(&out, names, Role::Owner)?
-            .publisher_builder()
-            .create()
-            .context("export telemetry publisher")?;
         let frame_notify = services::frame_ready_service(&out, names)?
             .notifier_builder()
             .create()
@@ -473,13 +503,11 @@ impl Relay {
         Ok(Relay {
             topology_sub,
             frame_sub,
-            tool_sub,
-            telemetry_sub,
+            tool,
+            telemetry,
             frame_ready,
             topology_pub,
             frame_pub,
-            tool_pub,
-            telemetry_pub,
             frame_notify,
             frame_interval: if frame_rate_hz == 0 {
                 Duration::ZERO
@@ -544,11 +572,15 @@ impl Relay {
                     next_frame + self.frame_interval
                 };
             }
-            while let Ok(Some(s)) = self.tool_sub.receive() {
-                let _ = self.tool_pub.send_copy(*s);
+            if let Some((sub, publisher)) = &self.tool {
+                while let Ok(Some(s)) = sub.receive() {
+                    let _ = publisher.send_copy(*s);
+                }
             }
-            while let Ok(Some(s)) = self.telemetry_sub.receive() {
-                let _ = self.telemetry_pub.send_copy(*s);
+            if let Some((sub, publisher)) = &self.telemetry {
+                while let Ok(Some(s)) = sub.receive() {
+                    let _ = publisher.send_copy(*s);
+                }
             }
         }
         tracing::info!("remote relay stopped after {frames} frames");

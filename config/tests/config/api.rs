@@ -492,5 +492,13 @@ fn remote_section_names_the_bad_key_and_value() {
         "[remote]\nframe_rate_hz = 5000\n",
         &["remote.frame_rate_hz", "5000", "at most 1000"],
     );
+    daemon_err(
+        "[remote]\nservices = [\"scene\", \"control\"]\n",
+        &["remote.services[1]", "\"control\"", "never cross"],
+    );
+    daemon_err(
+        "[remote]\nservices = [\"tool\"]\n",
+        &["remote.services", "add \"scene\""],
+    );
     daemon_err("[remote]\ncontrol = true\n", &["control"]);
 }

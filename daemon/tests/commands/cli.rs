@@ -202,3 +202,38 @@ fn openhaptics_beside_another_clock_is_refused() {
     assert!(!dir.join("two.lrec").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `lopd remote attach` and `lopd run --remote`: a missing rig endpoint, a malformed endpoint
+/// and a missing tunnel program are each named (exit 2 for bad input, 1 for the tunnel).
+#[test]
+fn remote_bad_input_is_named() {
+    let (code, _, err) = run(lopd().args(["remote", "attach"]));
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--connect tcp/RIG:7447"), "{err}");
+    let (code, _, err) = run(lopd().args(["remote", "attach", "--connect", "tcp/rig"]));
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--connect \"tcp/rig\"") && err.contains("has no port"),
+        "{err}"
+    );
+    let (code, _, err) = run(lopd().args(["remote", "attach", "--mode", "router"]));
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--mode \"router\""), "{err}");
+    let (code, _, err) = run(lopd().args([
+        "remote",
+        "attach",
+        "--connect",
+        "tcp/127.0.0.1:7447",
+        "--tunnel",
+        "/nonexistent/iox2-link-tunnel-zenoh",
+    ]));
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("\"/nonexistent/iox2-link-tunnel-zenoh\" was not found")
+            && err.contains("cargo install iceoryx2-integrations-zenoh-link-tunnel-cli"),
+        "{err}"
+    );
+    let (code, _, err) = run(lopd().args(["run", "--remote", "--remote-listen", "udp/:1"]));
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("has no host"), "{err}");
+}
