@@ -96,18 +96,34 @@ pub struct RemoteReport {
 /// `lop-bench remote-reader`: prints `SEQUENCE LATENCY_NS` for every frame of the topology
 /// (after `topology`), then `done`.
 pub fn reader(a: ReaderArgs) -> Result<()> {
+    // One node with one topology and one frame subscriber: a viewer's share of the far
+    // services' limits (16 viewers and the tunnel fit).
     let names = ServiceNames::new(&a.prefix)?;
-    let mut att = Attachment::open(&a.prefix, Duration::from_secs(60))?;
-    let topology = att
-        .wait_topology(Duration::from_secs(60))?
-        .header
-        .topology_id;
     let node = services::node(&format!("lop-bench-remote-reader-{}", std::process::id()))?;
-    let sub = services::frame_service(&node, &names, Role::Client)?
-        .subscriber_builder()
-        .buffer_size(services::FRAME_BUFFER)
-        .create()
-        .map_err(|e| lop_client::limits::subscriber_create_error(&names.frame, e))?;
+    let wait = Duration::from_secs(60);
+    let topology_sub = services::open_retry(&names.topology, wait, || {
+        services::topology_service(&node, &names, Role::Client)?
+            .subscriber_builder()
+            .create()
+            .map_err(|e| lop_client::limits::subscriber_create_error(&names.topology, e))
+    })?;
+    let sub = services::open_retry(&names.frame, wait, || {
+        services::frame_service(&node, &names, Role::Client)?
+            .subscriber_builder()
+            .buffer_size(services::FRAME_BUFFER)
+            .create()
+            .map_err(|e| lop_client::limits::subscriber_create_error(&names.frame, e))
+    })?;
+    let start = Instant::now();
+    let topology = loop {
+        if let Ok(Some(s)) = topology_sub.receive() {
+            break s.user_header().topology_id;
+        }
+        if start.elapsed() > wait {
+            bail!("no topology in {wait:?}");
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    };
     println!("topology");
     let end = Instant::now() + Duration::from_secs_f64(a.seconds);
     let mut out = String::new();
@@ -335,6 +351,8 @@ pub fn run(
             far_bytes_per_s: far_frames_per_s * bytes_per_frame as f64,
         });
     }
+    drop(local_sub);
+    drop(node);
     drop(local);
     attach.stop();
     rig.stop();

@@ -32,6 +32,15 @@
 //! that connects later, so the relay publishes it again every [`TOPOLOGY_REPEAT`]: a far side
 //! that joins gets it within that time (clients take a topology with the id they hold as the
 //! same one).
+//!
+//! # What goes on, and how often
+//!
+//! Frames at most `[remote] frame_rate_hz` a second (default 120; the newest, in order), the
+//! newest state of each tool with them, the haptic telemetry (a status of one-second windows)
+//! at 10 Hz. Every wake of the tunnel costs it a whole round of service discovery
+//! (`docs/benchmarks.md`, the scene on other hosts), so the relay wakes the rig's tunnel once a
+//! round, not once a sample, and the thousand tool states and telemetry samples a second the
+//! haptic loop publishes stay on the rig.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -43,7 +52,7 @@ use iceoryx2::config::Config;
 use iceoryx2::prelude::*;
 use lop_config::{RemoteConfig, ZenohMode};
 use lop_ipc::services::{self, Role};
-use lop_ipc::types::{FrameHeader, NodeSample, TopologyHeader};
+use lop_ipc::types::{FrameHeader, HapticTelemetry, NodeSample, ToolState, TopologyHeader};
 use lop_ipc::{ServiceNames, ICEORYX2_VERSION};
 
 use crate::signals;
@@ -58,13 +67,19 @@ pub const TOPOLOGY_REPEAT: Duration = Duration::from_secs(1);
 /// it at once). The haptic loop publishes both at 1 kHz into buffers of at least 16 samples.
 const RELAY_WAKE: Duration = Duration::from_millis(5);
 
-/// How often the rig's tunnel looks at services without an event (tool states, telemetry), ms.
-/// Frames wake it through the frame-ready event.
-const RIG_TUNNEL_POLL_MS: u64 = 5;
+/// The interval between two haptic telemetry samples sent on (each is a status over the
+/// loop's last second).
+const TELEMETRY_INTERVAL: Duration = Duration::from_millis(100);
+
+/// How often the rig's tunnel looks for new services, ms. The relay wakes it through the
+/// frame-ready event once it has published a round (frame, tool states, telemetry): every
+/// wake is a whole round of the tunnel's discovery and propagation, which cost the rig's
+/// tunnel 70 % of a core at a 5 ms poll beside the wakes (`docs/benchmarks.md`).
+const RIG_TUNNEL_POLL_MS: u64 = 100;
 
 /// How often the far side's tunnel looks for new services, ms; samples wake it as they arrive
 /// (`--reactive`).
-const FAR_TUNNEL_POLL_MS: u64 = 50;
+const FAR_TUNNEL_POLL_MS: u64 = 100;
 
 /// The rig's export domain: `rig` with [`EXPORT_DOMAIN_SUFFIX`] appended to its global prefix.
 pub fn export_config(rig: &Config) -> Result<Config> {
@@ -525,6 +540,10 @@ impl Relay {
         let mut last_topology = Instant::now();
         let mut frames = 0u64;
         let mut next_frame = Instant::now();
+        let mut next_tools = Instant::now();
+        let mut next_telemetry = Instant::now();
+        let mut tools: [Option<ToolState>; lop_ipc::MAX_TOOLS] = [None; lop_ipc::MAX_TOOLS];
+        let mut telemetry: Option<HapticTelemetry> = None;
         while !signals::stop_requested() {
             tend();
             match &self.frame_ready {
@@ -551,6 +570,7 @@ impl Relay {
                     last_topology = Instant::now();
                 }
             }
+            let frames_before = frames;
             // Every frame, or the newest once the next is due (at the configured rate on
             // average); always in order.
             let mut newest = None;
@@ -572,22 +592,41 @@ impl Relay {
                     next_frame + self.frame_interval
                 };
             }
+            // Tool states: the newest of each tool, at the frames' pace (every one when every
+            // frame goes); telemetry (a status of one-second windows): the newest, at 10 Hz.
             if let Some((sub, publisher)) = &self.tool {
                 while let Ok(Some(s)) = sub.receive() {
-                    let _ = publisher.send_copy(*s);
+                    let t = (s.tool as usize).min(tools.len() - 1);
+                    tools[t] = Some(*s);
+                }
+                if now >= next_tools {
+                    for t in tools.iter_mut().filter_map(Option::take) {
+                        let _ = publisher.send_copy(t);
+                    }
+                    next_tools = now + self.frame_interval;
                 }
             }
             if let Some((sub, publisher)) = &self.telemetry {
                 while let Ok(Some(s)) = sub.receive() {
-                    let _ = publisher.send_copy(*s);
+                    telemetry = Some(*s);
                 }
+                if now >= next_telemetry {
+                    if let Some(t) = telemetry.take() {
+                        let _ = publisher.send_copy(t);
+                    }
+                    next_telemetry = now + TELEMETRY_INTERVAL;
+                }
+            }
+            // One wake of the tunnel for the round, once a frame went out.
+            if frames > frames_before {
+                let _ = self.frame_notify.notify();
             }
         }
         tracing::info!("remote relay stopped after {frames} frames");
         Ok(())
     }
 
-    /// Publishes a copy of `s` in the export domain and wakes the tunnel.
+    /// Publishes a copy of `s` in the export domain.
     fn forward_frame(
         &self,
         s: &iceoryx2::sample::Sample<ipc::Service, [NodeSample], FrameHeader>,
@@ -602,7 +641,6 @@ impl Relay {
         out.write_from_slice(nodes)
             .send()
             .context("send an export frame")?;
-        let _ = self.frame_notify.notify();
         Ok(())
     }
 }
