@@ -38,7 +38,8 @@ fn a_grasper_retracts_the_liver_while_a_hook_presses_and_burns_beside_it() {
     // build and 5.6-8.5 ms in this test's build, against 1.8 ms the day before; at 4 ms the
     // liver keeps the real-time refactor policy and its step grows to 4-6 ms), and after the
     // move to 10 ms during the grab the hook never touched the held liver in its burn window
-    // (0 of 500 states, four runs; the same scene at a fixed 10 ms passed on 2026-11-29). Why
+    // (none of the 500 states needed: two runs free, four held to 4 ms; the same scene at a
+    // fixed 10 ms passed on 2026-11-29). Why
     // the move breaks the press is open (issue notes); at most 2 ms it passed four runs of
     // four, 4-10 s each, the liver behind the wall clock where a step costs more.
     let config = dir.join("lopd.toml");
