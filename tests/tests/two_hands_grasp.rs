@@ -33,15 +33,13 @@ fn a_grasper_retracts_the_liver_while_a_hook_presses_and_burns_beside_it() {
     std::fs::create_dir_all(&dir).unwrap();
     let logs = [dir.join("grasper.csv"), dir.join("hook.csv")];
     let log_s: Vec<String> = logs.iter().map(|p| p.display().to_string()).collect();
-    // The scene as shipped, the grabbed liver's pace held to at most 2 ms. Free, it ran to
-    // 10 ms in every run on 2026-11-30 (this machine factors the liver in 2.6 ms in a release
-    // build and 5.6-8.5 ms in this test's build, against 1.8 ms the day before; at 4 ms the
-    // liver keeps the real-time refactor policy and its step grows to 4-6 ms), and after the
-    // move to 10 ms during the grab the hook never touched the held liver in its burn window
-    // (none of the 500 states needed: two runs free, four held to 4 ms; the same scene at a
-    // fixed 10 ms passed on 2026-11-29). Why
-    // the move breaks the press is open (issue notes); at most 2 ms it passed four runs of
-    // four, 4-10 s each, the liver behind the wall clock where a step costs more.
+    // The scene as shipped, the grabbed liver's pace held to at most 2 ms. On 2026-11-30 this
+    // machine factored the liver in 2.6 ms (release) and 5.6-8.5 ms (this test's build),
+    // against 1.8 ms the day before. Free, the pace ran to 10 ms (two runs of two); held to
+    // 4 ms, the step grew to 6 ms there (four runs of four). Either way the hook never touched
+    // the held liver in its burn window (none of the 500 states needed); why is open (issue
+    // notes). Held to 2 ms it passed four runs of four, 4-10 s each, the liver behind the
+    // wall clock where a step costs more.
     let config = dir.join("lopd.toml");
     std::fs::write(&config, "[deform]\nmax_period_ms = 2\n").unwrap();
     let mut daemon = Daemon::spawn(
