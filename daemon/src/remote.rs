@@ -11,8 +11,8 @@
 //! `PREFIX/scene/frame/ready`, which wakes a thread on the haptic core. So the tunnel never sees
 //! the rig's iceoryx2 domain: `lopd remote serve` copies the renderer-facing services
 //! (topology, frames, the frame-ready event, tool states, haptic telemetry) into an *export
-//! domain* of their own (the rig's iceoryx2 config with the global prefix
-//! [`EXPORT_DOMAIN_SUFFIX`] appended), under the same service names, and runs the tunnel there.
+//! domain* of their own (the rig's iceoryx2 config with [`EXPORT_DOMAIN_PREFIX`] put before its
+//! global prefix), under the same service names, and runs the tunnel there.
 //! Whatever a far host publishes lands in the export domain, which nothing on the rig reads.
 //! The control service (request–response) does not cross at all: the tunnel carries
 //! publish–subscribe and events only, and the blackboard of tool states stays on the rig.
@@ -57,8 +57,11 @@ use lop_ipc::{ServiceNames, ICEORYX2_VERSION};
 
 use crate::signals;
 
-/// Appended to the rig's iceoryx2 global prefix for the export domain (`iox2_` → `iox2_lopx_`).
-pub const EXPORT_DOMAIN_SUFFIX: &str = "lopx_";
+/// Put before the rig's iceoryx2 global prefix for the export domain (`iox2_` → `lopx_iox2_`).
+/// Before, not after: no file of the export domain then begins with the rig's prefix (iceoryx2
+/// finds a domain's files by their prefix; its listings were checked not to mix `iox2_` and
+/// `iox2_lopx_` on 2026-11-30, but nothing needs to rely on that).
+pub const EXPORT_DOMAIN_PREFIX: &str = "lopx_";
 
 /// How often the relay publishes the topology again for far hosts that join later.
 pub const TOPOLOGY_REPEAT: Duration = Duration::from_secs(1);
@@ -81,10 +84,10 @@ const RIG_TUNNEL_POLL_MS: u64 = 100;
 /// (`--reactive`).
 const FAR_TUNNEL_POLL_MS: u64 = 100;
 
-/// The rig's export domain: `rig` with [`EXPORT_DOMAIN_SUFFIX`] appended to its global prefix.
+/// The rig's export domain: `rig` with [`EXPORT_DOMAIN_PREFIX`] before its global prefix.
 pub fn export_config(rig: &Config) -> Result<Config> {
     let mut c = rig.clone();
-    let prefix = format!("{}{EXPORT_DOMAIN_SUFFIX}", rig.global.prefix);
+    let prefix = format!("{EXPORT_DOMAIN_PREFIX}{}", rig.global.prefix);
     c.global.prefix = FileName::new(prefix.as_bytes())
         .map_err(|e| anyhow::anyhow!("iceoryx2 prefix {prefix:?} for the export domain: {e:?}"))?;
     Ok(c)
@@ -655,9 +658,15 @@ mod tests {
         let export = export_config(&rig).unwrap();
         assert_eq!(
             export.global.prefix.to_string(),
-            format!("{}{EXPORT_DOMAIN_SUFFIX}", rig.global.prefix)
+            format!("{EXPORT_DOMAIN_PREFIX}{}", rig.global.prefix)
         );
         assert_eq!(export.defaults, rig.defaults);
+        // Neither domain's prefix begins the other's.
+        let (a, b) = (
+            rig.global.prefix.to_string(),
+            export.global.prefix.to_string(),
+        );
+        assert!(!a.starts_with(&b) && !b.starts_with(&a), "{a} {b}");
     }
 
     #[test]

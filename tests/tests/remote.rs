@@ -146,7 +146,7 @@ fn the_scene_reaches_a_far_domain_in_order_read_only_and_the_rig_outlives_every_
     let decoy_names = ServiceNames::new(&format!("{prefix}-decoy")).unwrap();
     let mut export = Config::global_config().clone();
     export.global.prefix =
-        FileName::new(format!("{}lopx_", Config::global_config().global.prefix).as_bytes())
+        FileName::new(format!("lopx_{}", Config::global_config().global.prefix).as_bytes())
             .unwrap();
     let decoy_node = services::node_in("systest-remote-decoy", &export).unwrap();
     let _decoy = services::frame_service(&decoy_node, &decoy_names, Role::Owner).unwrap();

@@ -156,7 +156,18 @@ mod tests {
             .stdin(std::process::Stdio::piped())
             .spawn()
             .unwrap();
-        assert_eq!(processes_of(&prefix).len(), 1);
+        // Until it is seen (a busy machine has shown none for a moment right after the spawn).
+        let start = Instant::now();
+        while processes_of(&prefix).len() != 1 && start.elapsed() < Duration::from_secs(5) {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        assert_eq!(
+            processes_of(&prefix).len(),
+            1,
+            "the shell: {:?}, {:?}",
+            child.try_wait(),
+            cmdline(child.id())
+        );
         let _ = child.kill();
         let _ = child.wait();
         assert!(find(&prefix, &me, Duration::from_secs(1)).clean());
