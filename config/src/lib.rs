@@ -367,8 +367,8 @@ pub use daemon::{
 };
 pub use error::{ConfigError, Location};
 pub use remote::{
-    check_zenoh_endpoint, RemoteConfig, ZenohMode, DEFAULT_LISTEN, DEFAULT_REMOTE_FRAME_RATE_HZ,
-    DEFAULT_TUNNEL, REMOTE_SERVICES,
+    check_zenoh_endpoint, RemoteConfig, RemoteOverrides, ZenohMode, DEFAULT_LISTEN,
+    DEFAULT_REMOTE_FRAME_RATE_HZ, DEFAULT_TUNNEL, REMOTE_SERVICES,
 };
 pub use resolve::{
     list_scenes, list_scenes_in, list_scripts, resolve_scene, resolve_scene_in, resolve_script,

@@ -25,6 +25,15 @@ pub enum ZenohMode {
 }
 
 impl ZenohMode {
+    /// `peer` or `client`.
+    pub fn parse(name: &str) -> Option<ZenohMode> {
+        match name {
+            "peer" => Some(ZenohMode::Peer),
+            "client" => Some(ZenohMode::Client),
+            _ => None,
+        }
+    }
+
     /// The name Zenoh's configuration uses.
     pub fn as_str(self) -> &'static str {
         match self {
@@ -61,6 +70,63 @@ pub struct RemoteConfig {
     /// Which renderer-facing services cross (`[remote] services`): any of [`REMOTE_SERVICES`],
     /// default all. `scene` (topology, frames, frame-ready) is always among them.
     pub services: Vec<String>,
+}
+
+/// Command-line replacements of `[remote]` keys (`lopd remote`, `lopd run --remote-listen`);
+/// empty or `None`: the key as configured.
+#[derive(Debug, Clone, Default)]
+pub struct RemoteOverrides {
+    /// `--listen`.
+    pub listen: Vec<String>,
+    /// `--connect`.
+    pub connect: Vec<String>,
+    /// `--mode`.
+    pub mode: Option<String>,
+    /// `--tunnel`.
+    pub tunnel: Option<PathBuf>,
+    /// `--zenoh-config`.
+    pub zenoh_config: Option<PathBuf>,
+}
+
+const BAD_MODE: &str = "use \"peer\" or \"client\" (a client of a Zenoh router named in connect)";
+const CLIENT_WITHOUT_ROUTER: &str =
+    "a client needs the router's endpoint in connect, e.g. tcp/10.0.0.2:7447";
+
+impl RemoteConfig {
+    /// This configuration with `o`'s replacements, checked by the rules of the file's keys; the
+    /// reason names the flag and its value.
+    pub fn with_overrides(mut self, o: &RemoteOverrides) -> Result<RemoteConfig, String> {
+        for (flag, list) in [("--listen", &o.listen), ("--connect", &o.connect)] {
+            for e in list {
+                check_zenoh_endpoint(e).map_err(|why| format!("{flag} {e:?}: {why}"))?;
+            }
+        }
+        if !o.listen.is_empty() {
+            self.listen = o.listen.clone();
+        }
+        if !o.connect.is_empty() {
+            self.connect = o.connect.clone();
+        }
+        if let Some(m) = &o.mode {
+            self.mode = ZenohMode::parse(m).ok_or_else(|| format!("--mode {m:?}: {BAD_MODE}"))?;
+            if self.mode == ZenohMode::Client {
+                self.listen.clear();
+            }
+        }
+        if self.mode == ZenohMode::Client && self.connect.is_empty() {
+            return Err(format!("--mode client: {CLIENT_WITHOUT_ROUTER}"));
+        }
+        if let Some(t) = &o.tunnel {
+            self.tunnel = t.clone();
+        }
+        if let Some(z) = &o.zenoh_config {
+            if !z.is_file() {
+                return Err(format!("--zenoh-config {}: no such file", z.display()));
+            }
+            self.zenoh_config = Some(z.clone());
+        }
+        Ok(self)
+    }
 }
 
 /// The groups of renderer-facing services `[remote] services` may name: `scene`
@@ -161,15 +227,9 @@ pub(crate) fn remote_config(
         }
     };
     let mode = match raw.mode.as_deref() {
-        None | Some("peer") => ZenohMode::Peer,
-        Some("client") => ZenohMode::Client,
-        Some(other) => {
-            return Err(c.invalid(
-                &k.key("mode"),
-                format!("{other:?}"),
-                "mode is \"peer\" or \"client\" (a client of a Zenoh router named in connect)",
-            ))
-        }
+        None => ZenohMode::Peer,
+        Some(name) => ZenohMode::parse(name)
+            .ok_or_else(|| c.invalid(&k.key("mode"), format!("{name:?}"), BAD_MODE))?,
     };
     let endpoints = |key: &str, list: Vec<String>| -> Result<Vec<String>, ConfigError> {
         for (i, e) in list.iter().enumerate() {
@@ -193,12 +253,7 @@ pub(crate) fn remote_config(
     };
     let connect = endpoints("connect", raw.connect.unwrap_or_default())?;
     if mode == ZenohMode::Client && connect.is_empty() {
-        return Err(c.invalid(
-            &k.key("connect"),
-            "[]",
-            "mode = \"client\" needs the router's endpoint in connect, \
-             e.g. [\"tcp/10.0.0.2:7447\"]",
-        ));
+        return Err(c.invalid(&k.key("connect"), "[]", CLIENT_WITHOUT_ROUTER));
     }
     let tunnel = match raw.tunnel {
         Some(t) if t.as_os_str().is_empty() => {

@@ -21,6 +21,8 @@ use lop_drivers::replay::ReplayDevice;
 use lop_drivers::DeviceSpec;
 use lop_ipc::ServiceNames;
 
+mod remote_cli;
+
 #[derive(Parser)]
 #[command(
     name = "lopd",
@@ -66,49 +68,8 @@ enum Command {
     /// `serve` is what `lopd run --remote` starts on the rig.
     Remote {
         #[command(subcommand)]
-        command: RemoteCommand,
+        command: remote_cli::RemoteCommand,
     },
-}
-
-#[derive(Subcommand)]
-enum RemoteCommand {
-    /// On a far host: bring one rig's scene into this host's iceoryx2 domain, so `lop-view`,
-    /// `lop-record` and the Python consumer attach here as on the rig (same --prefix). Runs
-    /// until Ctrl-C.
-    Attach(RemoteArgs),
-    /// On the rig (started by `lopd run --remote`): copy the renderer-facing services into an
-    /// export domain and run the tunnel there. Runs until Ctrl-C.
-    Serve(RemoteArgs),
-}
-
-#[derive(Args, Clone)]
-struct RemoteArgs {
-    /// The rig's service prefix.
-    #[arg(long, default_value = lop_ipc::SERVICE_PREFIX_DEFAULT)]
-    prefix: String,
-    /// Daemon configuration TOML whose `[remote]` section is the starting point.
-    #[arg(long)]
-    config: Option<PathBuf>,
-    /// A Zenoh endpoint to listen on (peer mode), e.g. tcp/0.0.0.0:7447; repeatable; replaces
-    /// `[remote] listen`.
-    #[arg(long, value_name = "ENDPOINT")]
-    listen: Vec<String>,
-    /// A Zenoh endpoint to connect to: the rig (tcp/RIG:7447) or a router; repeatable;
-    /// replaces `[remote] connect`.
-    #[arg(long, value_name = "ENDPOINT")]
-    connect: Vec<String>,
-    /// peer | client (of a Zenoh router named by --connect).
-    #[arg(long)]
-    mode: Option<String>,
-    /// The tunnel program (default: iox2-link-tunnel-zenoh on PATH).
-    #[arg(long)]
-    tunnel: Option<PathBuf>,
-    /// A Zenoh configuration file given to the tunnel as is (mode and endpoints unused).
-    #[arg(long)]
-    zenoh_config: Option<PathBuf>,
-    /// Stop after this many seconds.
-    #[arg(long)]
-    duration: Option<f64>,
 }
 
 #[derive(Args, Clone)]
@@ -406,7 +367,7 @@ fn main() -> ExitCode {
         Command::Doctor(a) => cmd_doctor(a),
         Command::Ctl(a) => cmd_ctl(a),
         Command::View(a) => cmd_view(a),
-        Command::Remote { command } => cmd_remote(command),
+        Command::Remote { command } => remote_cli::run(command),
     };
     match result {
         Ok(code) => ExitCode::from(code as u8),
@@ -597,24 +558,12 @@ fn cmd_run(a: RunArgs) -> Result<i32> {
     }
     // The tunnel is checked here; when it cannot run, the rig runs without it.
     let remote = if a.remote || config.remote.enabled {
-        let args = RemoteArgs {
-            prefix: a.haptic.common.prefix.clone(),
-            config: a.haptic.common.config.clone(),
-            listen: a.remote_listen.clone(),
-            connect: Vec::new(),
-            mode: None,
-            tunnel: None,
-            zenoh_config: None,
-            duration: None,
-        };
-        let resolved = remote_config(&args)?;
-        match lop_daemon::remote::check_tunnel(&resolved.tunnel) {
-            Ok(_) => Some(remote_child_args(&args)),
-            Err(e) => {
-                tracing::error!("--remote: {e:#}; the rig runs without it");
-                None
-            }
-        }
+        remote_cli::rig_child(
+            &a.haptic.common.prefix,
+            a.haptic.common.config.as_deref(),
+            &config,
+            &a.remote_listen,
+        )?
     } else {
         None
     };
@@ -916,105 +865,6 @@ fn cmd_ctl(a: CtlArgs) -> Result<i32> {
 
 /// Replaces this process with the `lop-view` binary next to `lopd`, so the supervisor can start
 /// the viewer as one of its children like the other two.
-/// `[remote]` of `--config` (or the defaults) with the command line's overrides, checked.
-fn remote_config(a: &RemoteArgs) -> Result<lop_config::RemoteConfig> {
-    let mut r = match &a.config {
-        Some(p) => bad(load_daemon_config(p))?.remote,
-        None => lop_config::RemoteConfig::default(),
-    };
-    for (flag, list) in [("--listen", &a.listen), ("--connect", &a.connect)] {
-        for e in list.iter() {
-            bad(lop_config::check_zenoh_endpoint(e)
-                .map_err(|why| anyhow::anyhow!("{flag} {e:?}: {why}")))?;
-        }
-    }
-    if !a.listen.is_empty() {
-        r.listen = a.listen.clone();
-    }
-    if !a.connect.is_empty() {
-        r.connect = a.connect.clone();
-    }
-    match a.mode.as_deref() {
-        None => {}
-        Some("peer") => r.mode = lop_config::ZenohMode::Peer,
-        Some("client") => {
-            r.mode = lop_config::ZenohMode::Client;
-            r.listen.clear();
-        }
-        Some(m) => bad(Err::<(), _>(anyhow::anyhow!(
-            "--mode {m:?}: use peer or client (of a Zenoh router named by --connect)"
-        )))?,
-    }
-    if r.mode == lop_config::ZenohMode::Client && r.connect.is_empty() {
-        bad(Err::<(), _>(anyhow::anyhow!(
-            "--mode client needs the router's endpoint: --connect tcp/ROUTER:7447"
-        )))?;
-    }
-    if let Some(t) = &a.tunnel {
-        r.tunnel = t.clone();
-    }
-    if let Some(z) = &a.zenoh_config {
-        if !z.is_file() {
-            bad(Err::<(), _>(anyhow::anyhow!(
-                "--zenoh-config {}: no such file",
-                z.display()
-            )))?;
-        }
-        r.zenoh_config = Some(z.clone());
-    }
-    Ok(r)
-}
-
-/// The command line of `lopd remote serve` for `lopd run --remote`.
-fn remote_child_args(a: &RemoteArgs) -> Vec<String> {
-    let mut v = vec![
-        "serve".to_string(),
-        "--prefix".to_string(),
-        a.prefix.clone(),
-    ];
-    if let Some(c) = &a.config {
-        v.extend(["--config".to_string(), c.display().to_string()]);
-    }
-    for e in &a.listen {
-        v.extend(["--listen".to_string(), e.clone()]);
-    }
-    v
-}
-
-fn cmd_remote(command: RemoteCommand) -> Result<i32> {
-    match command {
-        RemoteCommand::Serve(a) => {
-            let names = bad(ServiceNames::new(&a.prefix))?;
-            let r = remote_config(&a)?;
-            lop_daemon::remote::serve(&names, &r)
-        }
-        RemoteCommand::Attach(a) => {
-            bad(ServiceNames::new(&a.prefix))?;
-            let mut r = remote_config(&a)?;
-            // A far host connects; it listens only where told.
-            if a.listen.is_empty() && a.config.is_none() {
-                r.listen.clear();
-            }
-            if r.connect.is_empty() && r.zenoh_config.is_none() && r.listen.is_empty() {
-                bad(Err::<(), _>(anyhow::anyhow!(
-                    "lopd remote attach needs the rig: --connect tcp/RIG:7447 (or a router's \
-                     endpoint, or --listen for a rig that connects here)"
-                )))?;
-            }
-            let duration = match a.duration {
-                Some(s) if s.is_finite() && s > 0.0 => Some(Duration::from_secs_f64(s)),
-                Some(s) => bad(Err(anyhow::anyhow!("--duration {s}: must be > 0 seconds")))?,
-                None => None,
-            };
-            lop_daemon::remote::attach(&lop_daemon::remote::AttachOptions {
-                prefix: a.prefix,
-                remote: r,
-                duration,
-            })
-        }
-    }
-}
-
 fn cmd_view(a: ViewArgs) -> Result<i32> {
     use std::os::unix::process::CommandExt;
     bad(ServiceNames::new(&a.prefix))?;

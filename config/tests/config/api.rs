@@ -474,11 +474,11 @@ fn remote_section_names_the_bad_key_and_value() {
     );
     daemon_err(
         "[remote]\nmode = \"router\"\n",
-        &["remote.mode", "\"router\"", "peer"],
+        &["remote.mode", "\"router\"", "\"peer\" or \"client\""],
     );
     daemon_err(
         "[remote]\nmode = \"client\"\n",
-        &["remote.connect", "router's endpoint"],
+        &["remote.connect", "router's endpoint in connect"],
     );
     daemon_err(
         "[remote]\nzenoh_config = \"nowhere.json5\"\n",
