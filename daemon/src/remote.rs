@@ -44,7 +44,7 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
@@ -56,6 +56,7 @@ use lop_ipc::types::{FrameHeader, HapticTelemetry, NodeSample, ToolState, Topolo
 use lop_ipc::{ServiceNames, ICEORYX2_VERSION};
 
 use crate::signals;
+use crate::supervisor::Supervised;
 
 /// Put before the rig's iceoryx2 global prefix for the export domain (`iox2_` → `lopx_iox2_`).
 /// Before, not after: no file of the export domain then begins with the rig's prefix (iceoryx2
@@ -211,98 +212,24 @@ impl Drop for TunnelDir {
     }
 }
 
-/// The tunnel as a child process, restarted with back-off when it exits.
-struct Tunnel {
-    program: PathBuf,
-    args: Vec<String>,
-    dir: TunnelDir,
-    child: Option<Child>,
-    started: Instant,
-    backoff: Duration,
-    next_start: Instant,
-    restarts: u32,
+/// The tunnel as a supervised child (restarted with back-off when it exits), run in `dir`.
+fn tunnel(program: PathBuf, args: Vec<String>, dir: &TunnelDir) -> Supervised {
+    Supervised::program("the Zenoh link tunnel", program, args, dir.0.clone())
 }
 
-impl Tunnel {
-    fn new(program: PathBuf, args: Vec<String>, dir: TunnelDir) -> Tunnel {
-        Tunnel {
-            program,
-            args,
-            dir,
-            child: None,
-            started: Instant::now(),
-            backoff: Duration::from_millis(200),
-            next_start: Instant::now(),
-            restarts: 0,
-        }
+/// Starts the tunnel when due and reaps it when it exited; a failed start is retried after the
+/// back-off.
+fn tend(t: &mut Supervised) {
+    t.check();
+    if let Err(e) = t.maybe_start() {
+        tracing::error!("{e:#}");
     }
+}
 
-    /// Starts the tunnel when it is due, reaps it when it exited.
-    fn tend(&mut self) {
-        use std::os::unix::process::CommandExt;
-        if let Some(child) = &mut self.child {
-            if let Ok(Some(status)) = child.try_wait() {
-                if self.started.elapsed() > Duration::from_secs(10) {
-                    self.backoff = Duration::from_millis(200);
-                }
-                tracing::warn!(
-                    "the Zenoh link tunnel exited ({status}); restarting it in {:?}",
-                    self.backoff
-                );
-                self.child = None;
-                self.next_start = Instant::now() + self.backoff;
-                self.backoff = (self.backoff * 2).min(Duration::from_secs(5));
-                self.restarts += 1;
-            }
-            return;
-        }
-        if Instant::now() < self.next_start {
-            return;
-        }
-        let mut cmd = Command::new(&self.program);
-        cmd.args(&self.args).current_dir(&self.dir.0);
-        // SAFETY: prctl is async-signal-safe; nothing else runs between fork and exec.
-        unsafe {
-            cmd.pre_exec(|| {
-                signals::die_with_parent();
-                Ok(())
-            });
-        }
-        match cmd.spawn() {
-            Ok(child) => {
-                tracing::info!(
-                    "started the Zenoh link tunnel (pid {}): {} {}",
-                    child.id(),
-                    self.program.display(),
-                    self.args.join(" ")
-                );
-                self.child = Some(child);
-                self.started = Instant::now();
-            }
-            Err(e) => {
-                tracing::error!("starting {}: {e}", self.program.display());
-                self.next_start = Instant::now() + self.backoff;
-                self.backoff = (self.backoff * 2).min(Duration::from_secs(5));
-            }
-        }
-    }
-
-    fn stop(&mut self) {
-        let Some(mut child) = self.child.take() else {
-            return;
-        };
-        // SAFETY: plain kill on our own child's pid.
-        unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
-        let until = Instant::now() + Duration::from_secs(3);
-        while Instant::now() < until {
-            if let Ok(Some(_)) = child.try_wait() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(10));
-        }
-        let _ = child.kill();
-        let _ = child.wait();
-    }
+/// SIGTERM, then SIGKILL after 3 s.
+fn stop(t: &mut Supervised) {
+    t.terminate();
+    t.wait_or_kill(Instant::now() + Duration::from_secs(3));
 }
 
 /// The tunnel's Zenoh config: the user's file as is, or one written from `[remote]`.
@@ -358,9 +285,9 @@ pub fn serve(names: &ServiceNames, remote: &RemoteConfig) -> Result<i32> {
     for a in allow {
         args.extend(["--allow".to_string(), a]);
     }
-    let mut tunnel = Tunnel::new(program, args, dir);
-    let result = relay.run(|| tunnel.tend());
-    tunnel.stop();
+    let mut tunnel = tunnel(program, args, &dir);
+    let result = relay.run(|| tend(&mut tunnel));
+    stop(&mut tunnel);
     result.map(|()| 0)
 }
 
@@ -392,7 +319,7 @@ pub fn attach(opts: &AttachOptions) -> Result<i32> {
         "--poll".to_string(),
         FAR_TUNNEL_POLL_MS.to_string(),
     ];
-    let mut tunnel = Tunnel::new(program, args, dir);
+    let mut tunnel = tunnel(program, args, &dir);
     println!(
         "lopd remote attach: the services of {:?} arrive in this host's iceoryx2 domain \
          (prefix {:?}); attach clients with --prefix {}",
@@ -403,13 +330,13 @@ pub fn attach(opts: &AttachOptions) -> Result<i32> {
     let _ = std::io::stdout().flush();
     let start = Instant::now();
     while !signals::stop_requested() && opts.duration.is_none_or(|d| start.elapsed() < d) {
-        tunnel.tend();
+        tend(&mut tunnel);
         std::thread::sleep(Duration::from_millis(20));
     }
-    tunnel.stop();
+    stop(&mut tunnel);
     println!(
         "lopd remote attach: stopped; tunnel restarts {}",
-        tunnel.restarts
+        tunnel.restarts()
     );
     Ok(0)
 }

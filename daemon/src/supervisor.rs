@@ -96,9 +96,16 @@ fn view_control_token(bind: &str, given: Option<&str>) -> Result<Option<String>>
 /// Where `lopd run --view` and `lop-view` listen unless told otherwise: loopback only.
 pub const VIEW_BIND_DEFAULT: &str = "127.0.0.1:8733";
 
-struct Supervised {
-    role: &'static str,
+/// A child process restarted with back-off when it exits: one of `lopd`'s roles (`lopd ROLE
+/// ARGS`), or another program ([`Supervised::program`], e.g. the Zenoh link tunnel).
+pub struct Supervised {
+    /// What the logs call it: `lopd haptic`, `the Zenoh link tunnel`.
+    name: String,
+    /// The program and its arguments (for a role: this `lopd`, then the role).
+    program: Option<PathBuf>,
     args: Vec<String>,
+    /// Working directory; `None`: this process's.
+    dir: Option<PathBuf>,
     /// Environment set (`Some`) or removed (`None`) for the child.
     env: Vec<(&'static str, Option<String>)>,
     child: Option<Child>,
@@ -114,10 +121,29 @@ const HEALTHY_AFTER: Duration = Duration::from_secs(10);
 const STOP_GRACE: Duration = Duration::from_secs(3);
 
 impl Supervised {
+    /// `lopd ROLE ARGS`.
     fn new(role: &'static str, args: Vec<String>) -> Supervised {
+        let mut all = vec![role.to_string()];
+        all.extend(args);
+        Supervised::with(format!("lopd {role}"), None, all, None)
+    }
+
+    /// `program ARGS` in `dir`, called `name` in the logs.
+    pub fn program(name: &str, program: PathBuf, args: Vec<String>, dir: PathBuf) -> Supervised {
+        Supervised::with(name.to_string(), Some(program), args, Some(dir))
+    }
+
+    fn with(
+        name: String,
+        program: Option<PathBuf>,
+        args: Vec<String>,
+        dir: Option<PathBuf>,
+    ) -> Supervised {
         Supervised {
-            role,
+            name,
+            program,
             args,
+            dir,
             env: Vec::new(),
             child: None,
             started: Instant::now(),
@@ -128,9 +154,15 @@ impl Supervised {
     }
 
     fn spawn(&mut self) -> Result<()> {
-        let exe = std::env::current_exe().context("locating the lopd binary")?;
-        let mut cmd = Command::new(exe);
-        cmd.arg(self.role).args(&self.args);
+        let program = match &self.program {
+            Some(p) => p.clone(),
+            None => std::env::current_exe().context("locating the lopd binary")?,
+        };
+        let mut cmd = Command::new(&program);
+        cmd.args(&self.args);
+        if let Some(d) = &self.dir {
+            cmd.current_dir(d);
+        }
         for (k, v) in &self.env {
             match v {
                 Some(v) => cmd.env(k, v),
@@ -144,10 +176,20 @@ impl Supervised {
                 Ok(())
             });
         }
-        let child = cmd
-            .spawn()
-            .with_context(|| format!("starting lopd {}", self.role))?;
-        tracing::info!("started lopd {} (pid {})", self.role, child.id());
+        let child = match cmd.spawn() {
+            Ok(c) => c,
+            Err(e) => {
+                // Tried again after the back-off by whoever keeps going.
+                self.next_start = Some(Instant::now() + self.backoff);
+                self.backoff = (self.backoff * 2).min(BACKOFF_MAX);
+                return Err(anyhow::Error::new(e).context(format!(
+                    "starting {} ({})",
+                    self.name,
+                    program.display()
+                )));
+            }
+        };
+        tracing::info!("started {} (pid {})", self.name, child.id());
         self.child = Some(child);
         self.started = Instant::now();
         self.next_start = None;
@@ -155,7 +197,7 @@ impl Supervised {
     }
 
     /// Reaps an exited child and schedules its restart.
-    fn check(&mut self) {
+    pub fn check(&mut self) {
         let Some(child) = &mut self.child else {
             return;
         };
@@ -164,8 +206,8 @@ impl Supervised {
                 self.backoff = BACKOFF_MIN;
             }
             tracing::warn!(
-                "lopd {} (pid {}) exited: {status}; restarting in {:?}",
-                self.role,
+                "{} (pid {}) exited: {status}; restarting in {:?}",
+                self.name,
                 child.id(),
                 self.backoff
             );
@@ -176,7 +218,8 @@ impl Supervised {
         }
     }
 
-    fn maybe_start(&mut self) -> Result<()> {
+    /// Starts the child when it is due.
+    pub fn maybe_start(&mut self) -> Result<()> {
         if let Some(at) = self.next_start {
             if Instant::now() >= at {
                 self.spawn()?;
@@ -185,26 +228,28 @@ impl Supervised {
         Ok(())
     }
 
-    fn terminate(&mut self) {
+    /// SIGTERM to the child, if running.
+    pub fn terminate(&mut self) {
         if let Some(child) = &self.child {
             // SAFETY: plain kill on our own child's pid.
             unsafe { libc::kill(child.id() as i32, libc::SIGTERM) };
         }
     }
 
-    fn wait_or_kill(&mut self, until: Instant) {
+    /// Waits for the child until `until`, then kills it.
+    pub fn wait_or_kill(&mut self, until: Instant) {
         let Some(child) = &mut self.child else {
             return;
         };
         loop {
             match child.try_wait() {
                 Ok(Some(status)) => {
-                    tracing::info!("lopd {} stopped: {status}", self.role);
+                    tracing::info!("{} stopped: {status}", self.name);
                     break;
                 }
                 Ok(None) if Instant::now() < until => std::thread::sleep(Duration::from_millis(10)),
                 _ => {
-                    tracing::warn!("lopd {} did not stop in time; killing it", self.role);
+                    tracing::warn!("{} did not stop in time; killing it", self.name);
                     let _ = child.kill();
                     let _ = child.wait();
                     break;
@@ -212,6 +257,11 @@ impl Supervised {
             }
         }
         self.child = None;
+    }
+
+    /// How often it was restarted.
+    pub fn restarts(&self) -> u32 {
+        self.restarts
     }
 }
 
