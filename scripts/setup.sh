@@ -13,10 +13,6 @@
 #             `lopd mesh tetrahedralize` for surfaces with defects (daemon/src/tetrahedralize)
 #   iceoryx2  the Python binding, at exactly the daemon's iceoryx2 version, for the renderer
 #             contract's Python consumer example (examples/python/consumer.py)
-#   iox2-link-tunnel-zenoh  iceoryx2's Zenoh link tunnel at exactly that version (crates.io
-#             iceoryx2-integrations-zenoh-link-tunnel-cli, built by cargo install: about 7 min
-#             on 2 cores, once), for `lopd run --remote` and `lopd remote attach`
-#             (tests/tests/remote.rs)
 set -euo pipefail
 
 # Must equal the workspace's `iceoryx2 = "=…"` pin: every process sharing a service runs the
@@ -71,11 +67,3 @@ python3 -c 'import vtk' >/dev/null 2>&1 || pip_user vtk
 # pytetwild 0.4 imports pyvista without declaring it.
 python3 -c 'import pytetwild' >/dev/null 2>&1 || pip_user pytetwild pyvista
 
-# The tunnel, built outside any lop build: none of the lint flags CI sets for lop's crates, and
-# cargo's own temporary target (removed afterwards) rather than lop's.
-tunnel=$(iox2-link-tunnel-zenoh --version 2>/dev/null | awk '{print $NF}' || true)
-if [ "$tunnel" != "$ICEORYX2_VERSION" ]; then
-  echo "setup: installing iox2-link-tunnel-zenoh $ICEORYX2_VERSION (cargo install, several minutes)" >&2
-  env -u RUSTC_WORKSPACE_WRAPPER -u RUSTFLAGS -u CARGO_TARGET_DIR -u CARGO_BUILD_TARGET_DIR \
-    cargo install -q --locked iceoryx2-integrations-zenoh-link-tunnel-cli --version "$ICEORYX2_VERSION"
-fi

@@ -1,5 +1,5 @@
 //! `[remote]` of the daemon config: the scene carried to other hosts over Zenoh by iceoryx2's
-//! link tunnel (`lopd run --remote`).
+//! link tunnel (`lopd run --remote`, the `lop-tunnel` program).
 
 use std::path::{Path, PathBuf};
 
@@ -7,9 +7,9 @@ use crate::check::Check;
 use crate::error::ConfigError;
 use crate::source::KeyPath;
 
-/// The tunnel program when `[remote] tunnel` is missing: iceoryx2's Zenoh link tunnel
-/// (crates.io `iceoryx2-integrations-zenoh-link-tunnel-cli`, installed by `scripts/setup.sh`).
-pub const DEFAULT_TUNNEL: &str = "iox2-link-tunnel-zenoh";
+/// The tunnel program when `[remote] tunnel` is missing: lop's build of iceoryx2's Zenoh link
+/// tunnel (the workspace's `lop-tunnel`), looked for beside `lopd` and then on `PATH`.
+pub const DEFAULT_TUNNEL: &str = "lop-tunnel";
 
 /// The Zenoh endpoint a rig listens on when `[remote]` names none: every interface, Zenoh's
 /// own port. Only the renderer-facing services cross, read-only (`docs/deploy.md`).
@@ -54,7 +54,8 @@ pub struct RemoteConfig {
     pub listen: Vec<String>,
     /// Zenoh endpoints this side connects to: peers, or the router in client mode.
     pub connect: Vec<String>,
-    /// The tunnel program: a name looked up on `PATH`, or a path (relative to the config file).
+    /// The tunnel program: a name looked for beside `lopd` and then on `PATH`, or a path
+    /// (relative to the config file).
     pub tunnel: PathBuf,
     /// A Zenoh configuration file given to the tunnel as is (relative to the config file); when
     /// set, `mode`, `listen` and `connect` are not used.
@@ -257,10 +258,10 @@ pub(crate) fn remote_config(
     }
     let tunnel = match raw.tunnel {
         Some(t) if t.as_os_str().is_empty() => {
-            let why = format!("leave tunnel out for {DEFAULT_TUNNEL} on PATH");
+            let why = format!("leave tunnel out for {DEFAULT_TUNNEL} beside lopd or on PATH");
             return Err(c.invalid(&k.key("tunnel"), "\"\"", why));
         }
-        // A bare name is looked up on PATH; anything with a slash is a path.
+        // A bare name is looked for beside lopd, then on PATH; anything with a slash is a path.
         Some(t) if t.components().count() > 1 => relative(t),
         Some(t) => t,
         None => d.tunnel,

@@ -1,7 +1,8 @@
 //! The scene on other hosts: `lopd run --remote` (rig side, `lopd remote serve`) and
-//! `lopd remote attach` (far side), over iceoryx2's own Zenoh link tunnel
-//! (`iox2-link-tunnel-zenoh`, crates.io `iceoryx2-integrations-zenoh-link-tunnel-cli`, run as a
-//! separate program).
+//! `lopd remote attach` (far side), over iceoryx2's Zenoh link tunnel, run as a separate
+//! program: `lop-tunnel` (this workspace's `tunnel/`, built from iceoryx2's own link-tunnel
+//! crates, found beside `lopd` or on `PATH`). iceoryx2's `iox2-link-tunnel-zenoh` takes the same
+//! command line and works too, slower (`[remote] tunnel`).
 //!
 //! # The rig side never opens its own services to the network
 //!
@@ -37,10 +38,10 @@
 //!
 //! Frames at most `[remote] frame_rate_hz` a second (default 120; the newest, in order), the
 //! newest state of each tool with them, the haptic telemetry (a status of one-second windows)
-//! at 10 Hz. Every wake of the tunnel costs it a whole round of service discovery
-//! (`docs/benchmarks.md`, the scene on other hosts), so the relay wakes the rig's tunnel once a
-//! round, not once a sample, and the thousand tool states and telemetry samples a second the
-//! haptic loop publishes stay on the rig.
+//! at 10 Hz. The relay wakes the rig's tunnel once a round, not once a sample (a wake of
+//! `lop-tunnel` propagates what is pending; its service discovery runs on its own interval),
+//! and the thousand tool states and telemetry samples a second the haptic loop publishes stay
+//! on the rig.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -75,10 +76,10 @@ const RELAY_WAKE: Duration = Duration::from_millis(5);
 /// loop's last second).
 const TELEMETRY_INTERVAL: Duration = Duration::from_millis(100);
 
-/// How often the rig's tunnel looks for new services, ms. The relay wakes it through the
-/// frame-ready event once it has published a round (frame, tool states, telemetry): every
-/// wake is a whole round of the tunnel's discovery and propagation, which cost the rig's
-/// tunnel 70 % of a core at a 5 ms poll beside the wakes (`docs/benchmarks.md`).
+/// How often the rig's tunnel looks for new services (its discovery interval), ms. The relay
+/// wakes it through the frame-ready event once it has published a round (frame, tool states,
+/// telemetry), and a wake propagates at once. A round of discovery lists every service of the
+/// domain (about 3 ms here), so it stays off the frames' path (`docs/benchmarks.md`).
 const RIG_TUNNEL_POLL_MS: u64 = 100;
 
 /// How often the far side's tunnel looks for new services, ms; samples wake it as they arrive
@@ -138,29 +139,32 @@ pub fn zenoh_config(
     serde_json::to_string_pretty(&doc).expect("a JSON value serialises")
 }
 
-/// The tunnel program, found and checked: on `PATH` (a bare name) or at the path, and built
-/// against lop's iceoryx2 version (its `--version`).
+/// The tunnel program, found and checked: at the path, or a bare name beside the running
+/// `lopd` (where cargo builds `lop-tunnel`) and then on `PATH`; built against lop's iceoryx2
+/// version (the last word of its `--version`).
 pub fn check_tunnel(program: &Path) -> Result<PathBuf> {
-    let found = if program.components().count() > 1 {
+    let bare = program.components().count() == 1;
+    let found = if !bare {
         program.is_file().then(|| program.to_path_buf())
     } else {
-        std::env::var_os("PATH").and_then(|paths| {
-            std::env::split_paths(&paths)
-                .map(|d| d.join(program))
-                .find(|p| p.is_file())
-        })
+        let beside = std::env::current_exe()
+            .ok()
+            .and_then(|exe| exe.parent().map(|d| d.join(program)));
+        let on_path: Vec<PathBuf> = std::env::var_os("PATH")
+            .map(|paths| {
+                std::env::split_paths(&paths)
+                    .map(|d| d.join(program))
+                    .collect()
+            })
+            .unwrap_or_default();
+        beside.into_iter().chain(on_path).find(|p| p.is_file())
     };
     let Some(path) = found else {
         bail!(
-            "the Zenoh link tunnel {:?} was not found{}: install it with `cargo install \
-             iceoryx2-integrations-zenoh-link-tunnel-cli --version {ICEORYX2_VERSION} --locked` \
-             (scripts/setup.sh does), or name it in [remote] tunnel",
+            "the Zenoh link tunnel {:?} was not found{}: build it with `cargo build --release -p \
+             lop-tunnel` (cargo puts it beside lopd), or name it in [remote] tunnel",
             program.display().to_string(),
-            if program.components().count() > 1 {
-                ""
-            } else {
-                " on PATH"
-            }
+            if bare { " beside lopd or on PATH" } else { "" }
         );
     };
     let out = Command::new(&path)
@@ -173,7 +177,7 @@ pub fn check_tunnel(program: &Path) -> Result<PathBuf> {
         bail!(
             "{} is not the iceoryx2 {ICEORYX2_VERSION} Zenoh link tunnel (its --version says \
              {:?}): every process sharing lop's services runs iceoryx2 {ICEORYX2_VERSION}; \
-             install `iceoryx2-integrations-zenoh-link-tunnel-cli --version {ICEORYX2_VERSION}`",
+             build `lop-tunnel` from this workspace (`cargo build --release -p lop-tunnel`)",
             path.display(),
             text.trim()
         );
@@ -633,10 +637,10 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains("\"no-such-lop-tunnel\" was not found on PATH"),
+            e.contains("\"no-such-lop-tunnel\" was not found beside lopd or on PATH"),
             "{e}"
         );
-        assert!(e.contains("cargo install iceoryx2-integrations-zenoh-link-tunnel-cli"));
+        assert!(e.contains("cargo build --release -p lop-tunnel"), "{e}");
         // A program of another kind (its --version is not 0.10.0).
         let e = check_tunnel(Path::new("/bin/true"))
             .unwrap_err()

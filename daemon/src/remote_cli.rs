@@ -41,7 +41,7 @@ pub(crate) struct RemoteArgs {
     /// peer | client (of a Zenoh router named by --connect).
     #[arg(long)]
     mode: Option<String>,
-    /// The tunnel program (default: iox2-link-tunnel-zenoh on PATH).
+    /// The tunnel program (default: lop-tunnel beside lopd, then on PATH).
     #[arg(long)]
     tunnel: Option<PathBuf>,
     /// A Zenoh configuration file given to the tunnel as is (mode and endpoints unused).

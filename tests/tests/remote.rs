@@ -13,7 +13,8 @@
 //! - killing the rig's tunnel or the whole far side leaves the rig running (frames and haptic
 //!   telemetry keep coming); the rig's tunnel is restarted and the far side receives again.
 //!
-//! Needs the tunnel program `iox2-link-tunnel-zenoh` on PATH (`scripts/setup.sh` installs it).
+//! The tunnel is the workspace's `lop-tunnel`, which lopd finds beside itself (`cargo test
+//! --workspace` builds it).
 
 use std::net::TcpListener;
 use std::path::Path;
@@ -114,6 +115,8 @@ fn rig_frames(names: &ServiceNames, d: Duration) -> Vec<u64> {
 
 #[test]
 fn the_scene_reaches_a_far_domain_in_order_read_only_and_the_rig_outlives_every_tunnel() {
+    // lopd runs the tunnel it finds beside itself: this build's.
+    sibling_binary("lop-tunnel");
     let prefix = unique_prefix("remote");
     let names = ServiceNames::new(&prefix).unwrap();
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());

@@ -230,7 +230,7 @@ fn remote_bad_input_is_named() {
     assert_eq!(code, 1, "{err}");
     assert!(
         err.contains("\"/nonexistent/iox2-link-tunnel-zenoh\" was not found")
-            && err.contains("cargo install iceoryx2-integrations-zenoh-link-tunnel-cli"),
+            && err.contains("cargo build --release -p lop-tunnel"),
         "{err}"
     );
     let (code, _, err) = run(lopd().args(["run", "--remote", "--remote-listen", "udp/:1"]));

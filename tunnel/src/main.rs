@@ -1,0 +1,209 @@
+//! `lop-tunnel`: the scene on other hosts, over iceoryx2's Zenoh link tunnel (the crates
+//! `iceoryx2-link`, `iceoryx2-link-tunnel` and `iceoryx2-integrations-zenoh-link-carrier`, at
+//! lop's iceoryx2 version). `lopd run --remote` runs it on the rig (in the export domain the
+//! relay fills, never in the rig's own) and `lopd remote attach` runs it on a far host; see
+//! `daemon/src/remote.rs` and `docs/deploy.md`.
+//!
+//! Why lop builds its own program from those crates instead of running iceoryx2's
+//! `iox2-link-tunnel-zenoh`: that program runs a whole round of *discovery* (listing every
+//! local service, which reads and parses each service's static config, about 3 ms here) before
+//! every *propagation*, on every wake. Woken for each frame, the rig's side then spent 39 % of a
+//! core at 120 frames/s, and a frame waited behind the discovery of the last: far frames were
+//! 39–52 ms old at p99 against about 1 ms for a local client (`docs/benchmarks.md`). Here a
+//! wake (a frame the relay announced, a sample Zenoh delivered) propagates at once, and
+//! discovery runs on its own interval (`--poll`, 100 ms by default): a service that appears is
+//! bridged within one interval, a frame crosses within one propagation.
+//!
+//! The command line is iceoryx2's tunnel program's (`--zenoh-config`, `--allow`, `--poll`,
+//! `--reactive`, `--listener`), so `[remote] tunnel` may name either; `--poll` is the discovery
+//! interval here. `--version` ends with the iceoryx2 version, which lopd checks.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Context, Result};
+use clap::{CommandFactory, FromArgMatches, Parser};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::prelude::*;
+use iceoryx2_integrations_zenoh_link_carrier::ZenohCarrier;
+use iceoryx2_link::Link;
+use iceoryx2_link_backend::AllowList;
+use iceoryx2_link_tunnel::Tunnel;
+
+/// The discovery interval when `--poll` is not given, ms.
+const DEFAULT_DISCOVERY_MS: u64 = 100;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "lop-tunnel",
+    about = "Carries iceoryx2 services to other hosts over Zenoh: a wake propagates at once, \
+             discovery runs on its own interval."
+)]
+struct Cli {
+    /// A Zenoh configuration file (JSON5); Zenoh's defaults without one.
+    #[arg(short = 'z', long, value_name = "PATH")]
+    zenoh_config: Option<PathBuf>,
+    /// Bridge only the services whose names match this pattern ('*' any run of characters,
+    /// '?' one); repeatable. Every service without one.
+    #[arg(short = 'a', long = "allow", value_name = "SERVICE")]
+    allow: Vec<String>,
+    /// How often discovery runs (new services bridged, gone ones closed), ms.
+    #[arg(long, value_name = "MS", default_value_t = DEFAULT_DISCOVERY_MS)]
+    poll: u64,
+    /// Propagate as soon as Zenoh delivers samples (the far side).
+    #[arg(long)]
+    reactive: bool,
+    /// Propagate whenever this iceoryx2 event service fires (the rig side: the frame-ready
+    /// event); repeatable.
+    #[arg(long, value_name = "EVENT_SERVICE")]
+    listener: Vec<String>,
+}
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("lop-tunnel: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> Result<()> {
+    // "lop-tunnel 0.1.0 iceoryx2 0.10.0": the last word is what lopd checks.
+    let version: &'static str = Box::leak(
+        format!(
+            "{} iceoryx2 {}",
+            env!("CARGO_PKG_VERSION"),
+            lop_ipc::ICEORYX2_VERSION
+        )
+        .into_boxed_str(),
+    );
+    let cli = match Cli::from_arg_matches(&Cli::command().version(version).get_matches()) {
+        Ok(cli) => cli,
+        Err(e) => e.exit(),
+    };
+    if cli.poll == 0 {
+        anyhow::bail!("--poll 0: the discovery interval must be at least 1 ms");
+    }
+    iceoryx2_log::set_log_level_from_env_or(iceoryx2_log::LogLevel::Warn);
+
+    // The domain: `config/iceoryx2.toml` under the working directory (lopd writes it), else
+    // iceoryx2's defaults, as for every iceoryx2 program.
+    let config = iceoryx2::config::Config::global_config();
+    let zenoh = match &cli.zenoh_config {
+        Some(path) => zenoh::Config::from_file(path)
+            .map_err(|e| anyhow!("the Zenoh config {}: {e}", path.display()))?,
+        None => zenoh::Config::default(),
+    };
+    let node = NodeBuilder::new()
+        .config(config)
+        .create::<ipc::Service>()
+        .map_err(|e| anyhow!("the tunnel's iceoryx2 node: {e:?}"))?;
+    let carrier = ZenohCarrier::create(zenoh).map_err(|e| anyhow!("the Zenoh session: {e:?}"))?;
+    let mut link = Link::new(node, Tunnel::new(carrier, config));
+    if !cli.allow.is_empty() {
+        let allow = AllowList::new(&cli.allow);
+        link = link.with_filter(move |name: &ServiceName| allow.admits(name.as_str()));
+    }
+
+    let carrier_wake = if cli.reactive {
+        Some(
+            link.listener()
+                .map_err(|e| anyhow!("the tunnel's wake listener: {e:?}"))?,
+        )
+    } else {
+        None
+    };
+    let mut events: Vec<Listener<ipc::Service>> = Vec::with_capacity(cli.listener.len());
+    for name in &cli.listener {
+        let service_name =
+            ServiceName::new(name).map_err(|e| anyhow!("--listener {name:?}: {e:?}"))?;
+        let service = link
+            .node()
+            .service_builder(&service_name)
+            .event()
+            .open_or_create()
+            .map_err(|e| anyhow!("--listener {name:?}: the event service: {e:?}"))?;
+        events.push(
+            service
+                .listener_builder()
+                .create()
+                .map_err(|e| anyhow!("--listener {name:?}: a listener: {e:?}"))?,
+        );
+    }
+
+    let waitset = WaitSetBuilder::new()
+        .create::<ipc::Service>()
+        .map_err(|e| anyhow!("the wait set: {e:?}"))?;
+    let every = Duration::from_millis(cli.poll);
+    let _interval = waitset
+        .attach_interval(every)
+        .map_err(|e| anyhow!("the discovery interval: {e:?}"))?;
+    let mut guards = Vec::with_capacity(events.len() + 1);
+    if let Some(l) = &carrier_wake {
+        guards.push(
+            waitset
+                .attach_notification(l)
+                .map_err(|e| anyhow!("attaching the tunnel's wake: {e:?}"))?,
+        );
+    }
+    for l in &events {
+        guards.push(
+            waitset
+                .attach_notification(l)
+                .map_err(|e| anyhow!("attaching a --listener: {e:?}"))?,
+        );
+    }
+    eprintln!(
+        "lop-tunnel: bridging {} over Zenoh; discovery every {} ms, propagation on {}",
+        if cli.allow.is_empty() {
+            "every service".to_string()
+        } else {
+            cli.allow.join(", ")
+        },
+        cli.poll,
+        match (cli.reactive, events.len()) {
+            (true, 0) => "Zenoh's deliveries".to_string(),
+            (false, 0) => "the interval only".to_string(),
+            (true, n) => format!("Zenoh's deliveries and {n} event(s)"),
+            (false, n) => format!("{n} event(s)"),
+        }
+    );
+
+    let mut discovered: Option<Instant> = None;
+    let mut failures = 0u64;
+    waitset
+        .wait_and_process(|_| {
+            if let Some(l) = &carrier_wake {
+                drain(l);
+            }
+            for l in &events {
+                drain(l);
+            }
+            if discovered.is_none_or(|t| t.elapsed() >= every) {
+                discovered = Some(Instant::now());
+                if let Err(e) = link.discover() {
+                    report(&mut failures, "discovery", &e);
+                }
+            }
+            if let Err(e) = link.propagate() {
+                report(&mut failures, "propagation", &e);
+            }
+            CallbackProgression::Continue
+        })
+        .map_err(|e| anyhow!("the wait set: {e:?}"))
+        .context("waiting for wakes")?;
+    Ok(())
+}
+
+/// Consumes the pending notifications, so a wake is not seen twice.
+fn drain<S: Service>(listener: &Listener<S>) {
+    let _ = listener.try_wait(|_| {});
+}
+
+/// Logs the first failures of a kind and then every thousandth: a far host that went away
+/// fails every round until discovery closes its bridges.
+fn report(failures: &mut u64, what: &str, e: &dyn std::fmt::Debug) {
+    *failures += 1;
+    if *failures <= 10 || failures.is_multiple_of(1000) {
+        eprintln!("lop-tunnel: {what} failed ({} so far): {e:?}", *failures);
+    }
+}
