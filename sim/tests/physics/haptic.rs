@@ -162,6 +162,38 @@ fn poke_on_a_flat_surface() {
     );
 }
 
+/// A rest point the frame's own surface puts on (or behind) the anchor's triangle is not a
+/// resting sphere: taken, it would put the proxy's centre behind the one-sided faces and the
+/// tool would fall through the tissue with no force. It is ignored; one a radius out is taken.
+#[test]
+fn a_rest_point_inside_the_sphere_s_reach_is_not_a_rest() {
+    let (x, t) = box_surface([-0.05, -0.02, -0.05], [0.05, 0.0, 0.05], 8);
+    let mut set = set_of(&x, &t);
+    let r = 0.003;
+    let mut god = GodObject::new(r, t.len());
+    for k in 0..=50 {
+        let y = 0.02 - (0.021 * k as f64 / 50.0);
+        god.update(&mut set, [0.004, y, -0.007], false);
+    }
+    let s = god.update(&mut set, [0.004, -0.001, -0.007], false);
+    let body = s.anchor.expect("in contact").body;
+    // On the surface, and 0.4 mm behind it: ignored, the press goes on.
+    for y in [0.0, -0.0004] {
+        let before = god.proxy();
+        god.rest_at(&set, body, [0.0045, y, -0.007]);
+        assert_eq!(god.proxy(), before, "a rest at y = {y} taken");
+        let s = god.update(&mut set, [0.004, -0.001, -0.007], false);
+        assert!(s.anchor.is_some(), "contact lost after a rest at y = {y}");
+        assert!((s.proxy[1] - r).abs() < 1e-6, "{:?}", s.proxy);
+        assert!((s.depth - 0.004).abs() < 1e-6, "{}", s.depth);
+    }
+    // A radius out, 0.5 mm aside: taken, and the press goes on from there.
+    god.rest_at(&set, body, [0.0045, r, -0.007]);
+    assert_eq!(god.proxy(), [0.0045, r, -0.007]);
+    let s = god.update(&mut set, [0.004, -0.001, -0.007], false);
+    assert!(s.anchor.is_some());
+}
+
 #[test]
 fn poke_on_a_curved_surface() {
     // A 3 cm sphere (icosphere level 3: 1280 faces, facets ~4° apart).
