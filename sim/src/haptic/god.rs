@@ -98,6 +98,14 @@ pub struct GodObject {
     candidates: Vec<u32>,
 }
 
+/// The barycentric weights of the point of triangle `tri` closest to `p`, and `p`'s offset
+/// from that point.
+fn off_triangle(set: &SurfaceSet, tri: usize, p: DVec3) -> ([f64; 3], DVec3) {
+    let [a, b, c] = set.corners_v(tri);
+    let w = closest_bary(p, a, b, c);
+    (w, p - bary_point(a, b, c, w))
+}
+
 impl GodObject {
     /// A proxy for a tip of `radius` m over a surface set of `triangles` triangles.
     pub fn new(radius: f64, triangles: usize) -> GodObject {
@@ -154,9 +162,8 @@ impl GodObject {
         let r = self.radius;
         if let Some(a) = &mut self.anchor {
             if a.body == body && a.triangle < set.triangles().len() {
-                let [ta, tb, tc] = set.corners_v(a.triangle);
-                let q = bary_point(ta, tb, tc, closest_bary(p, ta, tb, tc));
-                if (p - q).dot(set.normal_of_v(a.triangle)) < REST_CLEARANCE * r {
+                let (_, offset) = off_triangle(set, a.triangle, p);
+                if offset.dot(set.normal_of_v(a.triangle)) < REST_CLEARANCE * r {
                     return;
                 }
                 self.proxy = p;
@@ -233,10 +240,7 @@ impl GodObject {
         let pushing = |offset: DVec3| (device - self.proxy).dot(offset) < 0.0;
         if let Some(prev) = previous {
             if prev.triangle < set.triangles().len() {
-                let [a, b, c] = set.corners_v(prev.triangle);
-                let w = closest_bary(self.proxy, a, b, c);
-                let q = bary_point(a, b, c, w);
-                let offset = self.proxy - q;
+                let (w, offset) = off_triangle(set, prev.triangle, self.proxy);
                 let outside = offset.dot(set.normal_of_v(prev.triangle)) > 0.0;
                 if outside && offset.length() <= r + STICK && pushing(offset) {
                     self.anchor = Some(Anchor {

@@ -3,7 +3,7 @@
 //! no allocation per tick.
 
 use lop_sim::contact::{closest_on_surface, ForceLaw};
-use lop_sim::haptic::{hand_force, sweep_sphere_triangle, GodObject, SurfaceSet};
+use lop_sim::haptic::{hand_force, sweep_sphere_triangle, GodObject, GodState, SurfaceSet};
 use lop_sim::mesh::read_mesh;
 use lop_test_support::alloc;
 use lop_test_support::fixtures::mesh_path;
@@ -118,19 +118,25 @@ fn sweep_finds_face_edge_and_corner_contacts() {
     assert!(sweep_sphere_triangle([0.2, 0.2, -1.0], [0.0, 0.0, 2.0], 0.1, tri).is_none());
 }
 
-#[test]
-fn poke_on_a_flat_surface() {
-    // A 10 x 2 x 10 cm slab, top at y = 0; tool radius 3 mm.
+/// A 10 x 2 x 10 cm slab, top at y = 0, and a tool of radius `r` brought down from above to
+/// 1 mm below the top at (4, -1, -7) mm: its surface, god-object and last state.
+fn pressed_into_a_slab(r: f64) -> (SurfaceSet, GodObject, GodState) {
     let (x, t) = box_surface([-0.05, -0.02, -0.05], [0.05, 0.0, 0.05], 8);
     let mut set = set_of(&x, &t);
-    let r = 0.003;
     let mut god = GodObject::new(r, t.len());
-    // Approach from above; then 2 mm of penetration (centre 1 mm below the top).
     for k in 0..=50 {
         let y = 0.02 - (0.021 * k as f64 / 50.0);
         god.update(&mut set, [0.004, y, -0.007], false);
     }
     let s = god.update(&mut set, [0.004, -0.001, -0.007], false);
+    (set, god, s)
+}
+
+#[test]
+fn poke_on_a_flat_surface() {
+    // Tool radius 3 mm, 2 mm of penetration (centre 1 mm below the top).
+    let r = 0.003;
+    let (mut set, mut god, s) = pressed_into_a_slab(r);
     assert!(s.anchor.is_some());
     assert!(
         (s.proxy[1] - r).abs() < 1e-6,
@@ -167,15 +173,8 @@ fn poke_on_a_flat_surface() {
 /// tool would fall through the tissue with no force. It is ignored; one a radius out is taken.
 #[test]
 fn a_rest_point_inside_the_sphere_s_reach_is_not_a_rest() {
-    let (x, t) = box_surface([-0.05, -0.02, -0.05], [0.05, 0.0, 0.05], 8);
-    let mut set = set_of(&x, &t);
     let r = 0.003;
-    let mut god = GodObject::new(r, t.len());
-    for k in 0..=50 {
-        let y = 0.02 - (0.021 * k as f64 / 50.0);
-        god.update(&mut set, [0.004, y, -0.007], false);
-    }
-    let s = god.update(&mut set, [0.004, -0.001, -0.007], false);
+    let (mut set, mut god, s) = pressed_into_a_slab(r);
     let body = s.anchor.expect("in contact").body;
     // On the surface, and 0.4 mm behind it: ignored, the press goes on.
     for y in [0.0, -0.0004] {
