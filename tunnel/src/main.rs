@@ -14,6 +14,10 @@
 //! discovery runs on its own interval (`--poll`, 100 ms by default): a service that appears is
 //! bridged within one interval, a frame crosses within one propagation.
 //!
+//! A wake is waited on with the listener's own `timed_wait`, not a wait set: iceoryx2 0.10's
+//! event can lose a wake-up for a wait set, which left far frames waiting up to 90 ms for the
+//! next interval (see [`SEVERAL_WAKES_FALLBACK`]).
+//!
 //! The command line is iceoryx2's tunnel program's (`--zenoh-config`, `--allow`, `--poll`,
 //! `--reactive`, `--listener`), so `[remote] tunnel` may name either; `--poll` is the discovery
 //! interval here. `--version` ends with the iceoryx2 version, which lopd checks.
@@ -130,28 +134,6 @@ fn run() -> Result<()> {
         );
     }
 
-    let waitset = WaitSetBuilder::new()
-        .create::<ipc::Service>()
-        .map_err(|e| anyhow!("the wait set: {e:?}"))?;
-    let every = Duration::from_millis(cli.poll);
-    let _interval = waitset
-        .attach_interval(every)
-        .map_err(|e| anyhow!("the discovery interval: {e:?}"))?;
-    let mut guards = Vec::with_capacity(events.len() + 1);
-    if let Some(l) = &carrier_wake {
-        guards.push(
-            waitset
-                .attach_notification(l)
-                .map_err(|e| anyhow!("attaching the tunnel's wake: {e:?}"))?,
-        );
-    }
-    for l in &events {
-        guards.push(
-            waitset
-                .attach_notification(l)
-                .map_err(|e| anyhow!("attaching a --listener: {e:?}"))?,
-        );
-    }
     eprintln!(
         "lop-tunnel: bridging {} over Zenoh; discovery every {} ms, propagation on {}",
         if cli.allow.is_empty() {
@@ -168,25 +150,65 @@ fn run() -> Result<()> {
         }
     );
 
-    let mut discovered: Option<Instant> = None;
-    let mut failures = 0u64;
+    let mut rounds = Rounds {
+        every: Duration::from_millis(cli.poll),
+        discovered: None,
+        failures: 0,
+    };
+    let one: Option<&dyn WakeSource> = match (&carrier_wake, events.as_slice()) {
+        (Some(l), []) => Some(l),
+        (None, [l]) => Some(l),
+        _ => None,
+    };
+    if let Some(source) = one {
+        // One wake: wait on it directly until the next discovery is due.
+        loop {
+            let woke = source.wait(rounds.until_discovery());
+            if link.node().wait(Duration::ZERO).is_err() {
+                return Ok(()); // SIGINT or SIGTERM, which also interrupts the wait
+            }
+            woke?;
+            rounds.run(&mut link);
+        }
+    }
+
+    // None or several: a wait set, with an interval that also propagates (see
+    // `SEVERAL_WAKES_FALLBACK`).
+    let waitset = WaitSetBuilder::new()
+        .create::<ipc::Service>()
+        .map_err(|e| anyhow!("the wait set: {e:?}"))?;
+    let interval = if cli.reactive || !events.is_empty() {
+        rounds.every.min(SEVERAL_WAKES_FALLBACK)
+    } else {
+        rounds.every
+    };
+    let _interval = waitset
+        .attach_interval(interval)
+        .map_err(|e| anyhow!("the interval: {e:?}"))?;
+    let mut guards = Vec::with_capacity(events.len() + 1);
+    if let Some(l) = &carrier_wake {
+        guards.push(
+            waitset
+                .attach_notification(l)
+                .map_err(|e| anyhow!("attaching the tunnel's wake: {e:?}"))?,
+        );
+    }
+    for l in &events {
+        guards.push(
+            waitset
+                .attach_notification(l)
+                .map_err(|e| anyhow!("attaching a --listener: {e:?}"))?,
+        );
+    }
     waitset
         .wait_and_process(|_| {
             if let Some(l) = &carrier_wake {
-                drain(l);
+                l.drain();
             }
             for l in &events {
-                drain(l);
+                l.drain();
             }
-            if discovered.is_none_or(|t| t.elapsed() >= every) {
-                discovered = Some(Instant::now());
-                if let Err(e) = link.discover() {
-                    report(&mut failures, "discovery", &e);
-                }
-            }
-            if let Err(e) = link.propagate() {
-                report(&mut failures, "propagation", &e);
-            }
+            rounds.run(&mut link);
             CallbackProgression::Continue
         })
         .map_err(|e| anyhow!("the wait set: {e:?}"))
@@ -194,9 +216,67 @@ fn run() -> Result<()> {
     Ok(())
 }
 
-/// Consumes the pending notifications, so a wake is not seen twice.
-fn drain<S: Service>(listener: &Listener<S>) {
-    let _ = listener.try_wait(|_| {});
+/// When the tunnel has several wakes (both `--reactive` and `--listener`, or several
+/// `--listener`s) it multiplexes them with a wait set, and then also propagates this often.
+///
+/// Why: iceoryx2 0.10's event can lose a wake-up for a wait set. A notifier that lands between
+/// a listener's reset of the event's state and its emptying of the socket has its byte read
+/// with no state left to say so ("notified" with an empty socket); the wait set, which waits
+/// on the socket, then sleeps through every later notification until some interval drains the
+/// listener. Measured on the far side of `lop-bench latency --remote` (2026-12-07, 2-core
+/// machine), wakes from Zenoh's deliveries were lost this way every few hundred ms, for 25–90
+/// ms each time, ending at the discovery interval: far frames p99 32 ms. A listener's own
+/// `timed_wait` does not lose them (it resets a "notified" state without waiting on the
+/// socket), so one wake (lopd's case on both sides) is waited on that way, and this interval
+/// only bounds the loss where a wait set is needed.
+const SEVERAL_WAKES_FALLBACK: Duration = Duration::from_millis(2);
+
+/// Discovery on its interval, propagation on every round.
+struct Rounds {
+    every: Duration,
+    discovered: Option<Instant>,
+    failures: u64,
+}
+
+impl Rounds {
+    /// The time left until the next discovery is due.
+    fn until_discovery(&self) -> Duration {
+        self.discovered
+            .map_or(Duration::ZERO, |t| self.every.saturating_sub(t.elapsed()))
+    }
+
+    /// One round: a discovery if one is due, then a propagation.
+    fn run<S: Service, B: iceoryx2_link_backend::Backend<S>>(&mut self, link: &mut Link<S, B>) {
+        if self.discovered.is_none_or(|t| t.elapsed() >= self.every) {
+            self.discovered = Some(Instant::now());
+            if let Err(e) = link.discover() {
+                report(&mut self.failures, "discovery", &e);
+            }
+        }
+        if let Err(e) = link.propagate() {
+            report(&mut self.failures, "propagation", &e);
+        }
+    }
+}
+
+/// A wake of the tunnel: an iceoryx2 listener of any service variant.
+trait WakeSource {
+    /// Waits for a notification at most `timeout` and consumes what is pending.
+    fn wait(&self, timeout: Duration) -> Result<()>;
+    /// Consumes the pending notifications, so a wake is not seen twice.
+    fn drain(&self);
+}
+
+impl<S: Service> WakeSource for Listener<S> {
+    fn wait(&self, timeout: Duration) -> Result<()> {
+        self.timed_wait(|_| {}, timeout)
+            .map(|_| ())
+            .map_err(|e| anyhow!("waiting for a wake: {e:?}"))
+    }
+
+    fn drain(&self) {
+        let _ = self.try_wait(|_| {});
+    }
 }
 
 /// Logs the first failures of a kind and then every thousandth: a far host that went away
