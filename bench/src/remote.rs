@@ -10,8 +10,13 @@
 //! - **frame latency**: receipt − publish, p50/p99, local and far (`frame_latency_local`,
 //!   `remote_frame_latency`), with the count and the frames received out of order;
 //! - **bytes** per frame (the frame header and 20 bytes per node) and per second per viewer;
-//! - the rig's **haptic tick** compute and jitter p99 over the phase (the telemetry's total
-//!   figures, differenced is not possible: the window's last second at the phase's end).
+//! - the rig's **haptic tick** compute and jitter over the phase: the largest p99 of the
+//!   telemetry's one-second windows, read once a second, and the overruns.
+//!
+//! A last phase, `kills`, has no far viewer: a third of the way in it kills (SIGKILL) the rig's
+//! `lop-tunnel`, two thirds in the far side (`lopd remote attach` and its tunnel), and reports
+//! the same tick figures, the frames the local reader still got, and whether the rig's
+//! supervisor started its tunnel again; compare it with the first phase of the same run.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -22,7 +27,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use lop_client::services::{self, Role};
 use lop_client::{clock, Attachment, ServiceNames};
-use lop_client::{FrameHeader, NodeSample};
+use lop_client::{FrameHeader, HapticTelemetry, NodeSample};
 use serde::Serialize;
 
 use crate::pipeline::{find_lopd, ChildGuard};
@@ -72,9 +77,17 @@ pub struct LatencyRow {
 pub struct PhaseRow {
     /// Far viewers.
     pub viewers: usize,
-    /// Haptic tick compute p99 over the last telemetry window of the phase, µs.
+    /// The phase that kills (SIGKILL) the rig's tunnel a third of the way in and the far side
+    /// two thirds in, with no far viewer.
+    pub kills: bool,
+    /// In that phase: the rig's supervisor started a new tunnel after the kill.
+    pub rig_tunnel_restarted: bool,
+    /// Frames the local reader received during the phase.
+    pub local_frames: usize,
+    /// Haptic tick compute: the largest p99 of the telemetry's one-second windows read during
+    /// the phase (once a second), µs.
     pub haptic_compute_p99_us: f64,
-    /// Haptic period jitter p99, same window, µs.
+    /// Haptic period jitter: the largest p99 of the same windows, µs.
     pub haptic_jitter_p99_us: f64,
     /// Overruns of the haptic loop during the phase.
     pub haptic_overruns: u64,
@@ -249,11 +262,22 @@ pub fn run(
 
     let mut rows = Vec::new();
     let mut phases = Vec::new();
-    for viewers in std::iter::once(0).chain(VIEWERS) {
+    let plan = std::iter::once((0, false))
+        .chain(VIEWERS.map(|v| (v, false)))
+        .chain([(0, true)]);
+    for (viewers, kills) in plan {
         if rig.try_wait().is_some() || attach.try_wait().is_some() {
             bail!("the rig or the far side exited during the run");
         }
-        eprintln!("lop-bench: {viewers} far viewer(s), {seconds} s");
+        if kills {
+            eprintln!(
+                "lop-bench: the rig's tunnel killed at {:.1} s, the far side at {:.1} s, of {seconds} s",
+                seconds / 3.0,
+                seconds * 2.0 / 3.0
+            );
+        } else {
+            eprintln!("lop-bench: {viewers} far viewer(s), {seconds} s");
+        }
         let mut readers = Vec::new();
         for _ in 0..viewers {
             let mut cmd = Command::new(&me);
@@ -281,11 +305,28 @@ pub fn run(
                 other => bail!("a far reader got no topology: {other:?}"),
             }
         }
-        let before = local.telemetry();
+        let mut tick = TickWindows::new(local.telemetry());
         let mut local_frames = Frames::new();
         let mut last_seq = 0;
-        let end = Instant::now() + Duration::from_secs_f64(seconds);
+        let start = Instant::now();
+        let end = start + Duration::from_secs_f64(seconds);
+        let mut rig_tunnel = None;
+        let mut far_killed = false;
         while Instant::now() < end {
+            tick.look(&mut local);
+            if kills {
+                let t = start.elapsed().as_secs_f64();
+                if rig_tunnel.is_none() && t >= seconds / 3.0 {
+                    let pid = kill_rig_tunnel(rig.id())?;
+                    rig_tunnel = Some(pid);
+                }
+                if !far_killed && t >= seconds * 2.0 / 3.0 {
+                    // SIGKILL: `lopd remote attach`'s tunnel dies with it.
+                    // SAFETY: kill(2) on our own child's pid.
+                    unsafe { libc::kill(attach.id() as i32, libc::SIGKILL) };
+                    far_killed = true;
+                }
+            }
             while let Ok(Some(s)) = local_sub.receive() {
                 let h = s.user_header();
                 let latency = clock::monotonic_ns() as i64 - h.publish_ns as i64;
@@ -297,7 +338,17 @@ pub fn run(
             }
             std::thread::sleep(Duration::from_micros(100));
         }
-        let after = local.telemetry();
+        tick.look(&mut local);
+        let restarted = match rig_tunnel {
+            Some(killed) => {
+                let now = tunnels_under(rig.id());
+                if now.is_empty() || now.contains(&killed) {
+                    bail!("the rig's tunnel was not started again after its kill: {now:?}");
+                }
+                true
+            }
+            None => false,
+        };
         let mut far_frames = Frames::new();
         let mut per_viewer = Vec::new();
         for lines in outs {
@@ -328,7 +379,10 @@ pub fn run(
         for r in &mut readers {
             r.wait_for(Duration::from_secs(10));
         }
-        rows.push(latency_row("frame_latency_local", viewers, local_frames));
+        let local_count = local_frames.latencies_us.len();
+        if !kills {
+            rows.push(latency_row("frame_latency_local", viewers, local_frames));
+        }
         if viewers > 0 {
             rows.push(latency_row("remote_frame_latency", viewers, far_frames));
         }
@@ -337,24 +391,14 @@ pub fn run(
         } else {
             per_viewer.iter().sum::<f64>() / per_viewer.len() as f64
         };
-        let (compute, jitter, overruns) = match (before, after) {
-            (Some(b), Some(a)) => (
-                a.window_compute.p99 as f64 / 1e3,
-                a.window_jitter.p99 as f64 / 1e3,
-                a.overruns.saturating_sub(b.overruns),
-            ),
-            (_, Some(a)) => (
-                a.window_compute.p99 as f64 / 1e3,
-                a.window_jitter.p99 as f64 / 1e3,
-                0,
-            ),
-            _ => (f64::NAN, f64::NAN, 0),
-        };
         phases.push(PhaseRow {
             viewers,
-            haptic_compute_p99_us: compute,
-            haptic_jitter_p99_us: jitter,
-            haptic_overruns: overruns,
+            kills,
+            rig_tunnel_restarted: restarted,
+            local_frames: local_count,
+            haptic_compute_p99_us: tick.compute_us,
+            haptic_jitter_p99_us: tick.jitter_us,
+            haptic_overruns: tick.overruns(),
             far_frames_per_s,
             far_bytes_per_s: far_frames_per_s * bytes_per_frame as f64,
         });
@@ -397,6 +441,76 @@ fn warm_up(me: &Path, far: &Path, prefix: &str) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The haptic loop's telemetry over a phase: the largest window p99s seen and the overruns.
+struct TickWindows {
+    compute_us: f64,
+    jitter_us: f64,
+    first_overruns: Option<u64>,
+    last_overruns: Option<u64>,
+    last_look: Instant,
+}
+
+impl TickWindows {
+    fn new(first: Option<HapticTelemetry>) -> TickWindows {
+        let mut w = TickWindows {
+            compute_us: f64::NAN,
+            jitter_us: f64::NAN,
+            first_overruns: None,
+            last_overruns: None,
+            last_look: Instant::now(),
+        };
+        if let Some(t) = first {
+            w.first_overruns = Some(t.overruns);
+            w.last_overruns = Some(t.overruns);
+        }
+        w
+    }
+
+    /// Reads the newest telemetry, at most once a second (a window is one second).
+    fn look(&mut self, local: &mut Attachment) {
+        if self.last_look.elapsed() < Duration::from_secs(1) {
+            return;
+        }
+        self.last_look = Instant::now();
+        if let Some(t) = local.telemetry() {
+            self.compute_us = self.compute_us.max(t.window_compute.p99 as f64 / 1e3);
+            self.jitter_us = self.jitter_us.max(t.window_jitter.p99 as f64 / 1e3);
+            self.first_overruns.get_or_insert(t.overruns);
+            self.last_overruns = Some(t.overruns);
+        }
+    }
+
+    fn overruns(&self) -> u64 {
+        match (self.first_overruns, self.last_overruns) {
+            (Some(a), Some(b)) => b.saturating_sub(a),
+            _ => 0,
+        }
+    }
+}
+
+/// The `lop-tunnel` processes under `lopd run` (pid `rig`): its `lopd remote serve` child's.
+fn tunnels_under(rig: u32) -> Vec<u32> {
+    crate::soak::children(rig)
+        .into_iter()
+        .flat_map(crate::soak::children)
+        .filter(|&pid| {
+            crate::soak::cmdline(pid)
+                .first()
+                .is_some_and(|exe| exe.ends_with("lop-tunnel"))
+        })
+        .collect()
+}
+
+/// Kills (SIGKILL) the rig's tunnel; its pid.
+fn kill_rig_tunnel(rig: u32) -> Result<u32> {
+    let Some(&pid) = tunnels_under(rig).first() else {
+        bail!("no lop-tunnel found under the rig (lopd run, pid {rig}) to kill");
+    };
+    // SAFETY: kill(2) on a pid just read from /proc, a grandchild of ours.
+    unsafe { libc::kill(pid as i32, libc::SIGKILL) };
+    Ok(pid)
 }
 
 fn latency_row(name: &'static str, viewers: usize, mut f: Frames) -> LatencyRow {
@@ -444,13 +558,29 @@ fn render(r: &RemoteReport) -> String {
     );
     for p in &r.phases {
         s.push_str(&format!(
-            "{:>7}  {:>23.1}  {:>15.1}  {:>8}  {:>12.1}  {:>8.0}\n",
-            p.viewers,
+            "{:>7}  {:>23.1}  {:>15.1}  {:>8}  {:>12.1}  {:>8.0}{}\n",
+            if p.kills {
+                "kills".to_string()
+            } else {
+                p.viewers.to_string()
+            },
             p.haptic_compute_p99_us,
             p.haptic_jitter_p99_us,
             p.haptic_overruns,
             p.far_frames_per_s,
-            p.far_bytes_per_s / 1e3
+            p.far_bytes_per_s / 1e3,
+            match (p.kills, p.rig_tunnel_restarted) {
+                (true, restarted) => format!(
+                    "  (local frames {}; rig tunnel {})",
+                    p.local_frames,
+                    if restarted {
+                        "restarted"
+                    } else {
+                        "NOT restarted"
+                    }
+                ),
+                _ => String::new(),
+            }
         ));
     }
     s

@@ -68,6 +68,8 @@ mod steps;
 mod supervisor;
 mod viewers;
 
+pub(crate) use memory::{children, cmdline};
+
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
