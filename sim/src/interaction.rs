@@ -95,7 +95,69 @@ impl ToolAnchor {
         let p = add(self.point(surface, x)?, self.offset);
         p.iter().all(|c| c.is_finite()).then_some(p)
     }
+
+    /// [`ToolAnchor::proxy`] for a press's patch by a sphere of `radius`, put back on the
+    /// surface at `x`: between [`PATCH_CLEARANCE`] and one radius out from the anchor's
+    /// triangle (away from its closest point; along its outward normal where the proxy is
+    /// behind it).
+    ///
+    /// The haptic loop rests its proxy a radius out from the surface of the frame it renders,
+    /// which is older than the tissue's state by at least one step. The patch's points are
+    /// gathered around the proxy and take their directions from it ([`crate::patch`]), so:
+    /// - where the tissue has since moved out towards the tool (it springs back while the hand
+    ///   holds still, and more so the further the deformation lags the wall clock), that proxy
+    ///   lies in or behind the surface: the points' directions point out of the tissue, the
+    ///   solve balanced the sphere on the surface or behind it, and the haptic loop, resting
+    ///   its proxy there, let the tool fall through;
+    /// - where the last step's push moved the tissue away from it by more than the gathering's
+    ///   margin ([`crate::patch::REACH_MARGIN`]), no point is in reach: the step has no
+    ///   contact, the tissue springs back, the next step pushes again. Measured on the
+    ///   two-handed grasp (2026-12-07, a liver stepping 2.3 ms for a 2 ms period): the hook's
+    ///   steps alternated between 0.6 N on one point and none, and the hand held 0.8 N against
+    ///   0.37 N in 3 runs of 8.
+    ///
+    /// Only the start of the patch's solve moves: its gaps are measured from the device, so
+    /// where the sphere balances still follows from the device, the spring and the tissue.
+    pub fn patch_proxy(
+        &self,
+        surface: &[[u32; 3]],
+        x: &[[f64; 3]],
+        radius: f64,
+    ) -> Option<[f64; 3]> {
+        use crate::contact::{bary_point, closest_bary, unit_normal};
+        use crate::vec3::v;
+        let p = self.proxy(surface, x)?;
+        let tri = surface.get(self.triangle as usize)?;
+        let [a, b, c] = tri.map(|k| v(x[k as usize]));
+        let n = unit_normal(a, b, c);
+        let q = bary_point(a, b, c, closest_bary(v(p), a, b, c));
+        let d = v(p) - q;
+        let len = d.length();
+        let least = PATCH_CLEARANCE * radius;
+        let outside = d.dot(n) > 0.0;
+        let target = if outside {
+            len.clamp(least, radius)
+        } else {
+            least
+        };
+        if n == glam::DVec3::ZERO || (outside && target == len) || !target.is_finite() {
+            return Some(p);
+        }
+        let away = if outside && len > 1e-9 * radius {
+            d / len
+        } else {
+            n
+        };
+        let seated = q + away * target;
+        seated.is_finite().then_some(seated.to_array())
+    }
 }
+
+/// How close, in tool radii, a press's proxy may start a patch to its anchor's triangle
+/// ([`ToolAnchor::patch_proxy`]; one radius is the farthest): a sphere resting on a face is a
+/// radius out, a face point's allowance brings it in by a twentieth at most
+/// ([`crate::patch`]).
+pub const PATCH_CLEARANCE: f64 = 0.95;
 
 /// A unilateral penalty spring acting on one body during one step: organ-to-organ collision
 /// (built by [`crate::collide::Collisions::add_springs`]).

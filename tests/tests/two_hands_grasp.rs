@@ -40,8 +40,11 @@ fn a_grasper_retracts_the_liver_while_a_hook_presses_and_burns_beside_it() {
     // the hook's proxy *on* the surface rather than a radius out: the proxy's centre behind
     // the one-sided faces, the hook fell through the liver with no force, and never burned it
     // (2026-12-07; a third of the runs failed). `GodObject::rest_at` now refuses such rest
-    // points: eight runs of eight passed, the hook holding 0.37 N, or 0.8 N in the runs whose
-    // liver lagged (the refused rests leave the tissue's answer unfelt in part).
+    // points. The hook then held 0.37 N, or 0.8 N in 3 runs of 8: there its patch lost every
+    // point in reach every other step, the last step's push having moved the tissue beyond
+    // the reach of the haptic loop's (one frame older) proxy. The deformation process now
+    // starts each press's patch from the proxy put back on its own surface
+    // (`ToolAnchor::patch_proxy`): 6 runs of 6 held 0.367-0.372 N, none refused.
     let config = dir.join("lopd.toml");
     std::fs::write(&config, "[deform]\nmax_period_ms = 2\n").unwrap();
     let mut daemon = Daemon::spawn(
@@ -135,8 +138,8 @@ fn a_grasper_retracts_the_liver_while_a_hook_presses_and_burns_beside_it() {
     let (hook, n) = held(window(&rows[1], 3.3, 4.4).into_iter(), 0.05);
     eprintln!("hook: held {hook:.3} N (median of {n})");
     assert!(
-        (0.1..1.0).contains(&hook),
+        (0.1..0.6).contains(&hook),
         "hook: held {hook:.3} N pressing 5 mm past the surface beside the grasp (1.5 N: the \
-         tissue never received the press)\n{log}"
+         tissue never received the press; 0.8 N: its patch lost contact every other step)\n{log}"
     );
 }

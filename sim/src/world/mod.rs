@@ -664,7 +664,9 @@ impl World {
                     };
                     holds[n_holds] = hold;
                     n_holds += 1;
-                } else if let Some(proxy) = a.proxy(&b.mesh.surface, b.model.positions()) {
+                } else if let Some(proxy) =
+                    a.patch_proxy(&b.mesh.surface, b.model.positions(), s.radius)
+                {
                     let max = b.patch_points.len() + MAX_PATCH / pressing;
                     gather(
                         &b.mesh.surface,
