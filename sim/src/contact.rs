@@ -145,6 +145,14 @@ pub(crate) fn bary_point(a: DVec3, b: DVec3, c: DVec3, w: [f64; 3]) -> DVec3 {
     a * w[0] + b * w[1] + c * w[2]
 }
 
+/// The barycentric weights of the point of triangle `(a, b, c)` closest to `p`, and `p`'s
+/// offset from that point.
+#[inline]
+pub(crate) fn off_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> ([f64; 3], DVec3) {
+    let w = closest_bary(p, a, b, c);
+    (w, p - bary_point(a, b, c, w))
+}
+
 /// Unit normal of triangle `(a, b, c)` (counter-clockwise → outward); zero for a degenerate one.
 #[inline]
 pub fn triangle_normal(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {

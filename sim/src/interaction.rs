@@ -6,9 +6,10 @@
 //! A leaf: the models (`fem`, `msd`, `lop`'s cage) and the [`crate::model::Model`] enum that
 //! dispatches to them all import it, and it imports only tool geometry and vector helpers.
 
-use crate::contact::{closest_on_surface, ToolSphere};
+use crate::contact::{closest_on_surface, off_triangle, unit_normal, ToolSphere};
 pub use crate::patch::{PatchPoint, ToolPatch};
-use crate::vec3::{add, dot, norm, scale, sub};
+use crate::vec3::{add, dot, norm, scale, sub, v};
+use glam::DVec3;
 
 /// The tool's contact with a body during one step: the penalty spring is integrated inside the
 /// sub-steps (the tool position is a kinematic boundary condition), which keeps a stiff tool on
@@ -124,14 +125,12 @@ impl ToolAnchor {
         x: &[[f64; 3]],
         radius: f64,
     ) -> Option<[f64; 3]> {
-        use crate::contact::{bary_point, closest_bary, unit_normal};
-        use crate::vec3::v;
         let p = self.proxy(surface, x)?;
         let tri = surface.get(self.triangle as usize)?;
         let [a, b, c] = tri.map(|k| v(x[k as usize]));
         let n = unit_normal(a, b, c);
-        let q = bary_point(a, b, c, closest_bary(v(p), a, b, c));
-        let d = v(p) - q;
+        let (_, d) = off_triangle(v(p), a, b, c);
+        let q = v(p) - d;
         let len = d.length();
         let least = PATCH_CLEARANCE * radius;
         let outside = d.dot(n) > 0.0;
@@ -140,7 +139,7 @@ impl ToolAnchor {
         } else {
             least
         };
-        if n == glam::DVec3::ZERO || (outside && target == len) || !target.is_finite() {
+        if n == DVec3::ZERO || (outside && target == len) || !target.is_finite() {
             return Some(p);
         }
         let away = if outside && len > 1e-9 * radius {

@@ -36,7 +36,7 @@ use glam::DVec3;
 
 use super::surface::{Closest, SurfaceSet};
 use super::sweep::{crease, sweep};
-use crate::contact::{bary_point, closest_bary, ForceLaw};
+use crate::contact::{off_triangle, ForceLaw};
 use crate::vec3::v;
 
 /// Gap kept between the proxy sphere and a surface it rests on, m: keeps the next sweep from
@@ -50,7 +50,10 @@ const STICK: f64 = 2e-5;
 /// the wall clock (the two-handed scene's grabbed liver stepping late on a slow machine,
 /// 2026-12-07: 9 µm and 0.43 mm *behind* the triangle, against 2.0 mm outside for the rest).
 /// Moved there, the proxy's centre lies behind the surface, where faces are one-sided: the
-/// anchor is dropped and the tool falls through the tissue with no force.
+/// anchor is dropped and the tool falls through the tissue with no force. The deformation
+/// process no longer makes such points (it starts each patch from the proxy put back on its
+/// own surface, [`crate::interaction::ToolAnchor::patch_proxy`]); this stays as the haptic
+/// loop's own guard against a frame that would drop the tool through.
 const REST_CLEARANCE: f64 = 0.5;
 /// Most planes that constrain the proxy at once.
 const MAX_PLANES: usize = 3;
@@ -98,12 +101,10 @@ pub struct GodObject {
     candidates: Vec<u32>,
 }
 
-/// The barycentric weights of the point of triangle `tri` closest to `p`, and `p`'s offset
-/// from that point.
-fn off_triangle(set: &SurfaceSet, tri: usize, p: DVec3) -> ([f64; 3], DVec3) {
+/// [`off_triangle`] against triangle `tri` of `set`.
+fn off_set_triangle(set: &SurfaceSet, tri: usize, p: DVec3) -> ([f64; 3], DVec3) {
     let [a, b, c] = set.corners_v(tri);
-    let w = closest_bary(p, a, b, c);
-    (w, p - bary_point(a, b, c, w))
+    off_triangle(p, a, b, c)
 }
 
 impl GodObject {
@@ -162,7 +163,7 @@ impl GodObject {
         let r = self.radius;
         if let Some(a) = &mut self.anchor {
             if a.body == body && a.triangle < set.triangles().len() {
-                let (_, offset) = off_triangle(set, a.triangle, p);
+                let (_, offset) = off_set_triangle(set, a.triangle, p);
                 if offset.dot(set.normal_of_v(a.triangle)) < REST_CLEARANCE * r {
                     return;
                 }
@@ -240,7 +241,7 @@ impl GodObject {
         let pushing = |offset: DVec3| (device - self.proxy).dot(offset) < 0.0;
         if let Some(prev) = previous {
             if prev.triangle < set.triangles().len() {
-                let (w, offset) = off_triangle(set, prev.triangle, self.proxy);
+                let (w, offset) = off_set_triangle(set, prev.triangle, self.proxy);
                 let outside = offset.dot(set.normal_of_v(prev.triangle)) > 0.0;
                 if outside && offset.length() <= r + STICK && pushing(offset) {
                     self.anchor = Some(Anchor {
@@ -374,10 +375,7 @@ impl GodObject {
         let goal = device - p;
         for i in 0..self.candidates.len() {
             let t = self.candidates[i] as usize;
-            let [a, b, c] = set.corners_v(t);
-            let w = closest_bary(p, a, b, c);
-            let q = bary_point(a, b, c, w);
-            let off = p - q;
+            let (_, off) = off_set_triangle(set, t, p);
             let l = off.length();
             if !(l > 1e-12) || l > reach || off.dot(set.normal_of_v(t)) < 0.0 {
                 continue;
