@@ -25,7 +25,7 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, Result};
 use clap::{CommandFactory, FromArgMatches, Parser};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::prelude::*;
@@ -155,80 +155,50 @@ fn run() -> Result<()> {
         discovered: None,
         failures: 0,
     };
-    let one: Option<&dyn WakeSource> = match (&carrier_wake, events.as_slice()) {
-        (Some(l), []) => Some(l),
-        (None, [l]) => Some(l),
-        _ => None,
-    };
-    if let Some(source) = one {
-        // One wake: wait on it directly until the next discovery is due.
-        loop {
-            let woke = source.wait(rounds.until_discovery());
-            if link.node().wait(Duration::ZERO).is_err() {
-                return Ok(()); // SIGINT or SIGTERM, which also interrupts the wait
+    // The first wake is waited on with the listener's own `timed_wait`, until the next
+    // discovery is due; any others are drained after it, at least every
+    // `SEVERAL_WAKES_FALLBACK`.
+    let sources: Vec<&dyn WakeSource> = carrier_wake
+        .iter()
+        .map(|l| l as &dyn WakeSource)
+        .chain(events.iter().map(|l| l as &dyn WakeSource))
+        .collect();
+    loop {
+        let timeout = match sources.len() {
+            0 | 1 => rounds.until_discovery(),
+            _ => rounds.until_discovery().min(SEVERAL_WAKES_FALLBACK),
+        };
+        let woke = match sources.first() {
+            Some(first) => first.wait(timeout),
+            // A signal ends the sleep early; it is seen just below.
+            None => {
+                let _ = link.node().wait(timeout);
+                Ok(())
             }
-            woke?;
-            rounds.run(&mut link);
+        };
+        for other in sources.iter().skip(1) {
+            other.drain();
         }
+        if link.node().wait(Duration::ZERO).is_err() {
+            return Ok(()); // SIGINT or SIGTERM, which also interrupts the wait
+        }
+        woke?;
+        rounds.run(&mut link);
     }
-
-    // None or several: a wait set, with an interval that also propagates (see
-    // `SEVERAL_WAKES_FALLBACK`).
-    let waitset = WaitSetBuilder::new()
-        .create::<ipc::Service>()
-        .map_err(|e| anyhow!("the wait set: {e:?}"))?;
-    let interval = if cli.reactive || !events.is_empty() {
-        rounds.every.min(SEVERAL_WAKES_FALLBACK)
-    } else {
-        rounds.every
-    };
-    let _interval = waitset
-        .attach_interval(interval)
-        .map_err(|e| anyhow!("the interval: {e:?}"))?;
-    let mut guards = Vec::with_capacity(events.len() + 1);
-    if let Some(l) = &carrier_wake {
-        guards.push(
-            waitset
-                .attach_notification(l)
-                .map_err(|e| anyhow!("attaching the tunnel's wake: {e:?}"))?,
-        );
-    }
-    for l in &events {
-        guards.push(
-            waitset
-                .attach_notification(l)
-                .map_err(|e| anyhow!("attaching a --listener: {e:?}"))?,
-        );
-    }
-    waitset
-        .wait_and_process(|_| {
-            if let Some(l) = &carrier_wake {
-                l.drain();
-            }
-            for l in &events {
-                l.drain();
-            }
-            rounds.run(&mut link);
-            CallbackProgression::Continue
-        })
-        .map_err(|e| anyhow!("the wait set: {e:?}"))
-        .context("waiting for wakes")?;
-    Ok(())
 }
 
-/// When the tunnel has several wakes (both `--reactive` and `--listener`, or several
-/// `--listener`s) it multiplexes them with a wait set, and then also propagates this often.
+/// With several wakes (both `--reactive` and `--listener`, or several `--listener`s; lopd
+/// never gives more than one), the first is waited on and the others are looked at least this
+/// often.
 ///
-/// Why: iceoryx2 0.10's event can lose a wake-up for a wait set. A notifier that lands between
-/// a listener's reset of the event's state and its emptying of the socket has its byte read
-/// with no state left to say so ("notified" with an empty socket); the wait set, which waits
-/// on the socket, then sleeps through every later notification until some interval drains the
-/// listener. Measured on the far side of `lop-bench latency --remote` (2026-12-07, 2-core
-/// machine), wakes from Zenoh's deliveries were lost this way every few hundred ms, for 25–90
+/// Why not a wait set over them all: iceoryx2 0.10's event can lose a wake-up for a wait set.
+/// A notification that lands between a listener's reset of the event's state and its emptying
+/// of the socket has its byte read with the state left "notified"; later notifications then
+/// write nothing, and a wait set, which waits on the socket, sleeps until something else drains
+/// the listener. Measured on the far side of `lop-bench latency --remote` (2026-12-07, 2-core
+/// machine), the tunnel's wait set lost Zenoh's wakes this way every few hundred ms, for 25–90
 /// ms each time, ending at the discovery interval: far frames p99 32 ms. A listener's own
-/// `timed_wait` does not lose them (it resets a "notified" state without waiting on the
-/// socket), so one wake (lopd's case on both sides) is waited on that way, and this interval
-/// only bounds the loss where a wait set is needed.
+/// `timed_wait` does not lose them: it resets a "notified" state without waiting on the socket.
 const SEVERAL_WAKES_FALLBACK: Duration = Duration::from_millis(2);
 
 /// Discovery on its interval, propagation on every round.
