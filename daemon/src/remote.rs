@@ -79,12 +79,17 @@ const TELEMETRY_INTERVAL: Duration = Duration::from_millis(100);
 /// How often the rig's tunnel looks for new services (its discovery interval), ms. The relay
 /// wakes it through the frame-ready event once it has published a round (frame, tool states,
 /// telemetry), and a wake propagates at once. A round of discovery lists every service of the
-/// domain (about 3 ms here), so it stays off the frames' path (`docs/benchmarks.md`).
+/// domain (1.5–4 ms here) and holds up propagation meanwhile, so the tunnel runs it in the quiet
+/// after a round, in the gap before the next frame (`lop-tunnel`'s `Rounds`).
 const RIG_TUNNEL_POLL_MS: u64 = 100;
 
 /// How often the far side's tunnel looks for new services, ms; samples wake it as they arrive
-/// (`--reactive`).
-const FAR_TUNNEL_POLL_MS: u64 = 100;
+/// (`--reactive`). Longer than the rig's: the far side's discovery lists its viewers' ports too
+/// (p90 3.8 ms, p99 6.9 ms, up to 20 ms with 16 viewers, 2026-12-07), and it only has to notice
+/// the rig's services coming and going (bridged within two intervals, 1 s). At 100 ms the far
+/// frames' p99 with 16 viewers was 2.4–5.7 ms above the local client's in four runs; at 500 ms
+/// 2.2–2.9 ms in three (`docs/benchmarks.md`).
+const FAR_TUNNEL_POLL_MS: u64 = 500;
 
 /// The rig's export domain: `rig` with [`EXPORT_DOMAIN_PREFIX`] before its global prefix.
 pub fn export_config(rig: &Config) -> Result<Config> {

@@ -11,8 +11,9 @@
 //! core at 120 frames/s, and a frame waited behind the discovery of the last: far frames were
 //! 39–52 ms old at p99 against about 1 ms for a local client (`docs/benchmarks.md`). Here a
 //! wake (a frame the relay announced, a sample Zenoh delivered) propagates at once, and
-//! discovery runs on its own interval (`--poll`, 100 ms by default): a service that appears is
-//! bridged within one interval, a frame crosses within one propagation.
+//! discovery runs on its own interval (`--poll`, 100 ms by default), in the quiet after a
+//! propagation (see `Rounds`): a service that appears is bridged within two intervals, a frame
+//! crosses within one propagation.
 //!
 //! A wake is waited on with the listener's own `timed_wait`, not a wait set: iceoryx2 0.10's
 //! event can lose a wake-up for a wait set, which left far frames waiting up to 90 ms for the
@@ -155,9 +156,9 @@ fn run() -> Result<()> {
         discovered: None,
         failures: 0,
     };
-    // The first wake is waited on with the listener's own `timed_wait`, until the next
-    // discovery is due; any others are drained after it, at least every
-    // `SEVERAL_WAKES_FALLBACK`.
+    // The first wake is waited on with the listener's own `timed_wait`; any others are drained
+    // after it, at least every `SEVERAL_WAKES_FALLBACK`. A discovery that is due waits for the
+    // next wake, so that it runs in the quiet after a propagation (see [`Rounds`]).
     let sources: Vec<&dyn WakeSource> = carrier_wake
         .iter()
         .map(|l| l as &dyn WakeSource)
@@ -165,25 +166,37 @@ fn run() -> Result<()> {
         .collect();
     loop {
         let timeout = match sources.len() {
-            0 | 1 => rounds.until_discovery(),
-            _ => rounds.until_discovery().min(SEVERAL_WAKES_FALLBACK),
+            0 => rounds.until_discovery(),
+            1 => rounds.until_discovery_overdue(),
+            _ => rounds.until_discovery_overdue().min(SEVERAL_WAKES_FALLBACK),
         };
         let woke = match sources.first() {
             Some(first) => first.wait(timeout),
             // A signal ends the sleep early; it is seen just below.
             None => {
                 let _ = link.node().wait(timeout);
-                Ok(())
+                Ok(0)
             }
         };
-        for other in sources.iter().skip(1) {
-            other.drain();
-        }
+        let drained: u64 = sources.iter().skip(1).map(|other| other.drain()).sum();
         if link.node().wait(Duration::ZERO).is_err() {
             return Ok(()); // SIGINT or SIGTERM, which also interrupts the wait
         }
-        woke?;
-        rounds.run(&mut link);
+        let woke = woke? + drained > 0;
+        rounds.propagate(&mut link);
+        if rounds.discovery_due(woke || sources.is_empty()) {
+            // Let the rest of a burst (a frame's tool states, its event) cross first.
+            let tries = if sources.is_empty() { 0 } else { QUIET_TRIES };
+            for _ in 0..tries {
+                std::thread::sleep(QUIET);
+                if sources.iter().map(|s| s.drain()).sum::<u64>() == 0 {
+                    break;
+                }
+                rounds.propagate(&mut link);
+            }
+            rounds.discover(&mut link);
+            rounds.propagate(&mut link);
+        }
     }
 }
 
@@ -201,7 +214,23 @@ fn run() -> Result<()> {
 /// `timed_wait` does not lose them: it resets a "notified" state without waiting on the socket.
 const SEVERAL_WAKES_FALLBACK: Duration = Duration::from_millis(2);
 
-/// Discovery on its interval, propagation on every round.
+/// How long the link must have been quiet (no wake) before a due discovery runs, and how many
+/// times that is tried before it runs anyway.
+const QUIET: Duration = Duration::from_micros(300);
+const QUIET_TRIES: usize = 8;
+
+/// Propagation on every wake; discovery on its interval, in the quiet after a propagation.
+///
+/// A discovery lists every service of the domain (it reads each one's static config: 1.6 ms
+/// at the median here, p99 6.9 ms, up to 20 ms) and the link cannot propagate meanwhile: the
+/// two need the link mutably, and the listing is iceoryx2's, inside `Link::discover`. Run when
+/// its interval fell due, as it first was, it landed on the frames' path every 100 ms on each
+/// side: far frames p99 2.7–3.4 ms with discovery every second, against 3.8–14.7 ms with it
+/// every 100 ms (`lop-bench latency --remote`, 2026-12-07, 1 to 16 far viewers). So a discovery
+/// that is due waits for the next wake (the relay sends a frame's round with one wake; Zenoh
+/// delivers one's samples together), propagates what it brought and what follows within
+/// [`QUIET`], and then runs in the gap before the next frame (8 ms at the relay's 120 frames
+/// a second). With no wake for a whole further interval, the link is idle and it runs then.
 struct Rounds {
     every: Duration,
     discovered: Option<Instant>,
@@ -215,14 +244,39 @@ impl Rounds {
             .map_or(Duration::ZERO, |t| self.every.saturating_sub(t.elapsed()))
     }
 
-    /// One round: a discovery if one is due, then a propagation.
-    fn run<S: Service, B: iceoryx2_link_backend::Backend<S>>(&mut self, link: &mut Link<S, B>) {
-        if self.discovered.is_none_or(|t| t.elapsed() >= self.every) {
-            self.discovered = Some(Instant::now());
-            if let Err(e) = link.discover() {
-                report(&mut self.failures, "discovery", &e);
+    /// The time left until a due discovery runs without a wake: one interval after it fell due.
+    fn until_discovery_overdue(&self) -> Duration {
+        self.discovered.map_or(Duration::ZERO, |t| {
+            (self.every * 2).saturating_sub(t.elapsed())
+        })
+    }
+
+    /// Whether a discovery should run now: due and just after a propagation a wake asked for,
+    /// or overdue by a whole interval (the link is idle). The first one runs at once.
+    fn discovery_due(&self, after_wake: bool) -> bool {
+        match self.discovered {
+            None => true,
+            Some(t) => {
+                let since = t.elapsed();
+                (after_wake && since >= self.every) || since >= self.every * 2
             }
         }
+    }
+
+    fn discover<S: Service, B: iceoryx2_link_backend::Backend<S>>(
+        &mut self,
+        link: &mut Link<S, B>,
+    ) {
+        self.discovered = Some(Instant::now());
+        if let Err(e) = link.discover() {
+            report(&mut self.failures, "discovery", &e);
+        }
+    }
+
+    fn propagate<S: Service, B: iceoryx2_link_backend::Backend<S>>(
+        &mut self,
+        link: &mut Link<S, B>,
+    ) {
         if let Err(e) = link.propagate() {
             report(&mut self.failures, "propagation", &e);
         }
@@ -231,21 +285,21 @@ impl Rounds {
 
 /// A wake of the tunnel: an iceoryx2 listener of any service variant.
 trait WakeSource {
-    /// Waits for a notification at most `timeout` and consumes what is pending.
-    fn wait(&self, timeout: Duration) -> Result<()>;
-    /// Consumes the pending notifications, so a wake is not seen twice.
-    fn drain(&self);
+    /// Waits for a notification at most `timeout` and consumes what is pending; the number of
+    /// notifications (0: the wait timed out).
+    fn wait(&self, timeout: Duration) -> Result<u64>;
+    /// Consumes the pending notifications, so a wake is not seen twice; their number.
+    fn drain(&self) -> u64;
 }
 
 impl<S: Service> WakeSource for Listener<S> {
-    fn wait(&self, timeout: Duration) -> Result<()> {
+    fn wait(&self, timeout: Duration) -> Result<u64> {
         self.timed_wait(|_| {}, timeout)
-            .map(|_| ())
             .map_err(|e| anyhow!("waiting for a wake: {e:?}"))
     }
 
-    fn drain(&self) {
-        let _ = self.try_wait(|_| {});
+    fn drain(&self) -> u64 {
+        self.try_wait(|_| {}).unwrap_or(0)
     }
 }
 
