@@ -89,6 +89,9 @@ fn run() -> Result<()> {
         anyhow::bail!("--poll 0: the discovery interval must be at least 1 ms");
     }
     iceoryx2_log::set_log_level_from_env_or(iceoryx2_log::LogLevel::Warn);
+    // Zenoh's own log when RUST_LOG asks for it (e.g. RUST_LOG=zenoh=debug): why a link, a TLS
+    // handshake or a router connection does not come up.
+    zenoh::try_init_log_from_env();
 
     // The domain: `config/iceoryx2.toml` under the working directory (lopd writes it), else
     // iceoryx2's defaults, as for every iceoryx2 program.
@@ -292,8 +295,24 @@ trait WakeSource {
     fn drain(&self) -> u64;
 }
 
+/// The shortest timeout given to a listener's `timed_wait`; a shorter wait only looks.
+///
+/// iceoryx2 0.10's event waits on a socket with `SO_RCVTIMEO` set to the timeout, in whole
+/// microseconds, and a timeout of zero there means *no* timeout: `timed_wait(Duration::ZERO)`
+/// blocks until the next notification. The tunnel's first wait had a zero timeout (discovery
+/// due at once). On a far host whose tunnel received the rig's offers before its wake was
+/// attached, no notification ever came: the tunnel slept for good after its first round and
+/// imported nothing (`lopd remote attach` then showed nothing, in about half of the attaches
+/// tried by hand on 2026-12-07, with the far side started seconds after the rig).
+const SHORTEST_WAIT: Duration = Duration::from_millis(1);
+
 impl<S: Service> WakeSource for Listener<S> {
     fn wait(&self, timeout: Duration) -> Result<u64> {
+        if timeout < SHORTEST_WAIT {
+            return self
+                .try_wait(|_| {})
+                .map_err(|e| anyhow!("looking for a wake: {e:?}"));
+        }
         self.timed_wait(|_| {}, timeout)
             .map_err(|e| anyhow!("waiting for a wake: {e:?}"))
     }
@@ -309,5 +328,47 @@ fn report(failures: &mut u64, what: &str, e: &dyn std::fmt::Debug) {
     *failures += 1;
     if *failures <= 10 || failures.is_multiple_of(1000) {
         eprintln!("lop-tunnel: {what} failed ({} so far): {e:?}", *failures);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Waits on a listener nobody notifies, in a thread of its own: `Some` with the result if
+    /// the wait came back at all (within a minute; it returns at once or after `timeout`).
+    fn wait_alone(timeout: Duration) -> Option<Result<u64>> {
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let node = NodeBuilder::new()
+                .create::<local::Service>()
+                .expect("a local node");
+            let name = format!("lop-tunnel-test/wake/{}", std::process::id());
+            let service = node
+                .service_builder(&ServiceName::new(&name).expect("a service name"))
+                .event()
+                .open_or_create()
+                .expect("an event service");
+            let listener = service.listener_builder().create().expect("a listener");
+            let _ = tx.send(WakeSource::wait(&listener, timeout));
+        });
+        rx.recv_timeout(Duration::from_secs(60)).ok()
+    }
+
+    #[test]
+    fn a_zero_or_sub_microsecond_timeout_looks_without_blocking() {
+        // Passed on to iceoryx2 0.10's `timed_wait`, both block until a notification comes.
+        for timeout in [Duration::ZERO, Duration::from_nanos(500)] {
+            match wait_alone(timeout) {
+                Some(Ok(n)) => assert_eq!(n, 0, "{timeout:?}"),
+                Some(Err(e)) => panic!("{timeout:?}: {e:#}"),
+                None => panic!("a wait of {timeout:?} did not come back"),
+            }
+        }
+    }
+
+    #[test]
+    fn a_timeout_is_a_timeout() {
+        assert!(matches!(wait_alone(Duration::from_millis(20)), Some(Ok(0))));
     }
 }
