@@ -12,6 +12,8 @@
 //!   service (which the haptic loop renders forces from);
 //! - killing the rig's tunnel or the whole far side leaves the rig running (frames and haptic
 //!   telemetry keep coming); the rig's tunnel is restarted and the far side receives again.
+//! - through a Zenoh router (a classroom: rig and far side both its clients, never connected to
+//!   each other), a far client gets the topology and every frame in order.
 //!
 //! The tunnel is the workspace's `lop-tunnel`, which lopd finds beside itself (`cargo test
 //! --workspace` builds it).
@@ -329,4 +331,119 @@ fn a_rig_whose_tunnel_cannot_run_says_why_and_runs_without_it() {
     assert!(log.contains(&want), "{log}");
     assert!(log.contains("the rig runs without it"), "{log}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A process killed when dropped.
+struct Killed(std::process::Child);
+
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn a_classroom_through_a_zenoh_router_gets_the_scene_in_order() {
+    // The router: a Zenoh session in router mode (what `zenohd` runs), here `lop-tunnel`'s own
+    // in an iceoryx2 domain of its own, bridging nothing. The rig and the far side are both
+    // clients of it and never connect to each other.
+    let prefix = unique_prefix("remote-router");
+    let router_port = free_port();
+    let router_endpoint = format!("tcp/127.0.0.1:{router_port}");
+    let router_dir = far_domain("router");
+    let zenoh = router_dir.join("router.json5");
+    std::fs::write(
+        &zenoh,
+        format!(
+            "{{ mode: \"router\", listen: {{ endpoints: [\"{router_endpoint}\"] }}, \
+             scouting: {{ multicast: {{ enabled: false }} }} }}"
+        ),
+    )
+    .unwrap();
+    let _router = Killed(
+        Command::new(sibling_binary("lop-tunnel"))
+            .arg("--zenoh-config")
+            .arg(&zenoh)
+            .args(["--allow", "no-service-of-this-test"])
+            .current_dir(&router_dir)
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .expect("the router"),
+    );
+
+    let config = router_dir.join("lopd.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[remote]\nenabled = true\nmode = \"client\"\n\
+             connect = [\"{router_endpoint}\"]\n"
+        ),
+    )
+    .unwrap();
+    let mut rig = Daemon::spawn(
+        &[
+            "run",
+            "--scene",
+            "abdomen",
+            "--prefix",
+            &prefix,
+            "--quiet",
+            "--config",
+            config.to_str().unwrap(),
+        ],
+        &prefix,
+        Duration::from_secs(300),
+    );
+    let mut local = Attachment::open(&prefix, Duration::from_secs(90))
+        .unwrap_or_else(|e| panic!("attach: {e}\n{}", rig.log_text()));
+    let topology = local
+        .wait_topology(Duration::from_secs(90))
+        .expect("topology")
+        .header
+        .topology_id;
+
+    let far = far_domain("classroom");
+    let mut attach = Daemon::spawn_in(
+        &[
+            "remote",
+            "attach",
+            "--prefix",
+            &prefix,
+            "--mode",
+            "client",
+            "--connect",
+            &router_endpoint,
+        ],
+        &prefix,
+        Duration::from_secs(300),
+        Some(&far),
+        "-far",
+    );
+    let logs = || format!("rig:\n{}\nfar:\n{}", rig.log_text(), attach.log_text());
+    let p = probe_read(&far, &prefix, 200, &logs);
+    assert_eq!(p.topology, topology);
+    assert!(
+        p.sequences.windows(2).all(|w| w[1] > w[0]),
+        "frames out of order through the router: {:?}",
+        p.sequences
+    );
+    assert!(
+        !p.services.iter().any(|s| s.contains("control")),
+        "{:?}",
+        p.services
+    );
+
+    attach.signal(libc::SIGTERM);
+    attach
+        .wait(Duration::from_secs(10))
+        .expect("far side stops");
+    drop(local);
+    let log = lop_system_tests::interrupt(&mut rig);
+    assert!(log.contains("started the Zenoh link tunnel"), "{log}");
+    assert!(!log.contains("panicked"), "{log}");
+    let _ = std::fs::remove_dir_all(&far);
+    let _ = std::fs::remove_dir_all(&router_dir);
 }
