@@ -115,6 +115,29 @@ fn rig_frames(names: &ServiceNames, d: Duration) -> Vec<u64> {
     ids
 }
 
+/// `lopd run --scene abdomen --prefix PREFIX --quiet` and `extra`, with a local client attached
+/// once the topology is there: the daemon, the client and the topology id.
+fn rig(prefix: &str, extra: &[&str], limit: Duration) -> (Daemon, Attachment, u64) {
+    let mut args = vec!["run", "--scene", "abdomen", "--prefix", prefix, "--quiet"];
+    args.extend_from_slice(extra);
+    let rig = Daemon::spawn(&args, prefix, limit);
+    let mut local = Attachment::open(prefix, Duration::from_secs(90))
+        .unwrap_or_else(|e| panic!("attach: {e}\n{}", rig.log_text()));
+    let topology = local
+        .wait_topology(Duration::from_secs(90))
+        .expect("topology")
+        .header
+        .topology_id;
+    (rig, local, topology)
+}
+
+/// `lopd remote attach --prefix PREFIX` and `extra` in the far domain `far`.
+fn far_side(prefix: &str, far: &Path, extra: &[&str]) -> Daemon {
+    let mut args = vec!["remote", "attach", "--prefix", prefix];
+    args.extend_from_slice(extra);
+    Daemon::spawn_in(&args, prefix, Duration::from_secs(300), Some(far), "-far")
+}
+
 #[test]
 fn the_scene_reaches_a_far_domain_in_order_read_only_and_the_rig_outlives_every_tunnel() {
     // lopd runs the tunnel it finds beside itself: this build's.
@@ -122,28 +145,11 @@ fn the_scene_reaches_a_far_domain_in_order_read_only_and_the_rig_outlives_every_
     let prefix = unique_prefix("remote");
     let names = ServiceNames::new(&prefix).unwrap();
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let mut rig = Daemon::spawn(
-        &[
-            "run",
-            "--scene",
-            "abdomen",
-            "--prefix",
-            &prefix,
-            "--quiet",
-            "--remote",
-            "--remote-listen",
-            &endpoint,
-        ],
+    let (mut rig, mut local, topology) = rig(
         &prefix,
+        &["--remote", "--remote-listen", &endpoint],
         Duration::from_secs(300),
     );
-    let mut local = Attachment::open(&prefix, Duration::from_secs(90))
-        .unwrap_or_else(|e| panic!("attach: {e}\n{}", rig.log_text()));
-    let topology = local
-        .wait_topology(Duration::from_secs(90))
-        .expect("topology")
-        .header
-        .topology_id;
     // Opens the telemetry subscription (its first call finds nothing yet).
     let _ = local.telemetry();
 
@@ -157,20 +163,7 @@ fn the_scene_reaches_a_far_domain_in_order_read_only_and_the_rig_outlives_every_
     let _decoy = services::frame_service(&decoy_node, &decoy_names, Role::Owner).unwrap();
 
     let far = far_domain("a");
-    let mut attach = Daemon::spawn_in(
-        &[
-            "remote",
-            "attach",
-            "--prefix",
-            &prefix,
-            "--connect",
-            &endpoint,
-        ],
-        &prefix,
-        Duration::from_secs(300),
-        Some(&far),
-        "-far",
-    );
+    let mut attach = far_side(&prefix, &far, &["--connect", &endpoint]);
     let logs = || format!("rig:\n{}\nfar:\n{}", rig.log_text(), attach.log_text());
 
     // Every frame in order, the rig's topology, only the rig's renderer-facing services.
@@ -299,26 +292,11 @@ fn a_rig_whose_tunnel_cannot_run_says_why_and_runs_without_it() {
     let dir = lop_test_support::fixtures::temp_dir("lop-remote-bad");
     let config = dir.join("lopd.toml");
     std::fs::write(&config, "[remote]\ntunnel = \"bin/no-such-tunnel\"\n").unwrap();
-    let mut rig = Daemon::spawn(
-        &[
-            "run",
-            "--scene",
-            "abdomen",
-            "--prefix",
-            &prefix,
-            "--quiet",
-            "--remote",
-            "--config",
-            config.to_str().unwrap(),
-        ],
+    let (mut rig, mut local, _) = rig(
         &prefix,
+        &["--remote", "--config", config.to_str().unwrap()],
         Duration::from_secs(200),
     );
-    let mut local = Attachment::open(&prefix, Duration::from_secs(90))
-        .unwrap_or_else(|e| panic!("attach: {e}\n{}", rig.log_text()));
-    local
-        .wait_topology(Duration::from_secs(90))
-        .expect("topology");
     local
         .next_frame(Duration::from_secs(30))
         .expect("the rig runs");
@@ -383,44 +361,17 @@ fn a_classroom_through_a_zenoh_router_gets_the_scene_in_order() {
         ),
     )
     .unwrap();
-    let mut rig = Daemon::spawn(
-        &[
-            "run",
-            "--scene",
-            "abdomen",
-            "--prefix",
-            &prefix,
-            "--quiet",
-            "--config",
-            config.to_str().unwrap(),
-        ],
+    let (mut rig, local, topology) = rig(
         &prefix,
+        &["--config", config.to_str().unwrap()],
         Duration::from_secs(300),
     );
-    let mut local = Attachment::open(&prefix, Duration::from_secs(90))
-        .unwrap_or_else(|e| panic!("attach: {e}\n{}", rig.log_text()));
-    let topology = local
-        .wait_topology(Duration::from_secs(90))
-        .expect("topology")
-        .header
-        .topology_id;
 
     let far = far_domain("classroom");
-    let mut attach = Daemon::spawn_in(
-        &[
-            "remote",
-            "attach",
-            "--prefix",
-            &prefix,
-            "--mode",
-            "client",
-            "--connect",
-            &router_endpoint,
-        ],
+    let mut attach = far_side(
         &prefix,
-        Duration::from_secs(300),
-        Some(&far),
-        "-far",
+        &far,
+        &["--mode", "client", "--connect", &router_endpoint],
     );
     let logs = || format!("rig:\n{}\nfar:\n{}", rig.log_text(), attach.log_text());
     let p = probe_read(&far, &prefix, 200, &logs);
