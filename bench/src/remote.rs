@@ -401,8 +401,8 @@ pub fn run(
             kills,
             rig_tunnel_restarted: restarted,
             local_frames: local_count,
-            haptic_compute_p99_us: tick.compute_us,
-            haptic_jitter_p99_us: tick.jitter_us,
+            haptic_compute_p99_us: largest(&tick.computes),
+            haptic_jitter_p99_us: largest(&tick.jitters),
             haptic_compute_p99_median_us: median(&mut tick.computes).unwrap_or(f64::NAN),
             haptic_jitter_p99_median_us: median(&mut tick.jitters).unwrap_or(f64::NAN),
             haptic_overruns: tick.overruns(),
@@ -452,8 +452,6 @@ fn warm_up(me: &Path, far: &Path, prefix: &str) -> Result<()> {
 
 /// The haptic loop's telemetry over a phase: the largest window p99s seen and the overruns.
 struct TickWindows {
-    compute_us: f64,
-    jitter_us: f64,
     /// Every window's compute and jitter p99 read, µs.
     computes: Vec<f64>,
     jitters: Vec<f64>,
@@ -465,8 +463,6 @@ struct TickWindows {
 impl TickWindows {
     fn new(first: Option<HapticTelemetry>) -> TickWindows {
         let mut w = TickWindows {
-            compute_us: f64::NAN,
-            jitter_us: f64::NAN,
             computes: Vec::new(),
             jitters: Vec::new(),
             first_overruns: None,
@@ -487,14 +483,8 @@ impl TickWindows {
         }
         self.last_look = Instant::now();
         if let Some(t) = local.telemetry() {
-            let (compute, jitter) = (
-                t.window_compute.p99 as f64 / 1e3,
-                t.window_jitter.p99 as f64 / 1e3,
-            );
-            self.compute_us = self.compute_us.max(compute);
-            self.jitter_us = self.jitter_us.max(jitter);
-            self.computes.push(compute);
-            self.jitters.push(jitter);
+            self.computes.push(t.window_compute.p99 as f64 / 1e3);
+            self.jitters.push(t.window_jitter.p99 as f64 / 1e3);
             self.first_overruns.get_or_insert(t.overruns);
             self.last_overruns = Some(t.overruns);
         }
@@ -506,6 +496,11 @@ impl TickWindows {
             _ => 0,
         }
     }
+}
+
+/// The largest of `v` (NaN when empty).
+fn largest(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::NAN, f64::max)
 }
 
 /// The `lop-tunnel` processes under `lopd run` (pid `rig`): its `lopd remote serve` child's.
