@@ -44,6 +44,7 @@
 pub mod collide;
 pub mod contact;
 pub mod control;
+pub mod cut;
 pub mod fem;
 pub mod gc;
 pub mod grasp;

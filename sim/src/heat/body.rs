@@ -530,6 +530,27 @@ impl HeatBody {
         Ok(())
     }
 
+    /// Takes the state of `old`, the same body before a cut removed tetrahedra from its mesh
+    /// (the nodes keep their numbers): temperatures and burns, node by node. A node the cut
+    /// left unused keeps its temperature, which no step changes any more. Queued sources are
+    /// not carried: they are refilled every round.
+    ///
+    /// # Errors
+    /// [`HeatError::WrongLength`] if `old` has another number of nodes; `self` is unchanged.
+    pub fn take_state(&mut self, old: &HeatBody) -> Result<(), HeatError> {
+        if old.temperature.len() != self.temperature.len() {
+            return Err(HeatError::WrongLength {
+                got: old.temperature.len(),
+                expected: self.temperature.len(),
+            });
+        }
+        self.temperature.copy_from_slice(&old.temperature);
+        self.burned.copy_from_slice(&old.burned);
+        self.burned_count = old.burned_count;
+        self.stiffness_factor.copy_from_slice(&old.stiffness_factor);
+        Ok(())
+    }
+
     /// Back to the initial temperature everywhere, no burns, no queued sources.
     pub fn reset(&mut self) {
         self.temperature.fill(self.params.initial);

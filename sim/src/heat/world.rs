@@ -95,6 +95,35 @@ impl HeatWorld {
         Ok(())
     }
 
+    /// Replaces body `body` by `new` (the same body after a cut: build it on the cut mesh and
+    /// give it the old one's state with [`HeatBody::take_state`]), and drops the links that
+    /// reach one of its nodes `new` gives no capacity (nodes the cut left unused). No other
+    /// body changes.
+    ///
+    /// # Errors
+    /// [`HeatError::BodyOutOfRange`], [`HeatError::TimeStepMismatch`] (`new`'s step is not the
+    /// world's); nothing changes.
+    pub fn replace_body(&mut self, body: usize, new: HeatBody) -> Result<(), HeatError> {
+        let bodies = self.bodies.len();
+        let Some(old) = self.bodies.get(body) else {
+            return Err(HeatError::BodyOutOfRange { body, bodies });
+        };
+        if new.dt() != old.dt() {
+            return Err(HeatError::TimeStepMismatch {
+                body,
+                dt: new.dt(),
+                expected: old.dt(),
+            });
+        }
+        let live = |b: usize, n: u32| {
+            b != body || new.capacities().get(n as usize).is_some_and(|&c| c > 0.0)
+        };
+        self.links
+            .retain(|l| live(l.body_a, l.node_a) && live(l.body_b, l.node_b));
+        self.bodies[body] = new;
+        Ok(())
+    }
+
     /// Room for `n` links, so that `set_links` with up to `n` links never allocates.
     pub fn reserve_links(&mut self, n: usize) {
         self.links.reserve(n.saturating_sub(self.links.len()));

@@ -138,6 +138,7 @@
 //! bit.
 
 mod bnd;
+mod cut;
 mod embed;
 mod error;
 mod gmsh;
@@ -161,6 +162,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 pub use bnd::write_bnd;
+pub use cut::{CutRefused, MeshCut, MIN_PIECE_TETS};
 pub use embed::{EmbedError, Embedding, MAX_OUTSIDE_FRACTION};
 pub use error::MeshReadError;
 pub use gmsh::read_gmsh;

@@ -75,6 +75,9 @@ pub struct Body {
     pub locals: [Option<LocalModel>; MAX_TOOLS],
     /// Per tool, pairs consecutive patch steps for the local model's free motion.
     free_motion: [FreeMotion; MAX_TOOLS],
+    /// The body's topology: 0 as loaded, one more for each cut that landed
+    /// ([`World::apply_cut`]). Triangle and tetrahedron indices are meant within one epoch.
+    pub epoch: u64,
     /// For each node, the surface triangles that use it (built once).
     node_triangles: Vec<Vec<u32>>,
     /// Scratch: filled by `step_body` with the triangles near the tool, read by the model.
@@ -411,12 +414,7 @@ impl World {
         }
         self.report.bodies.push(BodyRound::default());
         let n = mesh.nodes.len();
-        let mut node_triangles = vec![Vec::new(); n];
-        for (t, tri) in mesh.surface.iter().enumerate() {
-            for &k in tri {
-                node_triangles[k as usize].push(t as u32);
-            }
-        }
+        let node_triangles = node_triangles(&mesh.surface, n);
         let patch_scratch = GatherScratch::new(mesh.surface.len(), n);
         self.bodies.push(Body {
             patch_scratch,
@@ -431,11 +429,52 @@ impl World {
             contacts: [ContactReport::default(); MAX_TOOLS],
             locals: [None; MAX_TOOLS],
             free_motion: Default::default(),
+            epoch: 0,
             node_triangles,
             candidates: Vec::with_capacity(64),
             patch_points: Vec::with_capacity(MAX_PATCH),
         });
         self.bodies.len() - 1
+    }
+
+    /// Gives body `i` the mesh and model a cut left (`crate::cut`, which checked the body and
+    /// carried the state): its levels-of-precision controller goes, the tools' contacts and
+    /// local models on it are forgotten, its surface's indices and organ collision are built
+    /// again, and its epoch counts one more.
+    pub(crate) fn replace_body_topology(&mut self, i: usize, mesh: TetMesh, model: Model) {
+        let mut model = model;
+        give_pool(&mut model, &self.pool);
+        let n = mesh.nodes.len();
+        let b = &mut self.bodies[i];
+        b.node_triangles = node_triangles(&mesh.surface, n);
+        b.patch_scratch = GatherScratch::new(mesh.surface.len(), n);
+        b.mesh = mesh;
+        b.model = model;
+        b.lop = None;
+        b.forget_contacts();
+        b.candidates.clear();
+        b.patch_points.clear();
+        b.epoch += 1;
+        if let Some(c) = self.collisions.as_mut() {
+            let surfaces: Vec<&[[u32; 3]]> =
+                self.bodies.iter().map(|b| &b.mesh.surface[..]).collect();
+            let mut detector = Collisions::new(&surfaces);
+            detector.set_skin(c.detector.skin());
+            detector.set_depth_limit(c.detector.depth_limit());
+            c.springs = (0..self.bodies.len())
+                .map(|j| Vec::with_capacity(detector.spring_capacity(j)))
+                .collect();
+            c.detector = detector;
+            // Detected again in the next round that steps a body.
+            c.last = None;
+        }
+    }
+
+    /// Replaces body `i`'s heat model (`crate::cut`); false if the heat model refused it.
+    pub(crate) fn replace_heat_body(&mut self, i: usize, body: crate::heat::HeatBody) -> bool {
+        self.heat
+            .as_mut()
+            .is_some_and(|h| h.model.replace_body(i, body).is_ok())
     }
 
     /// Adds a body under a levels-of-precision controller: `model` is the one to run first (as
@@ -764,6 +803,17 @@ impl World {
 }
 
 /// Hands `pool` to `model` if it is an FEM body.
+/// For each of `n` nodes, the triangles of `surface` that use it.
+fn node_triangles(surface: &[[u32; 3]], n: usize) -> Vec<Vec<u32>> {
+    let mut node_triangles = vec![Vec::new(); n];
+    for (t, tri) in surface.iter().enumerate() {
+        for &k in tri {
+            node_triangles[k as usize].push(t as u32);
+        }
+    }
+    node_triangles
+}
+
 fn give_pool(model: &mut Model, pool: &Option<Arc<WorkerPool>>) {
     if let Model::Fem(f) = model {
         f.set_worker_pool(pool.clone());

@@ -17,6 +17,7 @@ mod common;
 
 mod collide;
 mod collision_response;
+mod cut;
 mod fem_background;
 mod fem_contact;
 mod fem_dynamics;

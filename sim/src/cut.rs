@@ -1,0 +1,352 @@
+//! Cutting a body while the world runs: tetrahedra removed, the models, the contact structures
+//! and the heat model rebuilt for the new mesh, the state carried over.
+//!
+//! A cut is two halves, so that the dear one can run off the critical path:
+//!
+//! 1. [`World::cut_source`] copies what a cut of body `i` is made from (its rest mesh, its
+//!    precise model's parameters, its heat parameters, its topology epoch): cheap, on the
+//!    stepping thread. [`CutSource::prepare`] then removes the tetrahedra from the mesh
+//!    ([`TetMesh::without_tets`]: the pieces a cut leaves loose or too small go with it) and
+//!    builds the precise model and the heat model on the new mesh, at rest: the assembly, the
+//!    orderings and the factorisations, milliseconds to a second. It reads nothing of the
+//!    world, so it may run on any thread while the body goes on stepping on the old mesh.
+//! 2. [`World::apply_cut`] swaps the prepared body in between two steps: the new model takes
+//!    the old one's positions and velocities node by node (nodes keep their numbers; the ones
+//!    the cut left unused are held where they are), its period, refactor policy and worker
+//!    pool; the surface, the tools' contact scratch, organ collision and the heat model follow;
+//!    the body's [`epoch`](crate::world::Body::epoch) counts one more topology. Cheap: no
+//!    factorisation. A prepared cut whose epoch is no longer the body's (another cut landed
+//!    first) is refused, never applied to a mesh it was not made for.
+//!
+//! The step in flight finishes on the old mesh; the caller decides when a prepared cut lands.
+//! Applied at a fixed step count after its request, a run is the same whatever the thread's
+//! speed. [`World::cut_body`] does both halves at once (tests, offline tools).
+//!
+//! **A cut body keeps its precise model.** Its levels-of-precision controller is dropped: the
+//! Green-coordinates cage was fitted to the uncut shape, and its harmonic deformation of the
+//! interior cannot open a wound, so a cut body never returns to it. A body that only has a cage
+//! (`model = "gc"`) cannot be cut ([`CutError::NoPreciseModel`]).
+//!
+//! **The tools start a new contact.** Each tool's contact patch, local model and free-motion
+//! history refer to surface triangles of the old mesh and are dropped: the next step gathers a
+//! patch on the new surface.
+
+use std::fmt;
+
+use crate::fem::{Fem, FemError, FemParameters};
+use crate::heat::{HeatBody, HeatError, HeatParameters};
+use crate::mesh::{CutRefused, MeshCut, TetMesh};
+use crate::model::Model;
+use crate::msd::{MassSpring, MsdParameters, SubstepPolicy};
+use crate::world::World;
+
+/// Why a cut was not made. Nothing changed in the world.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CutError {
+    /// No body of that index.
+    NoBody {
+        /// The index asked.
+        body: usize,
+        /// Bodies in the world.
+        bodies: usize,
+    },
+    /// The body runs only a Green-coordinates cage, which cannot represent a cut.
+    NoPreciseModel {
+        /// The body's name.
+        body: String,
+    },
+    /// The mesh refused the cut ([`CutRefused`]).
+    Refused {
+        /// The body's name.
+        body: String,
+        /// Why.
+        why: CutRefused,
+    },
+    /// The model could not be built on the cut mesh.
+    Model {
+        /// The body's name.
+        body: String,
+        /// The model's error.
+        why: String,
+    },
+    /// The cut was prepared for topology `prepared` of the body, which is at `current` now.
+    Stale {
+        /// The body's name.
+        body: String,
+        /// Epoch the cut was made from.
+        prepared: u64,
+        /// The body's epoch now.
+        current: u64,
+    },
+}
+
+impl fmt::Display for CutError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CutError::NoBody { body, bodies } => {
+                write!(f, "no body {body} to cut (the world has {bodies})")
+            }
+            CutError::NoPreciseModel { body } => write!(
+                f,
+                "body {body:?} runs only a Green-coordinates cage, which cannot be cut: give it \
+                 model = \"auto\", \"fem\" or \"msd\""
+            ),
+            CutError::Refused { body, why } => write!(f, "body {body:?}: {why}"),
+            CutError::Model { body, why } => {
+                write!(f, "body {body:?}: the model on the cut mesh: {why}")
+            }
+            CutError::Stale {
+                body,
+                prepared,
+                current,
+            } => write!(
+                f,
+                "body {body:?}: a cut prepared on topology {prepared} cannot land on topology \
+                 {current}"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for CutError {}
+
+/// The precise model a cut rebuilds, by its parameters.
+#[derive(Debug, Clone)]
+enum Recipe {
+    Fem(FemParameters),
+    Msd(MsdParameters, SubstepPolicy),
+}
+
+/// What a cut of one body is made from ([`World::cut_source`]); [`CutSource::prepare`] runs on
+/// any thread.
+#[derive(Debug, Clone)]
+pub struct CutSource {
+    body: usize,
+    name: String,
+    epoch: u64,
+    mesh: TetMesh,
+    recipe: Recipe,
+    heat: Option<HeatParameters>,
+}
+
+/// A cut ready to land ([`World::apply_cut`]).
+#[derive(Debug)]
+pub struct PreparedCut {
+    body: usize,
+    name: String,
+    epoch: u64,
+    cut: MeshCut,
+    model: Model,
+    heat: Option<HeatBody>,
+}
+
+/// What a cut that landed did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CutReport {
+    /// The body cut.
+    pub body: usize,
+    /// Its topology epoch from now on.
+    pub epoch: u64,
+    /// Tetrahedra removed (asked, and those of the pieces taken out), and left.
+    pub removed_tets: usize,
+    /// Of `removed_tets`, those of pieces taken out (cut loose, or too small).
+    pub piece_tets: usize,
+    /// Pieces taken out, and left.
+    pub pieces_removed: usize,
+    /// Pieces left.
+    pub pieces_kept: usize,
+    /// Tetrahedra left.
+    pub tets_left: usize,
+    /// Nodes the cut left unused.
+    pub nodes_freed: usize,
+    /// Rest volume removed, m³.
+    pub volume_removed: f64,
+}
+
+impl CutSource {
+    /// The body this cut is for.
+    pub fn body(&self) -> usize {
+        self.body
+    }
+
+    /// The body's rest mesh at the epoch the cut starts from (to choose what to remove).
+    pub fn mesh(&self) -> &TetMesh {
+        &self.mesh
+    }
+
+    /// Removes the tetrahedra `remove` marks (one entry per tetrahedron of
+    /// [`CutSource::mesh`]) and builds the body's precise model, and its heat model if the
+    /// world has one, on the cut mesh, at rest. Allocates and factorises.
+    ///
+    /// # Errors
+    /// [`CutError::Refused`], [`CutError::Model`].
+    pub fn prepare(self, remove: &[bool]) -> Result<PreparedCut, CutError> {
+        let cut = self
+            .mesh
+            .without_tets(remove)
+            .map_err(|why| CutError::Refused {
+                body: self.name.clone(),
+                why,
+            })?;
+        let failed = |why: String| CutError::Model {
+            body: self.name.clone(),
+            why,
+        };
+        let model = match &self.recipe {
+            Recipe::Fem(p) => {
+                Model::Fem(Fem::new(&cut.mesh, *p).map_err(|e: FemError| failed(e.to_string()))?)
+            }
+            Recipe::Msd(p, policy) => {
+                Model::MassSpring(MassSpring::new(&cut.mesh, *p).with_substep_policy(*policy))
+            }
+        };
+        let heat = match self.heat {
+            Some(p) => {
+                Some(HeatBody::new(&cut.mesh, p).map_err(|e: HeatError| failed(e.to_string()))?)
+            }
+            None => None,
+        };
+        Ok(PreparedCut {
+            body: self.body,
+            name: self.name,
+            epoch: self.epoch,
+            cut,
+            model,
+            heat,
+        })
+    }
+}
+
+impl PreparedCut {
+    /// The mesh the body will have once the cut lands.
+    pub fn mesh(&self) -> &TetMesh {
+        &self.cut.mesh
+    }
+}
+
+impl World {
+    /// What a cut of body `i` is made from (module docs): a copy of its rest mesh and of its
+    /// precise model's and heat model's parameters.
+    ///
+    /// # Errors
+    /// [`CutError::NoBody`], [`CutError::NoPreciseModel`].
+    pub fn cut_source(&self, i: usize) -> Result<CutSource, CutError> {
+        let b = self.bodies.get(i).ok_or(CutError::NoBody {
+            body: i,
+            bodies: self.bodies.len(),
+        })?;
+        let precise = match (&b.model, &b.lop) {
+            (Model::Gc(_), Some(lop)) => lop.parked(),
+            (m, _) => m,
+        };
+        let recipe = match precise {
+            Model::Fem(f) => Recipe::Fem(*f.parameters()),
+            Model::MassSpring(m) => Recipe::Msd(*m.params(), m.substep_policy()),
+            Model::Gc(_) => {
+                return Err(CutError::NoPreciseModel {
+                    body: b.name.clone(),
+                })
+            }
+        };
+        Ok(CutSource {
+            body: i,
+            name: b.name.clone(),
+            epoch: b.epoch,
+            mesh: b.mesh.clone(),
+            recipe,
+            heat: self
+                .heat()
+                .and_then(|h| h.bodies().get(i))
+                .map(|h| *h.params()),
+        })
+    }
+
+    /// Lands a prepared cut (module docs) between two steps.
+    ///
+    /// # Errors
+    /// [`CutError::NoBody`], [`CutError::Stale`]; nothing changes.
+    pub fn apply_cut(&mut self, prepared: PreparedCut) -> Result<CutReport, CutError> {
+        let PreparedCut {
+            body: i,
+            name,
+            epoch,
+            cut,
+            mut model,
+            heat,
+        } = prepared;
+        let bodies = self.bodies.len();
+        let b = self
+            .bodies
+            .get(i)
+            .ok_or(CutError::NoBody { body: i, bodies })?;
+        if b.epoch != epoch || b.name != name {
+            return Err(CutError::Stale {
+                body: name,
+                prepared: epoch,
+                current: b.epoch,
+            });
+        }
+        // The precise model the body runs, or has parked under its cage.
+        let precise = match (&b.model, &b.lop) {
+            (Model::Gc(_), Some(lop)) => lop.parked(),
+            (m, _) => m,
+        };
+        if let (Model::Fem(new), Model::Fem(old)) = (&mut model, precise) {
+            // Both valid: the period and policy the old model runs at now.
+            let _ = new.set_dt(old.dt());
+            new.set_refactor_policy(old.refactor_policy());
+        }
+        model.set_state(b.model.positions(), b.model.velocities());
+        let heat_state = self.heat().and_then(|h| h.bodies().get(i)).cloned();
+        let report = CutReport {
+            body: i,
+            epoch: epoch + 1,
+            removed_tets: cut.removed_tets,
+            piece_tets: cut.piece_tets,
+            pieces_removed: cut.pieces_removed,
+            pieces_kept: cut.pieces_kept,
+            tets_left: cut.mesh.tets.len(),
+            nodes_freed: cut.nodes_freed,
+            volume_removed: cut.volume_removed,
+        };
+        self.replace_body_topology(i, cut.mesh, model);
+        if let (Some(mut new), Some(old)) = (heat, heat_state) {
+            // Same node count by construction; a heat model that refuses the swap stops, as a
+            // failed heat step does, and the bodies go on.
+            let ok = new.take_state(&old).is_ok() && self.replace_heat_body(i, new);
+            if !ok {
+                self.disable_heat();
+            }
+        }
+        Ok(report)
+    }
+
+    /// [`World::cut_source`], [`CutSource::prepare`] and [`World::apply_cut`] at once.
+    ///
+    /// # Errors
+    /// As those three.
+    pub fn cut_body(&mut self, i: usize, remove: &[bool]) -> Result<CutReport, CutError> {
+        let prepared = self.cut_source(i)?.prepare(remove)?;
+        self.apply_cut(prepared)
+    }
+}
+
+/// The tetrahedra of `mesh` that vaporise at `temperatures` (°C, one per node): those whose
+/// mean node temperature is at least `threshold`.
+pub fn vaporised(mesh: &TetMesh, temperatures: &[f64], threshold: f64) -> Vec<bool> {
+    mesh.tets
+        .iter()
+        .map(|t| {
+            let sum: f64 = t
+                .iter()
+                .map(|&k| {
+                    temperatures
+                        .get(k as usize)
+                        .copied()
+                        .unwrap_or(f64::NEG_INFINITY)
+                })
+                .sum();
+            sum / 4.0 >= threshold
+        })
+        .collect()
+}
