@@ -172,6 +172,7 @@ fn haptic_ticks(scene_name: &str, script_name: &str, seconds: f64) -> Result<Row
                 center: device,
                 coupling,
                 heat: false,
+                cut: false,
                 stiffness: None,
             };
             rounds.advance(&mut world, t, std::slice::from_ref(&tool), &[], false, || 0);
@@ -407,6 +408,7 @@ fn collision_steps(scene_name: &str, steps: usize) -> Result<Row> {
             center: workspace.device_to_scene(script.sample(t).position_mm),
             coupling: Coupling::Nearest,
             heat: false,
+            cut: false,
             stiffness: None,
         };
         // One round: detection and the contact springs (timed in the report), then the

@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use lop_config::Scene;
-use lop_drivers::{BUTTON_GRAB, BUTTON_HEAT};
+use lop_drivers::{BUTTON_CUT, BUTTON_GRAB, BUTTON_HEAT};
 use lop_scene::session::RoundInput;
 use lop_scene::{DeviceClamp, OfflineSession, ToolLaws, ToolSource};
 use lop_sim::lop::SwitchReason;
@@ -206,6 +206,7 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
                 inputs[k] = Some(RoundInput {
                     center: at,
                     heat: kind.cauterizes() && sample.pressed(BUTTON_HEAT),
+                    cut: kind.cauterizes() && sample.pressed(BUTTON_CUT),
                     stiffness: None,
                 });
             }

@@ -22,6 +22,10 @@ use crate::replay::RecordingError;
 pub const BUTTON_GRAB: u32 = 1 << 0;
 /// Device button 2 (OpenHaptics `HD_DEVICE_BUTTON_2`): electrocautery (heat).
 pub const BUTTON_HEAT: u32 = 1 << 1;
+/// The cut button: a cautery's electrosurgical cut (the tissue its heat vaporises is cut
+/// away). Not a physical button of its own on a two-button stylus: scripts press it as
+/// `"cut"`.
+pub const BUTTON_CUT: u32 = 1 << 2;
 
 /// One reading of the device, in the device's own frame and units (OpenHaptics: mm, +x right,
 /// +y up, +z toward the user).
@@ -31,7 +35,7 @@ pub struct DeviceSample {
     pub position_mm: [f64; 3],
     /// Tool-tip velocity, mm/s.
     pub velocity_mm_s: [f64; 3],
-    /// Pressed buttons, a bit set of [`BUTTON_GRAB`], [`BUTTON_HEAT`].
+    /// Pressed buttons, a bit set of [`BUTTON_GRAB`], [`BUTTON_HEAT`], [`BUTTON_CUT`].
     pub buttons: u32,
 }
 

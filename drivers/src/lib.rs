@@ -34,6 +34,6 @@ mod vendor_lib;
 
 pub use device::{
     DeviceError, DeviceLimits, DeviceOpenError, DeviceSample, HapticDevice, Pacing, ServoClock,
-    ServoControl, ServoEnd, ServoRun, ServoTick, BUTTON_GRAB, BUTTON_HEAT,
+    ServoControl, ServoEnd, ServoRun, ServoTick, BUTTON_CUT, BUTTON_GRAB, BUTTON_HEAT,
 };
 pub use spec::{DeviceSpec, DeviceSpecError, DEVICE_SPEC_FORMS};

@@ -34,6 +34,9 @@ pub const TOOL_FLAG_HEAT: u32 = 1 << 5;
 /// contact patch (`ContactFrame::local` of this tool in `FrameHeader::contacts`), not from the
 /// surface alone.
 pub const TOOL_FLAG_LOCAL_MODEL: u32 = 1 << 6;
+/// `ToolState::flags` bit: the cut button is pressed while a cautery touches: the tissue its
+/// heat vaporises under the tip is cut away.
+pub const TOOL_FLAG_CUT: u32 = 1 << 7;
 
 /// One tool's haptic loop state after one tick: where the hand is, what it touches, what it
 /// feels. Written every tick (1 kHz) to `PREFIX/tool` (publish–subscribe, for viewers; the

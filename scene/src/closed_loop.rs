@@ -33,7 +33,7 @@ use anyhow::{ensure, Context, Result};
 use lop_config::{DaemonConfig, Scene};
 use lop_drivers::hand::{HandDevice, HandParameters};
 use lop_drivers::mock::MockScript;
-use lop_drivers::{DeviceLimits, DeviceSample, HapticDevice, BUTTON_GRAB, BUTTON_HEAT};
+use lop_drivers::{DeviceLimits, DeviceSample, HapticDevice, BUTTON_CUT, BUTTON_GRAB, BUTTON_HEAT};
 use lop_sim::haptic::{DeviceReading, HapticPipeline, TickOutput};
 use lop_sim::world::MAX_TOOLS;
 
@@ -244,6 +244,7 @@ pub fn run_tools(opts: ClosedLoopToolsOptions) -> Result<Vec<ClosedLoopRun>> {
             *input = tick.tip.map(|center| RoundInput {
                 center,
                 heat: tool.pipeline.settings().cauterizes && sample.pressed(BUTTON_HEAT),
+                cut: tool.pipeline.settings().cauterizes && sample.pressed(BUTTON_CUT),
                 stiffness: tick.anchor().map(|_| tick.stiffness),
             });
         }

@@ -28,6 +28,9 @@ pub struct TickTool {
     pub coupling: Coupling,
     /// The heat button is pressed.
     pub heat: bool,
+    /// The cut button is pressed (a cautery's cut: it heats as `heat` does, and the tissue it
+    /// vaporises is cut away where the scene cuts).
+    pub cut: bool,
     /// The stiffness the hand feels against the held body, as the haptic loop rendered it
     /// (device-clamped); `None`: the scene law's.
     pub stiffness: Option<f64>,
@@ -184,6 +187,7 @@ impl Rounds {
             laws: &[],
             coupling: Coupling::GodObject(None),
             heat_power: 0.0,
+            cut: false,
         }; MAX_TOOLS];
         for (k, (slot, t)) in packed.iter_mut().zip(tools).enumerate() {
             if let Some(t) = t {
@@ -192,7 +196,12 @@ impl Rounds {
                     center: t.center,
                     laws: &self.round_laws[first..end],
                     coupling: t.coupling,
-                    heat_power: if t.heat { of_tool(k).heat_power } else { 0.0 },
+                    heat_power: if t.heat || t.cut {
+                        of_tool(k).heat_power
+                    } else {
+                        0.0
+                    },
+                    cut: t.cut,
                 };
             }
         }

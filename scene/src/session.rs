@@ -38,6 +38,8 @@ pub struct RoundInput {
     pub center: [f64; 3],
     /// The heat button is pressed.
     pub heat: bool,
+    /// The cut button is pressed ([`TickTool::cut`]).
+    pub cut: bool,
     /// The stiffness the hand feels against the held body (device-clamped); `None`: the
     /// scene law's.
     pub stiffness: Option<f64>,
@@ -49,6 +51,7 @@ impl RoundInput {
         RoundInput {
             center,
             heat: false,
+            cut: false,
             stiffness: None,
         }
     }
@@ -249,6 +252,7 @@ impl OfflineSession {
                 center: t.center,
                 coupling,
                 heat: t.heat,
+                cut: t.cut,
                 stiffness: t.stiffness,
             });
         }

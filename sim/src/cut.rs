@@ -22,6 +22,22 @@
 //! Applied at a fixed step count after its request, a run is the same whatever the thread's
 //! speed. [`World::cut_body`] does both halves at once (tests, offline tools).
 //!
+//! **Electrosurgical cutting in the rounds** ([`World::set_cutting`]). A tool whose cut button
+//! is held ([`RoundTool::cut`]) heats its anchor as the heat button does, and after the
+//! round's heat steps every tetrahedron of the touched body whose centroid is within two tool
+//! radii of the anchor and whose mean node temperature has reached the vaporisation
+//! temperature ([`CutParams::vaporization`]) is asked to be cut away. Intracellular water
+//! boils at 100 °C and the cells burst into steam: that is how an electrosurgical cut
+//! separates tissue (Massarweh, Cosgriff and Slakey, *Electrosurgery: history, principles,
+//! and current and future uses*, J. Am. Coll. Surg. 202 (2006) 520–530), hence the default.
+//! The cut is prepared on a thread of its own and lands [`CutParams::delay_steps`] steps of
+//! the body later, before that step; a step that finds it not ready waits for it
+//! ([`CutEvent::Landed::waited`]), so the cut lands at the same step whatever the thread's
+//! speed and a run is deterministic. One cut per body is in flight at a time; the body's
+//! tissue that vaporises meanwhile goes with the next. A refused cut (it would leave no piece)
+//! is not asked again for [`RETRY_STEPS`] of the body's steps. Selecting costs one pass over
+//! the body's tetrahedra per round while the button is held on it.
+//!
 //! **A cut body keeps its precise model.** Its levels-of-precision controller is dropped: the
 //! Green-coordinates cage was fitted to the uncut shape, and its harmonic deformation of the
 //! interior cannot open a wound, so a cut body never returns to it. A body that only has a cage
@@ -32,13 +48,14 @@
 //! patch on the new surface.
 
 use std::fmt;
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 
 use crate::fem::{Fem, FemError, FemParameters};
 use crate::heat::{HeatBody, HeatError, HeatParameters};
 use crate::mesh::{CutRefused, MeshCut, TetMesh};
 use crate::model::Model;
 use crate::msd::{MassSpring, MsdParameters, SubstepPolicy};
-use crate::world::World;
+use crate::world::{Coupling, RoundTool, World};
 
 /// Why a cut was not made. Nothing changed in the world.
 #[derive(Debug, Clone, PartialEq)]
@@ -130,7 +147,7 @@ pub struct CutSource {
 }
 
 /// A cut ready to land ([`World::apply_cut`]).
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct PreparedCut {
     body: usize,
     name: String,
@@ -349,4 +366,243 @@ pub fn vaporised(mesh: &TetMesh, temperatures: &[f64], threshold: f64) -> Vec<bo
             sum / 4.0 >= threshold
         })
         .collect()
+}
+
+/// Steps of a body before a cut of it that was refused is asked for again.
+pub const RETRY_STEPS: u64 = 100;
+
+/// How a world cuts ([`World::set_cutting`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CutParams {
+    /// Mean node temperature at which a tetrahedron under a cutting tip vaporises, °C.
+    pub vaporization: f64,
+    /// Steps of the body from a cut's request to the step it lands before (at least 1).
+    pub delay_steps: u32,
+    /// Per body, in body order: whether it may be cut (missing: not).
+    pub bodies: Vec<bool>,
+}
+
+impl Default for CutParams {
+    fn default() -> CutParams {
+        CutParams {
+            vaporization: 100.0,
+            delay_steps: 10,
+            bodies: Vec::new(),
+        }
+    }
+}
+
+/// A cut asked for, landed or refused in a round ([`crate::world::RoundReport::cuts`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum CutEvent {
+    /// Tool `tool` asked for `tets` tetrahedra of body `body` to go; the cut lands before the
+    /// body's step `due` (counted from the world's start of cutting).
+    Asked {
+        /// The body.
+        body: usize,
+        /// The tool.
+        tool: usize,
+        /// Tetrahedra asked for.
+        tets: usize,
+        /// The body's step it lands before.
+        due: u64,
+    },
+    /// A cut landed.
+    Landed {
+        /// What it did.
+        report: CutReport,
+        /// The step waited for its preparation.
+        waited: bool,
+    },
+    /// A cut was refused (nothing changed).
+    Refused(CutError),
+}
+
+type Slot = Arc<(Mutex<Option<Result<PreparedCut, CutError>>>, Condvar)>;
+
+/// A cut being prepared on its thread.
+#[derive(Debug)]
+struct Pending {
+    slot: Slot,
+    /// The body's step it lands before.
+    due: u64,
+}
+
+impl Pending {
+    fn wait(&self) -> (MutexGuard<'_, Option<Result<PreparedCut, CutError>>>, bool) {
+        let (lock, ready) = &*self.slot;
+        let mut g = lock.lock().unwrap_or_else(|e| e.into_inner());
+        let waited = g.is_none();
+        while g.is_none() {
+            g = ready.wait(g).unwrap_or_else(|e| e.into_inner());
+        }
+        (g, waited)
+    }
+}
+
+impl Clone for Pending {
+    /// A copy of the prepared cut (waiting for it if need be): a world's clone lands the same
+    /// cut at the same step.
+    fn clone(&self) -> Pending {
+        let done = self.wait().0.clone();
+        Pending {
+            slot: Arc::new((Mutex::new(done), Condvar::new())),
+            due: self.due,
+        }
+    }
+}
+
+/// A world's cutting state ([`World::set_cutting`]).
+#[derive(Debug, Clone)]
+pub(crate) struct Cutting {
+    params: CutParams,
+    /// Per body: steps taken since cutting started, the cut in flight, the step from which a
+    /// refused cut may be asked again.
+    steps: Vec<u64>,
+    pending: Vec<Option<Pending>>,
+    retry_at: Vec<u64>,
+}
+
+impl World {
+    /// Turns electrosurgical cutting on with `params` (module docs), or off with `None` (a cut
+    /// in flight is dropped).
+    pub fn set_cutting(&mut self, params: Option<CutParams>) {
+        let n = self.bodies.len();
+        self.cutting = params.map(|mut params| {
+            params.delay_steps = params.delay_steps.max(1);
+            Box::new(Cutting {
+                params,
+                steps: vec![0; n],
+                pending: (0..n).map(|_| None).collect(),
+                retry_at: vec![0; n],
+            })
+        });
+    }
+
+    /// How the world cuts, if it does.
+    pub fn cutting(&self) -> Option<&CutParams> {
+        self.cutting.as_ref().map(|c| &c.params)
+    }
+
+    /// Whether body `i` may be cut.
+    pub fn cuttable(&self, i: usize) -> bool {
+        self.cutting
+            .as_ref()
+            .is_some_and(|c| c.params.bodies.get(i).copied().unwrap_or(false))
+    }
+
+    /// Counts a step of body `i` (the round, after each step).
+    pub(crate) fn count_cut_step(&mut self, i: usize) {
+        if let Some(s) = self.cutting.as_mut().and_then(|c| c.steps.get_mut(i)) {
+            *s += 1;
+        }
+    }
+
+    /// Lands body `i`'s cut if it is due before the step about to be taken.
+    pub(crate) fn land_due_cut(&mut self, i: usize) -> Option<CutEvent> {
+        let c = self.cutting.as_mut()?;
+        let due = c.pending.get(i)?.as_ref()?.due;
+        if c.steps[i] < due {
+            return None;
+        }
+        let pending = c.pending[i].take()?;
+        let (result, waited) = {
+            let (mut g, waited) = pending.wait();
+            (g.take(), waited)
+        };
+        let result = result?;
+        let retry = c.steps[i] + RETRY_STEPS;
+        let event = match result.and_then(|p| self.apply_cut(p)) {
+            Ok(report) => CutEvent::Landed { report, waited },
+            Err(e) => {
+                if let Some(c) = self.cutting.as_mut() {
+                    c.retry_at[i] = retry;
+                }
+                CutEvent::Refused(e)
+            }
+        };
+        Some(event)
+    }
+
+    /// After a round's heat: asks for the cuts the tools holding the cut button make (module
+    /// docs), pushing an event for each.
+    pub(crate) fn request_cuts(&mut self, tools: &[RoundTool<'_>], events: &mut Vec<CutEvent>) {
+        let Some(c) = self.cutting.as_ref() else {
+            return;
+        };
+        let (vaporization, delay) = (c.params.vaporization, u64::from(c.params.delay_steps));
+        for (k, t) in tools.iter().enumerate() {
+            let Coupling::GodObject(Some((b, a))) = t.coupling else {
+                continue;
+            };
+            if !t.cut || t.heat_power <= 0.0 || a.grab || !self.cuttable(b) {
+                continue;
+            }
+            let c = self.cutting.as_ref().expect("cutting is on");
+            match (c.pending.get(b), c.steps.get(b), c.retry_at.get(b)) {
+                (Some(None), Some(steps), Some(retry)) if steps >= retry => {}
+                _ => continue,
+            }
+            let Some(temps) = self.heat().and_then(|h| h.bodies().get(b)) else {
+                continue;
+            };
+            let body = &self.bodies[b];
+            let x = body.model.positions();
+            let Some(tri) = body.mesh.surface.get(a.triangle as usize) else {
+                continue;
+            };
+            let mut at = [0.0; 3];
+            for (&n, w) in tri.iter().zip(a.bary) {
+                let p = x[n as usize];
+                (0..3).for_each(|j| at[j] += w * p[j]);
+            }
+            let reach = 2.0 * t.laws.get(b).map_or(0.0, |l| l.radius);
+            let temps = temps.temperatures();
+            let remove: Vec<bool> = body
+                .mesh
+                .tets
+                .iter()
+                .map(|tet| {
+                    let mut centre = [0.0; 3];
+                    let mut heat = 0.0;
+                    for &n in tet {
+                        let p = x[n as usize];
+                        (0..3).for_each(|j| centre[j] += 0.25 * p[j]);
+                        heat += 0.25 * temps.get(n as usize).copied().unwrap_or(f64::NEG_INFINITY);
+                    }
+                    let d2: f64 = (0..3).map(|j| (centre[j] - at[j]).powi(2)).sum();
+                    heat >= vaporization && d2 <= reach * reach
+                })
+                .collect();
+            let tets = remove.iter().filter(|&&r| r).count();
+            if tets == 0 {
+                continue;
+            }
+            let Ok(source) = self.cut_source(b) else {
+                continue;
+            };
+            let slot: Slot = Arc::new((Mutex::new(None), Condvar::new()));
+            let fill = Arc::clone(&slot);
+            let spawned = std::thread::Builder::new()
+                .name("lop-sim-cut".into())
+                .spawn(move || {
+                    let result = source.prepare(&remove);
+                    let (lock, ready) = &*fill;
+                    *lock.lock().unwrap_or_else(|e| e.into_inner()) = Some(result);
+                    ready.notify_all();
+                });
+            if spawned.is_err() {
+                continue;
+            }
+            let c = self.cutting.as_mut().expect("cutting is on");
+            let due = c.steps[b] + delay;
+            c.pending[b] = Some(Pending { slot, due });
+            events.push(CutEvent::Asked {
+                body: b,
+                tool: k,
+                tets,
+                due,
+            });
+        }
+    }
 }

@@ -511,6 +511,7 @@ fn run_one(
                 center: workspace.device_to_scene(s.sample(st).position_mm),
                 coupling: Coupling::Nearest,
                 heat: false,
+                cut: false,
                 stiffness: None,
             })
         });

@@ -396,6 +396,7 @@ impl DeformLoop {
                 center: s.device_position,
                 coupling: Coupling::GodObject(god_object_hold(&s, &self.topology, &self.world)),
                 heat: s.flags & TOOL_FLAG_HEAT != 0,
+                cut: s.flags & TOOL_FLAG_CUT != 0,
                 stiffness: Some(s.tool_stiffness),
             });
         }

@@ -472,6 +472,9 @@ impl HapticLoop {
                     if settings.cauterizes && s.pressed(lop_drivers::BUTTON_HEAT) {
                         state.flags |= TOOL_FLAG_HEAT;
                     }
+                    if settings.cauterizes && s.pressed(lop_drivers::BUTTON_CUT) {
+                        state.flags |= TOOL_FLAG_CUT;
+                    }
                     if out.local {
                         state.flags |= TOOL_FLAG_LOCAL_MODEL;
                     }

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use lop_daemon::simulate::{self, SimulateOptions};
 use lop_drivers::mock::{MockDevice, MockScript};
-use lop_drivers::{BUTTON_GRAB, BUTTON_HEAT};
+use lop_drivers::{BUTTON_CUT, BUTTON_GRAB, BUTTON_HEAT};
 use lop_scene::{DeviceClamp, ToolLaws};
 use lop_scene::{Rounds, TickTool};
 use lop_sim::haptic::WorldProbe;
@@ -86,6 +86,7 @@ fn both_paths_agree(scene: &str, script_name: &str, steps: u64) {
             center: at,
             coupling,
             heat: sample.pressed(BUTTON_HEAT),
+            cut: sample.pressed(BUTTON_CUT),
             stiffness,
         };
         rounds.advance(

@@ -47,7 +47,9 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use crate::device::{DeviceError, DeviceLimits, DeviceSample, BUTTON_GRAB, BUTTON_HEAT};
+use crate::device::{
+    DeviceError, DeviceLimits, DeviceSample, BUTTON_CUT, BUTTON_GRAB, BUTTON_HEAT,
+};
 use crate::hand::{HandParameters, RawHand};
 
 /// Waypoint coordinates must lie within ±this many mm: anything larger is a typo (metres vs mm),
@@ -58,7 +60,11 @@ pub const POSITION_SANITY_MM: f64 = 200.0;
 const LOOP_CLOSURE_TOLERANCE_MM: f64 = 1e-6;
 
 /// Button names a script may use, with their bits.
-const BUTTON_NAMES: [(&str, u32); 2] = [("grab", BUTTON_GRAB), ("heat", BUTTON_HEAT)];
+const BUTTON_NAMES: [(&str, u32); 3] = [
+    ("grab", BUTTON_GRAB),
+    ("heat", BUTTON_HEAT),
+    ("cut", BUTTON_CUT),
+];
 
 /// What the script does after its last waypoint.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
@@ -569,7 +575,7 @@ impl Validator<'_> {
                     return Err(self.invalid(
                         format!("waypoint[{i}].buttons[{b}]"),
                         format_args!("{name:?}"),
-                        "unknown button: expected \"grab\" or \"heat\"".into(),
+                        "unknown button: expected \"grab\", \"heat\" or \"cut\"".into(),
                     ));
                 }
             }

@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use lop_config::{load_scene, DaemonConfig, Scene};
 use lop_drivers::hand::{HandDevice, HandParameters};
 use lop_drivers::mock::{MockDevice, MockScript};
-use lop_drivers::{HapticDevice, BUTTON_GRAB, BUTTON_HEAT};
+use lop_drivers::{HapticDevice, BUTTON_CUT, BUTTON_GRAB, BUTTON_HEAT};
 use lop_scene::closed_loop::{run, run_tools, ClosedLoopOptions, ClosedLoopToolsOptions, ToolHand};
 use lop_scene::session::{RoundInput, TickRecord};
 use lop_scene::{DeviceClamp, OfflineSession, ToolLaws};
@@ -278,6 +278,7 @@ fn one_tool_loop(opts: &ClosedLoopOptions) -> Vec<TickRecord> {
         let tool = tick.tip.map(|center| RoundInput {
             center,
             heat: sample.pressed(BUTTON_HEAT),
+            cut: sample.pressed(BUTTON_CUT),
             stiffness: tick.anchor().map(|_| tick.stiffness),
         });
         session.advance(t + period, tool, &[], || {

@@ -34,6 +34,7 @@ fn a_hand_over_joins_the_wall_clock_and_real_lag_is_dropped() {
         center: on_liver,
         coupling: Coupling::Nearest,
         heat: false,
+        cut: false,
         stiffness: None,
     };
 

@@ -70,6 +70,7 @@ fn each_tool_presses_with_its_own_laws_under_its_own_index() {
         center: [-0.03 - 0.005 + 0.002, 0.06, 0.0],
         coupling: Coupling::Nearest,
         heat: false,
+        cut: false,
         stiffness: None,
     };
 

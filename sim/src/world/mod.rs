@@ -155,6 +155,8 @@ pub struct World {
     /// Per tool (in the order the steps are given them): how it holds tissue when it grabs
     /// ([`World::set_grip`]).
     grips: [Grip; MAX_TOOLS],
+    /// Electrosurgical cutting, once [turned on](World::set_cutting).
+    pub(crate) cutting: Option<Box<crate::cut::Cutting>>,
 }
 
 /// The heat model of a world and its clock.
@@ -191,6 +193,7 @@ impl World {
             report: RoundReport::default(),
             pool: None,
             grips: [Grip::Point; MAX_TOOLS],
+            cutting: None,
         }
     }
 

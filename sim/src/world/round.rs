@@ -12,16 +12,22 @@
 //!    time beyond [`Round::max_lag`] periods (counted as lag) rather than spiral behind.
 //! 4. **Heat**: the cautery on the held point, then the heat steps that are due (at most
 //!    [`MAX_HEAT_CATCH_UP`]); a failed heat step stops the heat model, never the bodies.
-//! 5. **A report** of what happened and how long each stage took ([`RoundReport`]), timed with
+//!    A body's cut due at a step lands just before it ([`crate::cut`]).
+//! 5. **Cuts** ([`World::set_cutting`]): a tool holding the cut button asks for the tissue the
+//!    heat vaporised under its tip to be cut away; the cut is prepared on a thread of its own
+//!    and lands a fixed number of the body's steps later.
+//! 6. **A report** of what happened and how long each stage took ([`RoundReport`]), timed with
 //!    the clock the caller passes (the physics crate reads no clock itself).
 //!
 //! `lopd deform` calls it once per loop iteration with the wall clock's simulated time; `lopd
 //! simulate` and the benchmarks call it with simulated time alone. The same inputs give the same
-//! positions, bit for bit, whoever calls. Allocation-free after the first rounds.
+//! positions, bit for bit, whoever calls. Allocation-free after the first rounds, but for the
+//! rounds that ask for a cut or land one.
 
 use super::{BodyTool, Coupling, World, MAX_TOOLS};
 use crate::collide::CollisionStats;
 use crate::contact::ToolSphere;
+use crate::cut::CutEvent;
 use crate::heat::HeatError;
 use crate::model::BlowUp;
 
@@ -41,6 +47,9 @@ pub struct RoundTool<'a> {
     /// Cautery power delivered at the god-object's anchor this round, W: 0 with the heat button
     /// up. Heats only a touched (not grabbed) point.
     pub heat_power: f64,
+    /// The cut button is held: with `heat_power`, the tissue under the tip that the heat
+    /// vaporises is cut away ([`crate::cut`], once the world cuts: [`World::set_cutting`]).
+    pub cut: bool,
 }
 
 /// No tools (a round without a device).
@@ -155,6 +164,8 @@ pub struct RoundReport {
     pub heat_ns: u64,
     /// The heat model failed in this round (it stops from now on).
     pub heat_error: Option<HeatError>,
+    /// Cuts asked for, landed or refused this round ([`crate::cut`]).
+    pub cuts: Vec<CutEvent>,
     /// The whole round, ns.
     pub total_ns: u64,
 }
@@ -169,7 +180,8 @@ impl RoundReport {
 impl World {
     /// Runs one round (the stages of the module docs) and returns its report; `clock` gives
     /// monotonic nanoseconds for the stage timings (pass `|| 0` where time does not matter).
-    /// Allocation-free after the first rounds, except when the heat model fails.
+    /// Allocation-free after the first rounds, except when the heat model fails and when a cut
+    /// is asked for or lands.
     pub fn round(&mut self, round: &Round<'_>, mut clock: impl FnMut() -> u64) -> &RoundReport {
         let start = clock();
         let n = self.bodies.len();
@@ -181,6 +193,7 @@ impl World {
         self.report.heat_steps = 0;
         self.report.heat_ns = 0;
         self.report.heat_error = None;
+        self.report.cuts.clear();
         let skipped = |i: usize| round.skip.get(i).copied().unwrap_or(false);
         let tools = &round.tools[..round.tools.len().min(MAX_TOOLS)];
 
@@ -212,10 +225,16 @@ impl World {
                         || round.budget_ns == 0
                         || clock().saturating_sub(start) < round.budget_ns)
                 {
+                    // A cut due at this step lands before it (the tools' contacts on the
+                    // old surface are dropped with it).
+                    if let Some(event) = self.land_due_cut(i) {
+                        self.report.cuts.push(event);
+                    }
                     let t0 = clock();
                     if let Err(cause) = self.step_body_tools(i, body_tools) {
                         r.blow_up = Some(cause);
                     }
+                    self.count_cut_step(i);
                     r.last_step_ns = clock().saturating_sub(t0);
                     r.step_ns += r.last_step_ns;
                     r.steps += 1;
@@ -292,6 +311,9 @@ impl World {
             }
             self.report.heat_ns = clock().saturating_sub(t0);
         }
+        let mut events = std::mem::take(&mut self.report.cuts);
+        self.request_cuts(tools, &mut events);
+        self.report.cuts = events;
         self.report.total_ns = clock().saturating_sub(start);
         &self.report
     }

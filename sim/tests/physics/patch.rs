@@ -593,6 +593,7 @@ fn cautery_heats_under_the_pressing_patch() {
             laws: &laws,
             coupling: probe.coupling(),
             heat_power: if step >= 200 { 20.0 } else { 0.0 },
+            cut: false,
         };
         let round = Round {
             drop_lag: false,

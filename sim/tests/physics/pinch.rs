@@ -109,6 +109,7 @@ fn run(world: &mut World, presses: &[Press], steps: usize) -> Trace {
                 laws,
                 coupling: probe.coupling(),
                 heat_power: 0.0,
+                cut: false,
             })
             .collect();
         let round = Round {
