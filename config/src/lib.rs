@@ -99,7 +99,7 @@
 //!
 //! ## `base` (optional, top level)
 //! `base = "abdomen.toml"` (a path relative to this file) writes this scene over another: the
-//! base's bodies, `[lop]`, `[heat]` and `[collision]`, with this file's `[scene]`, tools
+//! base's bodies, `[lop]`, `[heat]`, `[collision]` and `[cut]`, with this file's `[scene]`, tools
 //! (`[tool]` or `[[tool]]`), `[workspace]`, `[rates]` and `[device]` where it gives them — other
 //! tools, devices or mappings over the same organs without copying them. Each section given
 //! replaces the base's whole; tools given here map with this file's `[workspace]` (the default
@@ -130,8 +130,9 @@
 //! | `damping` | float | `0` | N·s/m on the penetration speed (>= 0) |
 //! | `max_force` | float | `3.0` | N, force clamp for this scene (> 0); the daemon clamps to the smallest of this, `haptic.max_force_n` and the device's limit |
 //! | `heat_power` | float | `20` | W delivered by the cautery button (>= 0), spread over the touched surface triangle's nodes by the contact point's barycentric weights (see `[heat]`) |
+//! | `cut_power` | float | `80` | W delivered while the cut button is held (>= 0), spread as `heat_power`; the tissue it vaporises is cut away where the body allows it (`[cut]`). An electrosurgical generator's cut mode delivers tens of watts to a few hundred |
 //! | `name` | string | `"tool"` (the N-th of several: `"toolN"`) | shown in logs and by viewers; unique in the scene |
-//! | `kind` | `"probe"` \| `"grasper"` \| `"hook"` | `"probe"` | what the device's buttons do: a `probe`'s grab button holds the tissue at the point it touches and its heat button cauterizes; a `grasper`'s grab button closes its jaws, which hold the surface within `jaw_radius` of that point until the button opens them, and it does not cauterize (`heat_power` refused); a `hook` cauterizes and does not hold (its grab button is ignored). Every kind presses with its tip. `"blade"` is refused: lop does not cut tissue yet |
+//! | `kind` | `"probe"` \| `"grasper"` \| `"hook"` | `"probe"` | what the device's buttons do: a `probe`'s grab button holds the tissue at the point it touches and its heat button cauterizes; a `grasper`'s grab button closes its jaws, which hold the surface within `jaw_radius` of that point until the button opens them, and it does not cauterize (`heat_power` refused); a `hook` cauterizes and does not hold (its grab button is ignored). Every kind presses with its tip. A cautery (`probe`, `hook`) also cuts with the cut button where the body allows it (`[cut]`). `"blade"` is refused: a blade's sweeping cut is not built yet |
 //! | `jaw_radius` | float | the tool's `radius` | a grasper's jaws: how far around the touched point they hold the surface, m (> 0); refused on another kind |
 //! | `workspace` | table | the scene's `[workspace]` | this tool's device mapping, same keys as `[workspace]` |
 //! | `mock_script` | string | none (the first tool: `[device] mock_script`) | the script a scripted device (`mock`, `hand`) driving this tool plays when the command line names none, relative to the scene file |
@@ -211,6 +212,23 @@
 //! | `depth_limit` | float | `0.01` | m (> 0): vertices deeper than this inside another body are ignored (and the detection stops searching there) |
 //! | `interval` | float | `0` | s (0 to 1) of simulated time between two detections; the springs of the last one hold meanwhile. `0`: every round in which a body steps. A body stepping at the haptic rate would otherwise pay for a detection every millisecond; organs that push each other move far slower than the tool |
 //!
+//! ## `[cut]` (optional): electrosurgical cutting
+//! A cautery (`kind = "probe"` or `"hook"`) whose cut button is held heats where it touches
+//! as its heat button does, at `cut_power`, and the tissue under its tip that the heat
+//! vaporises is cut away: every tetrahedron within two tool radii of the tip with a node at
+//! `vaporization` or hotter, of a body that allows it (`[[body]] cut = true`).
+//! The new mesh is prepared off the stepping thread and lands `delay_steps` steps of the body
+//! later, at the same step in every run. Pieces the cut leaves without a fixed node, or of
+//! fewer than 4 tetrahedra, go with it; a cut that would leave nothing of the body is refused.
+//! A cut body keeps its precise model (FEM or mass-spring) from then on: its cage cannot
+//! represent the wound (see `lop_sim::cut`). Scripts press the cut button as `buttons =
+//! ["cut"]`.
+//!
+//! | key | type | default | meaning |
+//! |---|---|---|---|
+//! | `vaporization` | float | `100` | °C: tissue vaporises when its intracellular water boils (a node this hot takes its tetrahedra with it) |
+//! | `delay_steps` | integer | `50` | 1 to 1000: steps of the body between a cut's request and its landing |
+//!
 //! ## `[[body]]` (one or more)
 //! | key | type | default | meaning |
 //! |---|---|---|---|
@@ -225,6 +243,7 @@
 //! | `fix` | array of tables | `[]` | fixed-node selectors, `[[body.fix]]` below: every node one of them picks is fixed too |
 //! | `color` | `[r, g, b]` | by body index | sRGB, each in 0..=1, for viewers |
 //! | `tool_stiffness` | float | `[tool] stiffness` | stiffness of the tool against this body (> 0; N/m for the linear law, N/m² for the quadratic one): a firm organ feels firmer |
+//! | `cut` | bool | `false` | a cautery's cut button cuts this body (`[cut]`); refused with `model = "gc"`, whose cage cannot represent a cut |
 //!
 //! ### `[[body.fix]]`: fixed nodes by region
 //! Where a `.bnd` file or a list of node numbers is awkward (a mesh fresh from a mesher, or one
@@ -375,7 +394,7 @@ pub use resolve::{
     scene_dirs, script_dirs,
 };
 pub use scene::{
-    load_scene, parse_scene, parse_selector, selector_toml, BodySpec, CollisionSpec,
+    load_scene, parse_scene, parse_selector, selector_toml, BodySpec, CollisionSpec, CutSpec,
     DeviceDefaults, GcParams, HeatParams, HeatSpec, Importance, LopSpec, Rates, Scene, ToolKind,
     ToolSpec,
 };

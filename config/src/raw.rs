@@ -34,6 +34,8 @@ pub(crate) struct RawScene {
     #[serde(default)]
     pub collision: RawCollision,
     #[serde(default)]
+    pub cut: RawCut,
+    #[serde(default)]
     pub body: Vec<RawBody>,
 }
 
@@ -54,6 +56,13 @@ pub(crate) struct RawCollision {
     pub skin: Option<f64>,
     pub depth_limit: Option<f64>,
     pub interval: Option<f64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawCut {
+    pub vaporization: Option<f64>,
+    pub delay_steps: Option<i64>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -87,6 +96,7 @@ pub(crate) struct RawTool {
     pub damping: Option<f64>,
     pub max_force: Option<f64>,
     pub heat_power: Option<f64>,
+    pub cut_power: Option<f64>,
 }
 
 /// The scene's tools as written: one `[tool]` table, or an array of `[[tool]]` tables.
@@ -162,6 +172,7 @@ pub(crate) struct RawBody {
     pub msd: Option<RawMsd>,
     pub gc: Option<RawGc>,
     pub heat: Option<RawBodyHeat>,
+    pub cut: Option<bool>,
 }
 
 #[derive(Debug, Default, Deserialize)]

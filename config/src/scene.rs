@@ -20,10 +20,12 @@ use crate::source::{KeyPath, Source};
 
 pub use body::{BodySpec, GcParams, HeatParams, Importance};
 pub use fix::{parse_selector, selector_toml};
-pub use sections::{CollisionSpec, DeviceDefaults, HeatSpec, LopSpec, Rates, ToolKind, ToolSpec};
+pub use sections::{
+    CollisionSpec, CutSpec, DeviceDefaults, HeatSpec, LopSpec, Rates, ToolKind, ToolSpec,
+};
 use validate::{
-    check_name, validate_collision, validate_device, validate_heat, validate_lop, validate_rates,
-    validate_tools,
+    check_name, validate_collision, validate_cut, validate_device, validate_heat, validate_lop,
+    validate_rates, validate_tools,
 };
 use validate_body::validate_body;
 
@@ -52,6 +54,8 @@ pub struct Scene {
     pub lop: LopSpec,
     /// Air and contact for the heat model, `[heat]`.
     pub heat: HeatSpec,
+    /// Cutting, `[cut]` (the bodies a cut may reach say so themselves, `[[body]] cut`).
+    pub cut: CutSpec,
     /// Organ-to-organ collision, `[collision]`.
     pub collision: CollisionSpec,
 }
@@ -108,7 +112,7 @@ fn parse_scene_at(text: &str, path: &Path, depth: usize) -> Result<Scene, Config
 }
 
 /// A scene written over another (`base = "abdomen.toml"`): the base's bodies, `[lop]`,
-/// `[heat]` and `[collision]`, with this file's `[scene]`, tools and `[workspace]`, `[rates]`
+/// `[heat]`, `[collision]` and `[cut]`, with this file's `[scene]`, tools and `[workspace]`, `[rates]`
 /// and `[device]` where it gives them — a scene of other tools, devices or mappings over the
 /// same organs, without copying them. The base is loaded as a scene of its own first (its
 /// errors name its file); a section given here replaces the base's whole (tools given here
@@ -129,7 +133,7 @@ fn over_base(
             &KeyPath::top(other),
             "(given)",
             format!(
-                "a scene with a base takes its bodies, [lop], [heat] and [collision] from the \
+                "a scene with a base takes its bodies, [lop], [heat], [collision] and [cut] from the \
                  base ({base:?}); over it, a scene gives only {}",
                 OVER_BASE[1..].join(", ")
             ),
@@ -223,6 +227,7 @@ fn validate_scene(src: &Source<'_>, raw: RawScene) -> Result<Scene, ConfigError>
     let lop = validate_lop(&c, raw.lop)?;
     let heat = validate_heat(&c, raw.heat)?;
     let collision = validate_collision(&c, raw.collision)?;
+    let cut = validate_cut(&c, raw.cut)?;
 
     if raw.body.is_empty() {
         return Err(c.invalid(
@@ -262,5 +267,6 @@ fn validate_scene(src: &Source<'_>, raw: RawScene) -> Result<Scene, ConfigError>
         lop,
         heat,
         collision,
+        cut,
     })
 }

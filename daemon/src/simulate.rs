@@ -1,6 +1,7 @@
 //! `lopd simulate`: run a scene offline — no device, no shared memory, no wall clock — and write
 //! what happened: per-step timings (`steps.csv`), final node positions (`final_<body>.vtk` and
-//! `final_positions.csv`) and a summary (`summary.json`).
+//! `final_positions.csv`), a summary (`summary.json`) and, where a cautery cut (`[cut]`),
+//! every cut asked for, landed or refused (`cuts.csv`).
 //!
 //! Every body takes steps of its own `dt`; `--steps N` means N steps of every body. The world
 //! advances by the rounds `lopd deform` runs (`World::round`: organ collision, the bodies due,
@@ -150,6 +151,12 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
     let mut times: Vec<Vec<f64>> = vec![Vec::new(); n_bodies];
     let mut steps_done = vec![0u64; n_bodies];
     let mut settled_for = vec![0u32; n_bodies];
+    let mut cuts_csv = std::io::BufWriter::new(std::fs::File::create(opts.out.join("cuts.csv"))?);
+    writeln!(
+        cuts_csv,
+        "sim_time_s,body,event,tets,epoch,removed_tets,piece_tets,pieces_removed,tets_left,\
+         volume_removed_m3,waited"
+    )?;
     let steps_csv = opts.out.join("steps.csv");
     let mut csv = std::io::BufWriter::new(std::fs::File::create(&steps_csv)?);
     writeln!(
@@ -216,6 +223,9 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
             session.advance_tools(next, &inputs, &skip, || wall.elapsed().as_nanos() as u64);
             let world = session.world();
             let report = world.last_round();
+            for e in &report.cuts {
+                write_cut(&mut cuts_csv, world, next, e)?;
+            }
             for (i, r) in report.bodies.iter().enumerate() {
                 if r.steps == 0 {
                     continue;
@@ -281,6 +291,7 @@ pub fn run(opts: SimulateOptions) -> Result<Outcome> {
         world = session.into_world();
     }
     csv.flush()?;
+    cuts_csv.flush()?;
 
     // Final positions: VTK per body, one CSV for all.
     let mut pos_csv =
@@ -383,4 +394,47 @@ fn print_summary(s: &Summary, out: &Path) {
         );
     }
     println!("wrote {}", out.display());
+}
+
+/// One line of `cuts.csv` for cut event `e` at simulated time `t`, and its log line.
+fn write_cut(
+    out: &mut impl Write,
+    world: &lop_sim::world::World,
+    t: f64,
+    e: &lop_sim::cut::CutEvent,
+) -> Result<()> {
+    use lop_sim::cut::CutEvent;
+    let name = |b: usize| world.bodies.get(b).map_or("?", |b| b.name.as_str());
+    match e {
+        CutEvent::Asked { body, tets, .. } => {
+            writeln!(out, "{t:.6},{},asked,{tets},,,,,,,", name(*body))?;
+        }
+        CutEvent::Landed { report: r, waited } => {
+            tracing::info!(
+                "{}: cut at {t:.3} s: {} tetrahedra removed ({} of them cut loose or too small), \
+                 {} left, topology {}",
+                name(r.body),
+                r.removed_tets,
+                r.piece_tets,
+                r.tets_left,
+                r.epoch
+            );
+            writeln!(
+                out,
+                "{t:.6},{},landed,,{},{},{},{},{},{:.6e},{waited}",
+                name(r.body),
+                r.epoch,
+                r.removed_tets,
+                r.piece_tets,
+                r.pieces_removed,
+                r.tets_left,
+                r.volume_removed
+            )?;
+        }
+        CutEvent::Refused(why) => {
+            tracing::warn!("cut refused at {t:.3} s: {why}");
+            writeln!(out, "{t:.6},,refused,,,,,,,,")?;
+        }
+    }
+    Ok(())
 }

@@ -183,6 +183,8 @@ pub struct ToolLaws {
     pub damping: f64,
     /// Cautery power, W.
     pub heat_power: f64,
+    /// Cautery power in cut mode, W.
+    pub cut_power: f64,
 }
 
 impl ToolLaws {
@@ -194,6 +196,7 @@ impl ToolLaws {
             bodies: vec![law; bodies],
             damping: 0.0,
             heat_power: 0.0,
+            cut_power: 0.0,
         }
     }
 
@@ -230,6 +233,7 @@ impl ToolLaws {
                 .collect(),
             damping: spec.damping,
             heat_power: spec.heat_power,
+            cut_power: spec.cut_power,
         }
     }
 
@@ -426,6 +430,13 @@ pub fn load(scene: Scene) -> Result<LoadedScene> {
     }
     let heat = heat_world(&scene, &world)?;
     world.set_heat(heat);
+    if scene.bodies.iter().any(|b| b.cut) {
+        world.set_cutting(Some(lop_sim::cut::CutParams {
+            vaporization: scene.cut.vaporization,
+            delay_steps: scene.cut.delay_steps,
+            bodies: scene.bodies.iter().map(|b| b.cut).collect(),
+        }));
+    }
     // A grasper's jaws hold a footprint of the surface; every other tool a point.
     for (t, tool) in scene.tools.iter().enumerate() {
         if let Some(radius) = tool.kind.jaw_radius() {

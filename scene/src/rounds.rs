@@ -196,10 +196,10 @@ impl Rounds {
                     center: t.center,
                     laws: &self.round_laws[first..end],
                     coupling: t.coupling,
-                    heat_power: if t.heat || t.cut {
-                        of_tool(k).heat_power
-                    } else {
-                        0.0
+                    heat_power: match (t.cut, t.heat) {
+                        (true, _) => of_tool(k).cut_power,
+                        (false, true) => of_tool(k).heat_power,
+                        _ => 0.0,
                     },
                     cut: t.cut,
                 };

@@ -258,6 +258,18 @@ impl OfflineSession {
         }
         self.rounds
             .advance_tools(&mut self.world, until, &round[..n], skip, false, clock);
+        if self
+            .world
+            .last_round()
+            .cuts
+            .iter()
+            .any(|e| matches!(e, lop_sim::cut::CutEvent::Landed { .. }))
+        {
+            // The god-objects go on over the new surfaces, their proxies where they were.
+            for p in &mut self.probes {
+                *p = p.rebuilt(&self.world);
+            }
+        }
         for (with, probe) in self.stepped_with.iter_mut().zip(&self.probes) {
             *with = probe.coupling();
         }

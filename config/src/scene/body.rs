@@ -65,6 +65,9 @@ pub struct BodySpec {
     pub gc: Option<GcParams>,
     /// Thermal parameters, `[body.heat]` (every body has them; defaults: liver-like tissue).
     pub heat: HeatParams,
+    /// Whether a cautery's cut button cuts this body (`cut`, default false; refused on a body
+    /// pinned to its cage, `model = "gc"`, which cannot represent a cut).
+    pub cut: bool,
 }
 
 impl BodySpec {

@@ -59,6 +59,27 @@ impl Default for HeatSpec {
     }
 }
 
+/// Cutting, `[cut]`: how a cautery holding the cut button cuts the bodies that allow it
+/// (`[[body]] cut = true`; `lop_sim::cut`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CutSpec {
+    /// Node temperature at which tissue under a cutting tip vaporises and is cut away, °C
+    /// (intracellular water boils at 100 °C).
+    pub vaporization: f64,
+    /// Steps of the body from a cut's request to the step it lands before, while the new mesh
+    /// is prepared off the stepping thread (1–1000).
+    pub delay_steps: u32,
+}
+
+impl Default for CutSpec {
+    fn default() -> Self {
+        CutSpec {
+            vaporization: 100.0,
+            delay_steps: 50,
+        }
+    }
+}
+
 /// Levels-of-precision switching (thesis §4.4, fig. 4.4), `[lop]`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LopSpec {
@@ -151,6 +172,8 @@ pub struct ToolSpec {
     pub max_force: f64,
     /// Cautery heating power, W (>= 0).
     pub heat_power: f64,
+    /// A cautery's power in cut mode (the cut button), W (>= 0).
+    pub cut_power: f64,
     /// How this tool's device maps into the scene: its `[tool.workspace]`, else the scene's
     /// `[workspace]`.
     pub workspace: WorkspaceMap,
@@ -173,6 +196,7 @@ impl Default for ToolSpec {
             damping: 0.0,
             max_force: 3.0,
             heat_power: 20.0,
+            cut_power: 80.0,
         }
     }
 }

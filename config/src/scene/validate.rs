@@ -6,7 +6,7 @@ use std::path::Path;
 use crate::check::Check;
 use crate::error::ConfigError;
 use crate::raw::{
-    RawCollision, RawDevice, RawHeat, RawLop, RawRates, RawTool, RawTools, RawWorkspace,
+    RawCollision, RawCut, RawDevice, RawHeat, RawLop, RawRates, RawTool, RawTools, RawWorkspace,
 };
 use crate::source::KeyPath;
 use crate::WorkspaceMap;
@@ -14,7 +14,7 @@ use crate::WorkspaceMap;
 use lop_sim::contact::ForceLaw;
 use lop_sim::world::MAX_TOOLS;
 
-use super::{CollisionSpec, DeviceDefaults, HeatSpec, LopSpec, Rates, ToolKind, ToolSpec};
+use super::{CollisionSpec, CutSpec, DeviceDefaults, HeatSpec, LopSpec, Rates, ToolKind, ToolSpec};
 
 pub(super) fn validate_collision(
     c: &Check<'_, '_>,
@@ -84,6 +84,29 @@ pub(super) fn validate_heat(c: &Check<'_, '_>, raw: RawHeat) -> Result<HeatSpec,
             "contact conductance (W/m²/K)",
         )?,
         dt: raw.dt.map(|v| c.time_step(&k.key("dt"), v)).transpose()?,
+    })
+}
+
+pub(super) fn validate_cut(c: &Check<'_, '_>, raw: RawCut) -> Result<CutSpec, ConfigError> {
+    let k = KeyPath::top("cut");
+    let d = CutSpec::default();
+    let vaporization = c.temperature(
+        &k.key("vaporization"),
+        raw.vaporization.unwrap_or(d.vaporization),
+        "vaporisation temperature",
+    )?;
+    let delay = raw.delay_steps.unwrap_or(i64::from(d.delay_steps));
+    if !(1..=1000).contains(&delay) {
+        return Err(c.invalid(
+            &k.key("delay_steps"),
+            delay,
+            "delay_steps must be 1 to 1000 (steps of the body between a cut's request and its \
+             landing)",
+        ));
+    }
+    Ok(CutSpec {
+        vaporization,
+        delay_steps: delay as u32,
     })
 }
 
@@ -234,12 +257,14 @@ fn validate_tool(
         Some(s) => Some(dir.join(s)),
     };
     let kind = validate_kind(c, k, &raw.kind, raw.jaw_radius, radius)?;
-    if raw.heat_power.is_some() && !kind.cauterizes() {
-        return Err(c.invalid(
-            &k.key("heat_power"),
-            format!("{}", raw.heat_power.unwrap_or_default()),
-            format!("a {} does not cauterize: leave heat_power out", kind.name()),
-        ));
+    for (key, given) in [("heat_power", raw.heat_power), ("cut_power", raw.cut_power)] {
+        if let (Some(v), false) = (given, kind.cauterizes()) {
+            return Err(c.invalid(
+                &k.key(key),
+                format!("{v}"),
+                format!("a {} does not cauterize: leave {key} out", kind.name()),
+            ));
+        }
     }
     Ok(ToolSpec {
         name,
@@ -261,6 +286,11 @@ fn validate_tool(
             &k.key("heat_power"),
             raw.heat_power.unwrap_or(d.heat_power),
             "tool heat_power (W)",
+        )?,
+        cut_power: c.non_negative(
+            &k.key("cut_power"),
+            raw.cut_power.unwrap_or(d.cut_power),
+            "tool cut_power (W)",
         )?,
         workspace,
         mock_script,
@@ -289,7 +319,8 @@ fn validate_kind(
             return Err(c.invalid(
                 &k.key("kind"),
                 "\"blade\"",
-                "lop does not cut tissue yet: kind is probe, grasper or hook",
+                "a blade's sweeping cut is not built yet: cut with a cautery's cut button \
+                 (kind = \"probe\" or \"hook\", [cut]); kind is probe, grasper or hook",
             ))
         }
         Some(other) => {

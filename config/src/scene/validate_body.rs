@@ -122,6 +122,15 @@ pub(super) fn validate_body(
              fallback model of every body",
         ));
     }
+    let cut = rb.cut.unwrap_or(false);
+    if cut && model == ModelPin::Gc {
+        return Err(c.invalid(
+            &key.key("cut"),
+            "true",
+            "a body pinned to its cage (model = \"gc\") cannot be cut: the cage's deformation \
+             cannot open a wound. Give it model = \"auto\", \"fem\" or \"msd\"",
+        ));
+    }
     let translate = c.finite3(
         &key.key("translate"),
         rb.translate.unwrap_or([0.0; 3]),
@@ -202,6 +211,7 @@ pub(super) fn validate_body(
         msd,
         gc,
         heat,
+        cut,
     })
 }
 

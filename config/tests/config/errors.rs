@@ -490,3 +490,36 @@ fn tool_radius_and_stiffness_missing_zero_negative_or_nan() {
     let scene = lop_config::parse_scene(GOOD, &scene_path()).unwrap();
     assert_eq!(scene.tool(), &lop_config::ToolSpec::default());
 }
+
+/// `[cut]` and a body's `cut`: bad values are refused naming the key, and a body pinned to its
+/// cage cannot be cut.
+#[test]
+fn cutting_keys_are_checked() {
+    let scene = parse_scene(GOOD, &scene_path()).unwrap();
+    assert_eq!(scene.cut, lop_config::CutSpec::default());
+    assert!(scene.bodies.iter().all(|b| !b.cut));
+    let with_cut = format!("[cut]\nvaporization = 110.0\ndelay_steps = 20\n{GOOD}");
+    let scene = parse_scene(&with_cut, &scene_path()).unwrap();
+    assert_eq!((scene.cut.vaporization, scene.cut.delay_steps), (110.0, 20));
+    expect_err(
+        &format!("[cut]\ndelay_steps = 0\n{GOOD}"),
+        &["cut.delay_steps", "0", "1 to 1000"],
+    );
+    expect_err(
+        &format!("[cut]\nvaporization = -300.0\n{GOOD}"),
+        &["cut.vaporization", "-300"],
+    );
+    let cut_body = good_with(
+        "name = \"b\"\nmesh = \"m\"\n",
+        "name = \"b\"\nmesh = \"m\"\ncut = true\n",
+    );
+    let scene = parse_scene(&cut_body, &scene_path()).unwrap();
+    assert!(scene.bodies[1].cut);
+    expect_err(
+        &good_with(
+            "name = \"b\"\nmesh = \"m\"\n",
+            "name = \"b\"\nmesh = \"m\"\ncut = true\nmodel = \"gc\"\n[body.gc]\ndynamics = \"projected\"\n",
+        ),
+        &["body[1].cut", "true", "cannot be cut"],
+    );
+}

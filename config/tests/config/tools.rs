@@ -156,7 +156,10 @@ fn a_bad_tool_kind_is_refused_naming_it() {
         err.line(),
         Some(line_of(&tool("kind = \"forceps\""), "kind = "))
     );
-    expect_err(&tool("kind = \"blade\""), &["tool[0].kind", "does not cut"]);
+    expect_err(
+        &tool("kind = \"blade\""),
+        &["tool[0].kind", "not built yet"],
+    );
     expect_err(&tool("kind = 3"), &["tool[0]", "kind"]);
     expect_err(
         &tool("jaw_radius = 0.004"),

@@ -247,3 +247,39 @@ fn every_tool_of_a_two_handed_scene_plays_its_script_offline() {
     );
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// The shipped cut script cuts the shipped liver offline: holding the cut button on it, the
+/// cautery vaporises the tissue under its tip and the cut lands (`cuts.csv`), and the final
+/// mesh has lost those tetrahedra.
+#[test]
+fn the_shipped_cut_script_cuts_the_liver() {
+    let out = std::env::temp_dir().join(format!("lopd-simulate-cut-{}", std::process::id()));
+    let o = Command::new(env!("CARGO_BIN_EXE_lopd"))
+        .args(["simulate", "--scene", "abdomen", "--script", "abdomen-cut"])
+        .args(["--steps", "6500", "--out"])
+        .arg(&out)
+        .env("LOP_LOG", "warn")
+        .output()
+        .expect("run lopd simulate");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let cuts = std::fs::read_to_string(out.join("cuts.csv")).unwrap();
+    let landed: Vec<Vec<&str>> = cuts
+        .lines()
+        .map(|l| l.split(',').collect::<Vec<_>>())
+        .filter(|f| f.get(2) == Some(&"landed"))
+        .collect();
+    assert!(!landed.is_empty(), "no cut landed:\n{cuts}");
+    // sim_time_s,body,event,tets,epoch,removed_tets,piece_tets,pieces_removed,tets_left,…
+    let first = &landed[0];
+    assert_eq!((first[1], first[4]), ("liver", "1"), "{cuts}");
+    let left: usize = landed.last().unwrap()[8].parse().unwrap();
+    assert!(left < 1706, "{cuts}");
+    let vtk = std::fs::read_to_string(out.join("final_liver.vtk")).unwrap();
+    let cells = vtk
+        .lines()
+        .find_map(|l| l.strip_prefix("CELLS "))
+        .and_then(|l| l.split_whitespace().next())
+        .and_then(|n| n.parse::<usize>().ok());
+    assert_eq!(cells, Some(left), "the final mesh is the cut one");
+    let _ = std::fs::remove_dir_all(&out);
+}

@@ -140,6 +140,19 @@ impl GodObject {
         self.grab = None;
     }
 
+    /// Takes over the proxy of `old`, a god-object over the surfaces before a cut changed
+    /// them: the proxy stays where it was, free (no anchor, no grab: a grab does not survive a
+    /// cut), and the next update moves it from there towards the device against the new
+    /// surfaces. Where the cut took the tissue under it, it sinks into the wound as the hand
+    /// pushes; where the tissue is still there it rests on it. The force is continuous across
+    /// the change: the tool spring's stretch is the same before and after.
+    pub fn keep_proxy_of(&mut self, old: &GodObject) {
+        self.proxy = old.proxy;
+        self.started = old.started;
+        self.anchor = None;
+        self.grab = None;
+    }
+
     /// Moves an anchored proxy with the tissue after the surface's positions changed.
     pub fn follow_surface(&mut self, set: &SurfaceSet) {
         if let Some(a) = self.grab.or(self.anchor) {

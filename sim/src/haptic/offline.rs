@@ -49,6 +49,15 @@ impl WorldProbe {
         probe
     }
 
+    /// The same probe over `world`'s surfaces after a cut changed them (allocates): the
+    /// god-object keeps its proxy ([`GodObject::keep_proxy_of`]), the coupling waits for the
+    /// next [`tick`](Self::tick).
+    pub fn rebuilt(&self, world: &World) -> WorldProbe {
+        let mut probe = WorldProbe::new(world, self.god.radius()).for_tool(self.tool);
+        probe.god.keep_proxy_of(&self.god);
+        probe
+    }
+
     /// The same probe as tool `tool` of the world's rounds (see [`crate::world::Round::tools`]).
     pub fn for_tool(self, tool: usize) -> WorldProbe {
         WorldProbe { tool, ..self }

@@ -196,6 +196,12 @@ impl World {
         self.report.cuts.clear();
         let skipped = |i: usize| round.skip.get(i).copied().unwrap_or(false);
         let tools = &round.tools[..round.tools.len().min(MAX_TOOLS)];
+        // Each tool's coupling, moved to the new surface of a body a cut lands on this round.
+        let mut couplings = [Coupling::GodObject(None); MAX_TOOLS];
+        for (c, t) in couplings.iter_mut().zip(tools) {
+            *c = t.coupling;
+        }
+        let couplings = &mut couplings[..tools.len()];
 
         if !round.paused {
             // Organ-to-organ contacts at the current shapes, for the steps about to be taken.
@@ -209,14 +215,14 @@ impl World {
                 self.report.collision_ns = clock().saturating_sub(t0);
             }
             for i in (0..n).filter(|&i| !skipped(i)) {
-                let mut body_tools = [None; MAX_TOOLS];
-                for (slot, t) in body_tools.iter_mut().zip(tools) {
-                    *slot = t.sphere(i).map(|sphere| BodyTool {
-                        sphere,
-                        coupling: t.coupling,
-                    });
-                }
-                let body_tools = &body_tools[..tools.len()];
+                let of_body = |couplings: &[Coupling]| {
+                    let mut body_tools = [None; MAX_TOOLS];
+                    for ((slot, t), &coupling) in body_tools.iter_mut().zip(tools).zip(couplings) {
+                        *slot = t.sphere(i).map(|sphere| BodyTool { sphere, coupling });
+                    }
+                    body_tools
+                };
+                let mut body_tools = of_body(couplings);
                 let mut r = BodyRound::default();
                 let dt_before = self.bodies[i].model.dt();
                 while self.body_due(i, round.until)
@@ -227,11 +233,12 @@ impl World {
                 {
                     // A cut due at this step lands before it (the tools' contacts on the
                     // old surface are dropped with it).
-                    if let Some(event) = self.land_due_cut(i) {
+                    if let Some(event) = self.land_due_cut(i, couplings) {
                         self.report.cuts.push(event);
+                        body_tools = of_body(couplings);
                     }
                     let t0 = clock();
-                    if let Err(cause) = self.step_body_tools(i, body_tools) {
+                    if let Err(cause) = self.step_body_tools(i, &body_tools[..tools.len()]) {
                         r.blow_up = Some(cause);
                     }
                     self.count_cut_step(i);
@@ -279,8 +286,11 @@ impl World {
                     hb.clear_sources();
                 }
             }
-            for t in tools.iter().filter(|t| t.heat_power > 0.0) {
-                if let Coupling::GodObject(Some((b, a))) = t.coupling {
+            for (t, coupling) in tools.iter().zip(couplings.iter()) {
+                if t.heat_power <= 0.0 {
+                    continue;
+                }
+                if let Coupling::GodObject(Some((b, a))) = *coupling {
                     if !a.grab {
                         let tri = self.bodies[b]
                             .mesh
@@ -312,7 +322,7 @@ impl World {
             self.report.heat_ns = clock().saturating_sub(t0);
         }
         let mut events = std::mem::take(&mut self.report.cuts);
-        self.request_cuts(tools, &mut events);
+        self.request_cuts(tools, couplings, &mut events);
         self.report.cuts = events;
         self.report.total_ns = clock().saturating_sub(start);
         &self.report

@@ -197,15 +197,17 @@ fn vaporised_tissue_is_cut_and_the_heat_carries_over() {
         .iter()
         .map(|p| {
             let d = ((p[0] - 0.02).powi(2) + (p[1] - 0.02).powi(2) + (p[2] - 0.01).powi(2)).sqrt();
-            37.0 + 150.0 * (-d / 0.006).exp()
+            37.0 + 100.0 * (-d / 0.003).exp()
         })
         .collect();
     heat.set_temperatures(&field).unwrap();
     world.set_heat(HeatWorld::new(vec![heat]).unwrap());
     let before = world.heat().unwrap().bodies()[b].clone();
     let remove = vaporised(&mesh, &field, 100.0);
+    // Only the corner node boils (137 °C; its neighbours 5 mm away are at 56 °C): the six
+    // tetrahedra of its cell go.
     let asked = remove.iter().filter(|&&r| r).count();
-    assert!(asked > 0 && asked < 12, "{asked} tetrahedra at 100 °C");
+    assert_eq!(asked, 6, "{asked} tetrahedra with a node at 100 °C");
     let report = world.cut_body(b, &remove).expect("the cut lands");
     assert_eq!(report.removed_tets - report.piece_tets, asked);
     let after = &world.heat().unwrap().bodies()[b];
@@ -293,7 +295,7 @@ fn stale_and_impossible_cuts_change_nothing() {
 }
 
 /// One run of the electrosurgical cut: a block pressed 0.3 mm by a 3 mm cautery holding the
-/// cut button at `power` W for `steps` 1 ms rounds. Returns the world and every cut event with
+/// cut button at `power` W for `steps` 1 ms rounds, pushed 4 mm deeper meanwhile. Returns the world and every cut event with
 /// the round it came in.
 fn electrosurgery(power: f64, steps: usize) -> (World, Vec<(usize, CutEvent)>) {
     const R: f64 = 0.003;
@@ -312,6 +314,7 @@ fn electrosurgery(power: f64, steps: usize) -> (World, Vec<(usize, CutEvent)>) {
     world.set_heat(HeatWorld::new(vec![heat]).unwrap());
     world.set_cutting(Some(CutParams {
         bodies: vec![true],
+        delay_steps: 10,
         ..CutParams::default()
     }));
     let mut probe = WorldProbe::new(&world, R);
@@ -321,9 +324,14 @@ fn electrosurgery(power: f64, steps: usize) -> (World, Vec<(usize, CutEvent)>) {
         stiffness: 300.0,
         law: ForceLaw::Linear,
     }];
-    let device = [0.01, 0.01, 0.01 + R - 0.3e-3];
     let mut events = Vec::new();
     for step in 0..steps {
+        // 0.3 mm into the top, following the wound down 4 mm over the run.
+        let device = [
+            0.01,
+            0.01,
+            0.01 + R - 0.3e-3 - 4e-3 * step as f64 / steps as f64,
+        ];
         probe.tick(&world, device, false);
         let tool = RoundTool {
             center: device,
@@ -346,7 +354,7 @@ fn electrosurgery(power: f64, steps: usize) -> (World, Vec<(usize, CutEvent)>) {
             .any(|e| matches!(e, CutEvent::Landed { .. }))
         {
             // The god-object's surface is the new one from the next tick.
-            probe = WorldProbe::new(&world, R);
+            probe = probe.rebuilt(&world);
         }
     }
     (world, events)
@@ -406,10 +414,24 @@ fn a_cautery_holding_the_cut_button_vaporises_its_way_in() {
 fn an_electrosurgical_cut_is_deterministic() {
     let (a, ea) = electrosurgery(40.0, 700);
     let (b, eb) = electrosurgery(40.0, 700);
-    assert_eq!(ea, eb);
-    assert!(ea
-        .iter()
-        .any(|(_, e)| matches!(e, CutEvent::Landed { waited: _, .. })));
+    // The same cuts at the same steps; whether a step waited for a preparation is the
+    // machine's, not the run's.
+    let timeless = |e: &[(usize, CutEvent)]| -> Vec<(usize, CutEvent)> {
+        e.iter()
+            .map(|(s, e)| match e {
+                CutEvent::Landed { report, .. } => (
+                    *s,
+                    CutEvent::Landed {
+                        report: *report,
+                        waited: false,
+                    },
+                ),
+                e => (*s, e.clone()),
+            })
+            .collect()
+    };
+    assert_eq!(timeless(&ea), timeless(&eb));
+    assert!(ea.iter().any(|(_, e)| matches!(e, CutEvent::Landed { .. })));
     assert_eq!(a.bodies[0].model.positions(), b.bodies[0].model.positions());
     assert_eq!(a.bodies[0].mesh.tets, b.bodies[0].mesh.tets);
 }
