@@ -220,6 +220,12 @@ impl Attachment {
         Ok(self.topology.as_ref())
     }
 
+    /// The current topology (the last one polled), without polling: the one every frame
+    /// [`Attachment::frames`] or [`Attachment::latest_frame`] just returned belongs to.
+    pub fn topology(&self) -> Option<&Topology> {
+        self.topology.as_ref()
+    }
+
     /// Waits for a topology.
     pub fn wait_topology(&mut self, timeout: Duration) -> Result<&Topology, ClientError> {
         let start = Instant::now();

@@ -149,6 +149,77 @@ impl Topology {
     pub fn node_offsets(&self) -> Vec<usize> {
         self.bodies.iter().map(|b| b.node_offset).collect()
     }
+
+    /// The topology of `world` after cuts changed some of its bodies' meshes (`lop_sim::cut`),
+    /// `self` the topology before: the same bodies, nodes and node offsets, each body's surface
+    /// triangles and tetrahedra as its mesh has them now. A body that was never cut (epoch 0)
+    /// keeps its render surface; a cut one is drawn by its own surface from then on (a render
+    /// surface embedded in the uncut mesh would cover the wound).
+    ///
+    /// # Panics
+    /// `world` does not have `self`'s bodies and nodes (another scene's world).
+    pub fn after_cuts(&self, world: &lop_sim::world::World) -> Topology {
+        assert_eq!(world.bodies.len(), self.bodies.len(), "the same bodies");
+        let mut triangles: Vec<u32> = Vec::new();
+        let mut tets: Vec<u32> = Vec::new();
+        let mut render_triangles: Vec<u32> = Vec::new();
+        let mut render_vertices: Vec<u32> = Vec::new();
+        let (tri_end, tet_end) = (
+            3 * self.triangle_count,
+            3 * self.triangle_count + 4 * self.tet_count,
+        );
+        let render_tri_end = tet_end + 3 * self.render_triangle_count;
+        let mut bodies = Vec::with_capacity(self.bodies.len());
+        for (old, b) in self.bodies.iter().zip(&world.bodies) {
+            assert_eq!(b.mesh.nodes.len(), old.node_count, "the same nodes");
+            let off = old.node_offset as u32;
+            let mut bt = BodyTopology {
+                triangle_offset: triangles.len() / 3,
+                triangle_count: b.mesh.surface.len(),
+                tet_offset: tets.len() / 4,
+                tet_count: b.mesh.tets.len(),
+                render_vertex_offset: render_vertices.len() / RENDER_VERTEX_WORDS,
+                render_vertex_count: 0,
+                render_triangle_offset: render_triangles.len() / 3,
+                render_triangle_count: 0,
+                ..old.clone()
+            };
+            triangles.extend(b.mesh.surface.iter().flatten().map(|&k| k + off));
+            tets.extend(b.mesh.tets.iter().flatten().map(|&k| k + off));
+            if b.epoch == 0 && old.render_triangle_count > 0 {
+                // Its render part, moved to the new offsets.
+                let voff =
+                    (bt.render_vertex_offset as u32).wrapping_sub(old.render_vertex_offset as u32);
+                let t0 = tet_end + 3 * old.render_triangle_offset;
+                render_triangles.extend(
+                    self.indices[t0..t0 + 3 * old.render_triangle_count]
+                        .iter()
+                        .map(|&k| k.wrapping_add(voff)),
+                );
+                let v0 = render_tri_end + RENDER_VERTEX_WORDS * old.render_vertex_offset;
+                render_vertices.extend_from_slice(
+                    &self.indices[v0..v0 + RENDER_VERTEX_WORDS * old.render_vertex_count],
+                );
+                bt.render_vertex_count = old.render_vertex_count;
+                bt.render_triangle_count = old.render_triangle_count;
+            }
+            bodies.push(bt);
+        }
+        debug_assert!(tri_end <= self.indices.len());
+        let mut topology = Topology {
+            bodies,
+            node_count: self.node_count,
+            triangle_count: triangles.len() / 3,
+            tet_count: tets.len() / 4,
+            render_vertex_count: render_vertices.len() / RENDER_VERTEX_WORDS,
+            render_triangle_count: render_triangles.len() / 3,
+            indices: triangles,
+        };
+        topology.indices.extend(tets);
+        topology.indices.extend(render_triangles);
+        topology.indices.extend(render_vertices);
+        topology
+    }
 }
 
 /// What the device can render, for clamping the tool law.

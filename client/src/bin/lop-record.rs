@@ -1,5 +1,7 @@
 //! `lop-record`: attach to a running lopd read-only and write its frames as a VTK series
-//! (`.vtu` per frame plus a `.pvd` index) that ParaView opens.
+//! (`.vtu` per frame plus a `.pvd` index) that ParaView opens. Each frame is written with the
+//! topology it belongs to: after a cut (a new topology) the pieces hold the cut meshes; the
+//! frames that arrive while the new topology is read are skipped.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -45,7 +47,7 @@ fn main() -> Result<()> {
     }
     let wait = Duration::from_secs_f64(args.wait.max(0.0));
     let mut lop = Attachment::open(&args.prefix, wait).context("attaching to lopd")?;
-    let topology = lop.wait_topology(wait)?.clone();
+    let mut topology_id = lop.wait_topology(wait)?.header.topology_id;
     let mut series = PvdSeries::new(&args.out, "frame")
         .with_context(|| format!("creating {}", args.out.display()))?;
     let start = Instant::now();
@@ -56,11 +58,21 @@ fn main() -> Result<()> {
         {
             break;
         }
-        for frame in lop.frames()? {
+        let frames = lop.frames()?;
+        // `wait_topology` above: there is one.
+        let topology = lop.topology().context("the topology")?;
+        if topology.header.topology_id != topology_id {
+            topology_id = topology.header.topology_id;
+            println!(
+                "topology {topology_id:#x} (after a cut): {} triangles, {} tetrahedra",
+                topology.header.triangle_count, topology.header.tet_count
+            );
+        }
+        for frame in frames {
             if args.frames.is_some_and(|n| series.len() >= n) {
                 break;
             }
-            series.add(&topology, &frame)?;
+            series.add(topology, &frame)?;
         }
         std::thread::sleep(Duration::from_millis(2));
     }

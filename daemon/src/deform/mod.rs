@@ -165,6 +165,9 @@ pub struct DeformLoop {
     /// `tool_count`.
     tools: usize,
     topology: TopologyHeader,
+    /// The topology as published (the header's indices), to build the next one from when a
+    /// cut lands.
+    published: Topology,
     node_offsets: Vec<usize>,
     node_count: usize,
     node: Node<ipc::Service>,
@@ -223,21 +226,23 @@ impl DeformLoop {
             tracing::info!("cleaned {cleaned} dead iceoryx2 node(s) left by a crashed process");
         }
 
-        // Topology, once, with history so late subscribers get it.
+        // Topology, with history so late subscribers get it; again after each cut, with a new
+        // id. A cut only removes tetrahedra and render surfaces, and a tetrahedron adds at most
+        // its 4 faces (12 indices) to a surface: room for 16 words a tetrahedron plus the
+        // render surfaces holds every topology a cut can leave.
         header.topology_id = new_topology_id();
+        let render_words =
+            topology.indices.len() - 3 * topology.triangle_count - 4 * topology.tet_count;
+        let topo_room = topology
+            .indices
+            .len()
+            .max(16 * topology.tet_count + render_words);
         let topo_pub = services::topology_service(&node, &names, Role::Owner)?
             .publisher_builder()
-            .initial_max_slice_len(topology.indices.len())
+            .initial_max_slice_len(topo_room)
             .create()
             .context("topology publisher")?;
-        let mut sample = topo_pub
-            .loan_slice_uninit(topology.indices.len())
-            .context("loan topology")?;
-        *sample.user_header_mut() = header;
-        sample
-            .write_from_slice(&topology.indices)
-            .send()
-            .context("send topology")?;
+        send_topology(&topo_pub, &header, &topology.indices)?;
 
         let node_count = topology.node_count;
         let frame_pub = services::frame_service(&node, &names, Role::Owner)?
@@ -301,6 +306,7 @@ impl DeformLoop {
             scene,
             world,
             topology: header,
+            published: topology,
             node_count,
             node,
             names,
@@ -438,6 +444,10 @@ impl DeformLoop {
         if let Some(e) = &report.heat_error {
             tracing::warn!("heat model stopped: {e}");
         }
+        if !report.cuts.is_empty() {
+            self.publish_cut_topology();
+        }
+        let report = self.world.last_round();
         let (stepped, world_step_ns) = (report.stepped(), report.total_ns);
         self.follow_cost();
         if !(paused || stepped) {
@@ -457,6 +467,54 @@ impl DeformLoop {
             });
         }
         self.publish(sim_now, tool_stamp, tool_read, world_step_ns, &contacts);
+    }
+
+    /// Publishes the topology the cuts of the last round left, under a new id: the frames
+    /// from this round on carry it, and every reader (the haptic loop's contact index, the
+    /// viewers, the recorder) reads it before it draws or touches them
+    /// ([`FrameHeader::topology_id`]). Logs each cut landed or refused.
+    fn publish_cut_topology(&mut self) {
+        for e in &self.world.last_round().cuts {
+            match e {
+                lop_sim::cut::CutEvent::Landed { report: r, waited } => {
+                    tracing::info!(
+                    "{}: cut: {} tetrahedra removed ({} of them cut loose or too small), {} left{}",
+                    self.world.bodies[r.body].name,
+                    r.removed_tets,
+                    r.piece_tets,
+                    r.tets_left,
+                    if *waited { " (the step waited for it)" } else { "" }
+                )
+                }
+                lop_sim::cut::CutEvent::Refused(why) => tracing::warn!("cut refused: {why}"),
+                lop_sim::cut::CutEvent::Asked { .. } => {}
+            }
+        }
+        let landed = self
+            .world
+            .last_round()
+            .cuts
+            .iter()
+            .any(|e| matches!(e, lop_sim::cut::CutEvent::Landed { .. }));
+        if !landed {
+            return;
+        }
+        let topology = self.published.after_cuts(&self.world);
+        let mut header = match wire_topology(&self.scene, &topology) {
+            Ok(h) => h,
+            Err(e) => {
+                tracing::error!("the cut topology cannot be published: {e:#}");
+                return;
+            }
+        };
+        header.topology_id = new_topology_id().max(self.topology.topology_id + 1);
+        if let Err(e) = send_topology(&self.topo_pub, &header, &topology.indices) {
+            tracing::error!("the cut topology was not published: {e:#}");
+            return;
+        }
+        tracing::info!("topology {:#x} published", header.topology_id);
+        self.topology = header;
+        self.published = topology;
     }
 
     /// Gives each FEM body's pace the cost of the steps it just took while running FEM, and
@@ -639,6 +697,23 @@ pub fn run(opts: DeformOptions) -> Result<()> {
         task.tick();
     }
     tracing::info!("deformation stopped after {} frames", task.frames());
+    Ok(())
+}
+
+/// Publishes a topology: `header` over `indices`.
+fn send_topology(
+    publisher: &iceoryx2::port::publisher::Publisher<ipc::Service, [u32], TopologyHeader>,
+    header: &TopologyHeader,
+    indices: &[u32],
+) -> Result<()> {
+    let mut sample = publisher
+        .loan_slice_uninit(indices.len())
+        .context("loan topology")?;
+    *sample.user_header_mut() = *header;
+    sample
+        .write_from_slice(indices)
+        .send()
+        .context("send topology")?;
     Ok(())
 }
 

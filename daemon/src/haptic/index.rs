@@ -103,6 +103,9 @@ pub(crate) struct ContactIndex {
 /// One tool's god-object over the shared surfaces and what it last followed.
 struct ToolGod {
     god: GodObject,
+    /// Its proxy was taken over from the index of the topology before (a cut): the first
+    /// frame does not reset it.
+    carried: bool,
     /// Sequence of the newest frame this tool saw.
     frame_sequence: Option<u64>,
     /// [`ContactIndex::version`] the god-object last followed.
@@ -133,6 +136,7 @@ impl ContactIndex {
             .iter()
             .map(|&r| ToolGod {
                 god: GodObject::new(r, set.triangles().len()),
+                carried: false,
                 frame_sequence: None,
                 followed: 0,
             })
@@ -143,6 +147,20 @@ impl ContactIndex {
             tools,
             version: 0,
         })
+    }
+
+    /// Takes over each tool's proxy from `old`, the index of the topology before a cut
+    /// ([`GodObject::keep_proxy_of`]): the proxy stays where the hand left it and moves on
+    /// against the new surfaces, so the force does not jump when the topology changes.
+    /// Allocation-free (on the RT thread, as the new index is swapped in).
+    pub(crate) fn carry_from(&mut self, old: &ContactIndex) {
+        if old.topology_id == self.topology_id {
+            return;
+        }
+        for (t, o) in self.tools.iter_mut().zip(&old.tools) {
+            t.god.keep_proxy_of(&o.god);
+            t.carried = true;
+        }
     }
 
     /// Brings the index up to date with `frame` for the bodies tool `tool` can reach this
@@ -193,7 +211,7 @@ impl ContactIndex {
         let t = &mut self.tools[tool];
         let moved = t.followed != self.version;
         t.followed = self.version;
-        if first {
+        if first && !t.carried {
             t.god.reset();
         } else if new_frame || moved {
             t.god.follow_surface(&self.set);
@@ -281,6 +299,18 @@ impl<T> IndexSlot<T> {
         rx: &mut rtrb::Consumer<Box<T>>,
         back: &mut rtrb::Producer<Box<T>>,
     ) {
+        self.take_newest_carrying(rx, back, |_, _| {});
+    }
+
+    /// [`IndexSlot::take_newest`], with `carry(new, old)` called as each newer value replaces
+    /// the current one (what the new one takes over from the old). Allocation-free if `carry`
+    /// is.
+    pub fn take_newest_carrying(
+        &mut self,
+        rx: &mut rtrb::Consumer<Box<T>>,
+        back: &mut rtrb::Producer<Box<T>>,
+        mut carry: impl FnMut(&mut T, &T),
+    ) {
         loop {
             if let Some(old) = self.retired.take() {
                 if let Err(rtrb::PushError::Full(old)) = back.push(old) {
@@ -289,7 +319,12 @@ impl<T> IndexSlot<T> {
                 }
             }
             match rx.pop() {
-                Ok(ix) => self.retired = self.current.replace(ix),
+                Ok(mut ix) => {
+                    if let Some(old) = &self.current {
+                        carry(&mut ix, old);
+                    }
+                    self.retired = self.current.replace(ix);
+                }
                 Err(_) => return,
             }
         }

@@ -387,8 +387,11 @@ impl HapticLoop {
 
         // 2. Take the newest frame and contact index from their threads; a retired one goes
         // back to its thread (to be freed, or filled again).
-        self.index
-            .take_newest(&mut self.index_feed.rx, &mut self.index_feed.back);
+        self.index.take_newest_carrying(
+            &mut self.index_feed.rx,
+            &mut self.index_feed.back,
+            ContactIndex::carry_from,
+        );
         self.frame
             .take_newest(&mut self.frame_feed.rx, &mut self.frame_feed.back);
         let frame_age = match self.frame.current() {

@@ -3,6 +3,7 @@
 //! one per file.
 
 mod closed_loop_tools;
+mod cut_topology;
 mod fix_selectors;
 mod live_rounds;
 mod render_surface;
