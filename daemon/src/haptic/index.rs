@@ -106,6 +106,8 @@ struct ToolGod {
     /// Its proxy was taken over from the index of the topology before (a cut): the first
     /// frame does not reset it.
     carried: bool,
+    /// The pipeline has not been told of the topology change yet.
+    glide_due: bool,
     /// Sequence of the newest frame this tool saw.
     frame_sequence: Option<u64>,
     /// [`ContactIndex::version`] the god-object last followed.
@@ -137,6 +139,7 @@ impl ContactIndex {
             .map(|&r| ToolGod {
                 god: GodObject::new(r, set.triangles().len()),
                 carried: false,
+                glide_due: false,
                 frame_sequence: None,
                 followed: 0,
             })
@@ -160,6 +163,7 @@ impl ContactIndex {
         for (t, o) in self.tools.iter_mut().zip(&old.tools) {
             t.god.keep_proxy_of(&o.god);
             t.carried = true;
+            t.glide_due = true;
         }
     }
 
@@ -168,18 +172,25 @@ impl ContactIndex {
     /// bounds are within [`REACH`] of the device or the god-object are, and only once per
     /// frame whichever tool asks first), the others are left out of the queries until they
     /// come within reach. The tool's god-object is carried along with the tissue, and rests
-    /// where the frame balanced the tool's contact patch. False when the frame is not of this
-    /// index's topology or the tool has no god-object here: then nothing is touched (and a
-    /// stale frame ramps the force down anyway).
+    /// where the frame balanced the tool's contact patch. False when the frame does not fit
+    /// this index (another contract or node count) or the tool has no god-object here: then
+    /// nothing is touched (and a stale frame ramps the force down anyway). A frame of a newer
+    /// topology with the same nodes (a cut) leaves the surfaces as they are and is not an
+    /// error: its index is on its way.
     fn refresh(&mut self, frame: &FrameSample, device: Option<[f64; 3]>, tool: usize) -> bool {
         let fh = frame.user_header();
         let nodes = frame.payload();
-        if fh.topology_id != self.topology_id
-            || fh.contract_version != CONTRACT_VERSION
+        if fh.contract_version != CONTRACT_VERSION
             || nodes.len() != self.set.node_count()
             || tool >= self.tools.len()
         {
             return false;
+        }
+        if fh.topology_id != self.topology_id {
+            // A frame of the next topology (a cut) before its index is built: the god-object
+            // goes on against this one's last surface for those few milliseconds rather than
+            // let go of the hand (its force would drop by the safety's step in one tick).
+            return true;
         }
         let t = &mut self.tools[tool];
         let first = t.frame_sequence.is_none();
@@ -253,6 +264,14 @@ impl ContactSurfaces for LiveSurfaces<'_> {
         let ix = self.index.as_deref_mut()?;
         let t = ix.tools.get_mut(tool)?;
         Some((&mut t.god, &mut ix.set))
+    }
+
+    fn topology_changed(&mut self) -> bool {
+        let tool = self.tool;
+        self.index
+            .as_deref_mut()
+            .and_then(|ix| ix.tools.get_mut(tool))
+            .is_some_and(|t| std::mem::take(&mut t.glide_due))
     }
 
     fn local_model(&self) -> Option<(usize, LocalModel, f64)> {

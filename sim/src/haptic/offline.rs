@@ -21,6 +21,8 @@ pub struct WorldProbe {
     /// The tool this probe is, in the order the world's rounds are given the tools (0 for
     /// one tool): whose contact patch its god-object rests on.
     tool: usize,
+    /// Rebuilt after a cut, and no pipeline told yet ([`ContactSurfaces::topology_changed`]).
+    topology_changed: bool,
 }
 
 impl WorldProbe {
@@ -44,6 +46,7 @@ impl WorldProbe {
             node_offsets,
             coupling: Coupling::GodObject(None),
             tool: 0,
+            topology_changed: false,
         };
         probe.sync(world);
         probe
@@ -55,6 +58,7 @@ impl WorldProbe {
     pub fn rebuilt(&self, world: &World) -> WorldProbe {
         let mut probe = WorldProbe::new(world, self.god.radius()).for_tool(self.tool);
         probe.god.keep_proxy_of(&self.god);
+        probe.topology_changed = true;
         probe
     }
 
@@ -162,5 +166,9 @@ impl ContactSurfaces for WorldSurfaces<'_> {
 
     fn local_model(&self) -> Option<(usize, LocalModel, f64)> {
         self.local.map(|(b, m)| (b, m, self.elapsed))
+    }
+
+    fn topology_changed(&mut self) -> bool {
+        std::mem::take(&mut self.probe.topology_changed)
     }
 }
