@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use lop_drivers::mock::{Interpolation, MockDevice, MockScript, ScriptEnd, ScriptError};
-use lop_drivers::{BUTTON_GRAB, BUTTON_HEAT};
+use lop_drivers::{BUTTON_CUT, BUTTON_GRAB, BUTTON_HEAT};
 
 fn scripts_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/scripts")
@@ -60,10 +60,11 @@ fn every_shipped_script_loads_and_fits_the_omni_workspace() {
             }
             let pressed = script.waypoints().iter().fold(0, |acc, w| acc | w.buttons);
             // A grab script and the two-handed scene's grasper hold; a heat script and its
-            // hook burn.
+            // hook burn; a cut script cuts.
             let expected = match file.rsplit('-').next().unwrap() {
                 "grab" | "grasper" => BUTTON_GRAB,
                 "heat" | "hook" => BUTTON_HEAT,
+                "cut" => BUTTON_CUT,
                 _ => 0,
             };
             assert_eq!(pressed, expected, "{file}: buttons used");
@@ -79,6 +80,8 @@ fn every_shipped_script_loads_and_fits_the_omni_workspace() {
         .collect();
     // The cylinders' sideways push into the other cylinder (`lop-bench lop`'s collision trial).
     expected.push("cylinders-push".into());
+    // The electrosurgical cut into the abdomen's liver.
+    expected.push("abdomen-cut".into());
     // The two hands of `abdomen-two-hands`.
     expected.push("abdomen-two-hands-grasper".into());
     expected.push("abdomen-two-hands-hook".into());
