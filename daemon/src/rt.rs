@@ -95,6 +95,22 @@ pub fn set_fifo(priority: u8) -> Result<(), String> {
     })
 }
 
+/// Gives the calling thread the normal scheduler (`SCHED_OTHER`; lowering itself needs no
+/// privilege). A helper thread started by a `SCHED_FIFO` thread inherits its policy and would
+/// hold that thread's core until it blocks; at the normal policy it runs only in the time the
+/// real-time thread leaves.
+pub fn set_normal() -> Result<(), String> {
+    use thread_priority::*;
+    set_thread_priority_and_policy(
+        thread_native_id(),
+        ThreadPriority::Crossplatform(
+            ThreadPriorityValue::try_from(0).map_err(|e| format!("{e:?}"))?,
+        ),
+        ThreadSchedulePolicy::Normal(NormalThreadSchedulePolicy::Other),
+    )
+    .map_err(|e| format!("{e:?}"))
+}
+
 /// Touches `bytes` of stack so later deep calls never fault a new stack page in.
 #[inline(never)]
 pub fn prefault_stack(bytes: usize) {

@@ -454,10 +454,16 @@ impl Clone for Pending {
     }
 }
 
+/// Run by a cut's preparation thread before it works: how the caller schedules it (`lopd
+/// deform` drops it from its loop's `SCHED_FIFO` to the normal scheduler, so it runs only in
+/// the time the steps leave).
+pub type ThreadSetup = Arc<dyn Fn() + Send + Sync>;
+
 /// A world's cutting state ([`World::set_cutting`]).
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub(crate) struct Cutting {
     params: CutParams,
+    setup: Option<ThreadSetup>,
     /// Per body: steps taken since cutting started, the cut in flight, the step from which a
     /// refused cut may be asked again.
     steps: Vec<u64>,
@@ -465,7 +471,27 @@ pub(crate) struct Cutting {
     retry_at: Vec<u64>,
 }
 
+impl fmt::Debug for Cutting {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Cutting")
+            .field("params", &self.params)
+            .field("steps", &self.steps)
+            .field("pending", &self.pending)
+            .field("retry_at", &self.retry_at)
+            .finish_non_exhaustive()
+    }
+}
+
 impl World {
+    /// Has every cut's preparation thread run `setup` first (module docs; by default the
+    /// thread keeps the scheduling of the thread that asked for the cut). No effect while
+    /// cutting is off.
+    pub fn set_cut_thread_setup(&mut self, setup: ThreadSetup) {
+        if let Some(c) = self.cutting.as_mut() {
+            c.setup = Some(setup);
+        }
+    }
+
     /// Turns electrosurgical cutting on with `params` (module docs), or off with `None` (a cut
     /// in flight is dropped).
     pub fn set_cutting(&mut self, params: Option<CutParams>) {
@@ -474,6 +500,7 @@ impl World {
             params.delay_steps = params.delay_steps.max(1);
             Box::new(Cutting {
                 params,
+                setup: None,
                 steps: vec![0; n],
                 pending: (0..n).map(|_| None).collect(),
                 retry_at: vec![0; n],
@@ -633,9 +660,13 @@ impl World {
             };
             let slot: Slot = Arc::new((Mutex::new(None), Condvar::new()));
             let fill = Arc::clone(&slot);
+            let setup = self.cutting.as_ref().and_then(|c| c.setup.clone());
             let spawned = std::thread::Builder::new()
                 .name("lop-sim-cut".into())
                 .spawn(move || {
+                    if let Some(setup) = setup {
+                        setup();
+                    }
                     let result = source.prepare(&remove);
                     let (lock, ready) = &*fill;
                     *lock.lock().unwrap_or_else(|e| e.into_inner()) = Some(result);

@@ -685,6 +685,15 @@ pub fn run(opts: DeformOptions) -> Result<()> {
     // haptic loop's core: there it would count against that core's real-time budget (the
     // kernel throttles every real-time thread of a core that spends more than 95 % of a
     // second on them). At the normal scheduler it may use that core's idle time.
+    if fifo {
+        // A cut's preparation (a new factorisation of the organ) runs beside the loop, in the
+        // time its steps leave: at SCHED_FIFO it would hold the loop's core until done.
+        task.world.set_cut_thread_setup(std::sync::Arc::new(|| {
+            if let Err(e) = rt::set_normal() {
+                tracing::warn!("cut thread kept the loop's real-time priority: {e}");
+            }
+        }));
+    }
     if fifo && opts.config.deform.core.is_none() {
         if let Some(core) = rt::haptic_core(&opts.config.haptic) {
             if let Err(e) = rt::avoid_core(core) {
