@@ -263,22 +263,9 @@ def element_count(slice_, element_type, expected):
     sys.exit(f"consumer: payload length {n} fits neither {expected} elements nor their bytes")
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--prefix", default="lop")
-    ap.add_argument("--frames", type=int, default=5)
-    ap.add_argument("--timeout", type=float, default=30.0)
-    args = ap.parse_args()
-
-    iox2.set_log_level(iox2.LogLevel.Error)
-    node = iox2.NodeBuilder.new().create(iox2.ServiceType.Ipc)
-
-    topo_service = open_retry(
-        node, f"{args.prefix}/scene/topology", iox2.Slice[ctypes.c_uint32], TopologyHeader, args.timeout
-    )
-    topo_sub = topo_service.subscriber_builder().create()
-    topo = receive(topo_sub, args.timeout, "topology")
-    th = topo.user_header().contents
+def read_topology(topo):
+    """A topology sample's header, render vertices and bodies (copied out of the sample)."""
+    th = TopologyHeader.from_buffer_copy(topo.user_header().contents)
     if th.contract_version != CONTRACT_VERSION:
         sys.exit(f"consumer: lopd speaks contract {th.contract_version}, this reader {CONTRACT_VERSION}")
     render_start = 3 * th.triangle_count + 4 * th.tet_count + 3 * th.render_triangle_count
@@ -299,6 +286,26 @@ def main() -> None:
         + ", ".join(f"{b.name_str()}[{b.node_offset}+{b.node_count}]" for b in bodies)
     )
     del words
+    return th, render, bodies
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--prefix", default="lop")
+    ap.add_argument("--frames", type=int, default=5)
+    ap.add_argument("--timeout", type=float, default=30.0)
+    args = ap.parse_args()
+
+    iox2.set_log_level(iox2.LogLevel.Error)
+    node = iox2.NodeBuilder.new().create(iox2.ServiceType.Ipc)
+
+    topo_service = open_retry(
+        node, f"{args.prefix}/scene/topology", iox2.Slice[ctypes.c_uint32], TopologyHeader, args.timeout
+    )
+    topo_sub = topo_service.subscriber_builder().create()
+    topo = receive(topo_sub, args.timeout, "topology")
+    th, render, bodies = read_topology(topo)
+    del topo
 
     frame_service = open_retry(
         node, f"{args.prefix}/scene/frame", iox2.Slice[NodeSample], FrameHeader, args.timeout
@@ -309,8 +316,19 @@ def main() -> None:
     while got < args.frames:
         sample = receive(frame_sub, args.timeout, "frame")
         h = sample.user_header().contents
-        if h.contract_version != CONTRACT_VERSION or h.topology_id != th.topology_id:
-            continue  # another topology: a renderer would re-read the topology here
+        if h.contract_version != CONTRACT_VERSION:
+            continue
+        if h.topology_id != th.topology_id:
+            # Another topology (a cut, or a restarted daemon): read it before drawing its
+            # frames; frames of a topology not read yet are skipped.
+            topo = topo_sub.receive()
+            while topo is not None:
+                th, render, bodies = read_topology(topo)
+                del topo
+                topo = topo_sub.receive()
+            if h.topology_id != th.topology_id:
+                del sample
+                continue
         n = element_count(sample.payload(), NodeSample, h.node_count)
         nodes = (NodeSample * n).from_address(sample.payload().as_ptr())
         # A render vertex is drawn at the weighted sum of its nodes' positions.

@@ -137,7 +137,7 @@ pub trait ContactSurfaces {
 
 /// Ticks over which the force glides to the new surfaces' after a topology change (a cut): at
 /// 1 kHz 50 ms. The shipped liver's cut under a pressing tool drops 0.28 N; over 50 ticks that
-/// is 6 mN a tick, under the 10 mN a tick of the same poke's contact onset.
+/// is 6 mN a tick, under the 8–10 mN a tick of the same poke's contact onset (measured live).
 pub const TOPOLOGY_GLIDE_TICKS: u32 = 50;
 
 /// The timed stages of a tick, in order.
