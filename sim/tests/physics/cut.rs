@@ -435,3 +435,84 @@ fn an_electrosurgical_cut_is_deterministic() {
     assert_eq!(a.bodies[0].model.positions(), b.bodies[0].model.positions());
     assert_eq!(a.bodies[0].mesh.tets, b.bodies[0].mesh.tets);
 }
+
+/// Seeded random cuts (balls of tissue anywhere, through the clamp too, some the whole block)
+/// on a pressed block: every cut lands or is refused by its rule, the pieces left always hold a
+/// fixed node, and nothing goes non-finite.
+#[test]
+fn seeded_cuts_land_or_are_refused_and_nothing_goes_non_finite() {
+    let mesh = box_mesh([0.04, 0.02, 0.02], [8, 4, 4], |p| p[0] < 1e-9);
+    let (mut world, b) = fem_world(&mesh);
+    let tool = ToolSphere {
+        center: [0.03, 0.01, 0.02 + 0.003 - 0.001],
+        radius: 0.003,
+        stiffness: 300.0,
+        law: ForceLaw::Linear,
+    };
+    let mut rng = lop_test_support::rng::Rng::new(31);
+    let (mut landed, mut refused) = (0, 0);
+    for k in 0..60 {
+        let body = &world.bodies[b];
+        let centre = [
+            rng.range(0.0, 0.04),
+            rng.range(0.0, 0.02),
+            rng.range(0.0, 0.02),
+        ];
+        // Mostly bites of up to 7 mm; every tenth the whole block.
+        let radius = if k % 10 == 9 {
+            0.05
+        } else {
+            rng.range(0.001, 0.007)
+        };
+        let x = body.model.positions();
+        let remove: Vec<bool> = body
+            .mesh
+            .tets
+            .iter()
+            .map(|t| {
+                let c = t.iter().fold([0.0; 3], |a, &k| {
+                    let p = x[k as usize];
+                    [a[0] + p[0] / 4.0, a[1] + p[1] / 4.0, a[2] + p[2] / 4.0]
+                });
+                (0..3).map(|j| (c[j] - centre[j]).powi(2)).sum::<f64>() < radius * radius
+            })
+            .collect();
+        match world.cut_body(b, &remove) {
+            Ok(r) => {
+                landed += 1;
+                // Several pieces may stay, each held by the clamp.
+                assert!(r.tets_left > 0 && r.pieces_kept >= 1, "{r:?}");
+            }
+            Err(CutError::Refused { why, .. }) => {
+                refused += 1;
+                assert!(
+                    matches!(why, CutRefused::Nothing | CutRefused::WholeBody { .. }),
+                    "{why:?}"
+                );
+            }
+            Err(e) => panic!("{e}"),
+        }
+        let body = &world.bodies[b];
+        assert!(body
+            .mesh
+            .tets
+            .iter()
+            .flatten()
+            .any(|k| mesh.fixed.contains(k)));
+        for _ in 0..5 {
+            world.step_body(b, Some(&tool)).unwrap();
+        }
+        let body = &world.bodies[b];
+        assert!(body
+            .model
+            .positions()
+            .iter()
+            .flatten()
+            .all(|v| v.is_finite()));
+        assert!(body.force_on_tissue().iter().all(|v| v.is_finite()));
+    }
+    assert!(
+        landed > 5 && refused > 5,
+        "{landed} landed, {refused} refused"
+    );
+}
