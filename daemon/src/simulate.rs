@@ -410,15 +410,7 @@ fn write_cut(
             writeln!(out, "{t:.6},{},asked,{tets},,,,,,,", name(*body))?;
         }
         CutEvent::Landed { report: r, waited } => {
-            tracing::info!(
-                "{}: cut at {t:.3} s: {} tetrahedra removed ({} of them cut loose or too small), \
-                 {} left, topology {}",
-                name(r.body),
-                r.removed_tets,
-                r.piece_tets,
-                r.tets_left,
-                r.epoch
-            );
+            tracing::info!("{}: cut at {t:.3} s: {r}", name(r.body));
             writeln!(
                 out,
                 "{t:.6},{},landed,,{},{},{},{},{},{:.6e},{waited}",

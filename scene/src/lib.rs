@@ -164,10 +164,7 @@ impl Topology {
         let mut tets: Vec<u32> = Vec::new();
         let mut render_triangles: Vec<u32> = Vec::new();
         let mut render_vertices: Vec<u32> = Vec::new();
-        let (tri_end, tet_end) = (
-            3 * self.triangle_count,
-            3 * self.triangle_count + 4 * self.tet_count,
-        );
+        let tet_end = 3 * self.triangle_count + 4 * self.tet_count;
         let render_tri_end = tet_end + 3 * self.render_triangle_count;
         let mut bodies = Vec::with_capacity(self.bodies.len());
         for (old, b) in self.bodies.iter().zip(&world.bodies) {
@@ -205,7 +202,6 @@ impl Topology {
             }
             bodies.push(bt);
         }
-        debug_assert!(tri_end <= self.indices.len());
         let mut topology = Topology {
             bodies,
             node_count: self.node_count,

@@ -187,6 +187,18 @@ pub struct CutReport {
     pub volume_removed: f64,
 }
 
+impl fmt::Display for CutReport {
+    /// What a log line says of a cut: `8 tetrahedra removed (0 of them cut loose or too
+    /// small), 1698 left, topology 1`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} tetrahedra removed ({} of them cut loose or too small), {} left, topology {}",
+            self.removed_tets, self.piece_tets, self.tets_left, self.epoch
+        )
+    }
+}
+
 impl CutSource {
     /// The body this cut is for.
     pub fn body(&self) -> usize {
@@ -259,11 +271,7 @@ impl World {
             body: i,
             bodies: self.bodies.len(),
         })?;
-        let precise = match (&b.model, &b.lop) {
-            (Model::Gc(_), Some(lop)) => lop.parked(),
-            (m, _) => m,
-        };
-        let recipe = match precise {
+        let recipe = match precise_model(b) {
             Model::Fem(f) => Recipe::Fem(*f.parameters()),
             Model::MassSpring(m) => Recipe::Msd(*m.params(), m.substep_policy()),
             Model::Gc(_) => {
@@ -310,12 +318,7 @@ impl World {
                 current: b.epoch,
             });
         }
-        // The precise model the body runs, or has parked under its cage.
-        let precise = match (&b.model, &b.lop) {
-            (Model::Gc(_), Some(lop)) => lop.parked(),
-            (m, _) => m,
-        };
-        if let (Model::Fem(new), Model::Fem(old)) = (&mut model, precise) {
+        if let (Model::Fem(new), Model::Fem(old)) = (&mut model, precise_model(b)) {
             // Both valid: the period and policy the old model runs at now.
             let _ = new.set_dt(old.dt());
             new.set_refactor_policy(old.refactor_policy());
@@ -355,19 +358,35 @@ impl World {
     }
 }
 
+/// The precise model body `b` runs, or has parked under its cage.
+fn precise_model(b: &crate::world::Body) -> &Model {
+    match (&b.model, &b.lop) {
+        (Model::Gc(_), Some(lop)) => lop.parked(),
+        (m, _) => m,
+    }
+}
+
 /// The tetrahedra of `mesh` that vaporise at `temperatures` (°C, one per node): those with a
-/// node at `threshold` or hotter (module docs).
-pub fn vaporised(mesh: &TetMesh, temperatures: &[f64], threshold: f64) -> Vec<bool> {
+/// node `under_tip` at `threshold` or hotter (module docs); `None` when there is none, without
+/// allocating (what the rounds ask every round while a cut button is held).
+pub fn vaporised(
+    mesh: &TetMesh,
+    temperatures: &[f64],
+    threshold: f64,
+    under_tip: impl Fn(u32) -> bool,
+) -> Option<Vec<bool>> {
+    let boiling = |n: u32| {
+        temperatures
+            .get(n as usize)
+            .is_some_and(|&v| v >= threshold)
+            && under_tip(n)
+    };
+    let goes = |t: &[u32; 4]| t.iter().any(|&n| boiling(n));
+    // A node no tetrahedron uses any more (an earlier cut's) boils on its own: it takes nothing.
     mesh.tets
         .iter()
-        .map(|t| {
-            t.iter().any(|&k| {
-                temperatures
-                    .get(k as usize)
-                    .is_some_and(|&v| v >= threshold)
-            })
-        })
-        .collect()
+        .any(goes)
+        .then(|| mesh.tets.iter().map(goes).collect())
 }
 
 /// Steps of a body before a cut of it that was refused is asked for again.
@@ -579,14 +598,7 @@ impl World {
     /// The point of body `i`'s surface `a` anchors to, at its current positions.
     fn anchor_point(&self, i: usize, a: &ToolAnchor) -> Option<[f64; 3]> {
         let b = self.bodies.get(i)?;
-        let tri = b.mesh.surface.get(a.triangle as usize)?;
-        let x = b.model.positions();
-        let mut at = [0.0; 3];
-        for (&n, w) in tri.iter().zip(a.bary) {
-            let p = x[n as usize];
-            (0..3).for_each(|j| at[j] += w * p[j]);
-        }
-        Some(at)
+        a.point(&b.mesh.surface, b.model.positions())
     }
 
     /// `a` moved to the point of body `i`'s surface closest to `x` (its offset and grab kept).
@@ -633,7 +645,6 @@ impl World {
             let body = &self.bodies[b];
             let x = body.model.positions();
             let reach = 2.0 * t.laws.get(b).map_or(0.0, |l| l.radius);
-            let temps = temps.temperatures();
             // The nodes under the tip: the anchor triangle's, and any within reach of it.
             let tri = body.mesh.surface.get(a.triangle as usize).copied();
             let near = |n: u32| {
@@ -643,18 +654,11 @@ impl World {
                         .sum::<f64>()
                         <= reach * reach
             };
-            let boiling =
-                |n: u32| temps.get(n as usize).is_some_and(|&v| v >= vaporization) && near(n);
-            let remove: Vec<bool> = body
-                .mesh
-                .tets
-                .iter()
-                .map(|tet| tet.iter().any(|&n| boiling(n)))
-                .collect();
-            let tets = remove.iter().filter(|&&r| r).count();
-            if tets == 0 {
+            let Some(remove) = vaporised(&body.mesh, temps.temperatures(), vaporization, near)
+            else {
                 continue;
-            }
+            };
+            let tets = remove.iter().filter(|&&r| r).count();
             let Ok(source) = self.cut_source(b) else {
                 continue;
             };

@@ -72,10 +72,12 @@ pub struct CutSpec {
 }
 
 impl Default for CutSpec {
+    /// The physics crate's defaults (`lop_sim::cut::CutParams`): one owner.
     fn default() -> Self {
+        let d = lop_sim::cut::CutParams::default();
         CutSpec {
-            vaporization: 100.0,
-            delay_steps: 50,
+            vaporization: d.vaporization,
+            delay_steps: d.delay_steps,
         }
     }
 }

@@ -476,16 +476,15 @@ impl DeformLoop {
     fn publish_cut_topology(&mut self) {
         for e in &self.world.last_round().cuts {
             match e {
-                lop_sim::cut::CutEvent::Landed { report: r, waited } => {
-                    tracing::info!(
-                    "{}: cut: {} tetrahedra removed ({} of them cut loose or too small), {} left{}",
+                lop_sim::cut::CutEvent::Landed { report: r, waited } => tracing::info!(
+                    "{}: cut: {r}{}",
                     self.world.bodies[r.body].name,
-                    r.removed_tets,
-                    r.piece_tets,
-                    r.tets_left,
-                    if *waited { " (the step waited for it)" } else { "" }
-                )
-                }
+                    if *waited {
+                        " (the step waited for it)"
+                    } else {
+                        ""
+                    }
+                ),
                 lop_sim::cut::CutEvent::Refused(why) => tracing::warn!("cut refused: {why}"),
                 lop_sim::cut::CutEvent::Asked { .. } => {}
             }

@@ -163,6 +163,11 @@ impl PassivityController {
         self.last_force = if f.is_finite() { f } else { DVec3::ZERO };
     }
 
+    /// The force last reported [`rendered`](Self::rendered), N (zero after a reset).
+    pub fn last_rendered(&self) -> [f64; 3] {
+        self.last_force.to_array()
+    }
+
     /// Forgets the port's history (the device or the contact restarted).
     pub fn reset(&mut self) {
         self.energy = 0.0;

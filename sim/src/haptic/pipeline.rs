@@ -223,10 +223,9 @@ pub struct HapticPipeline {
     settings: PipelineSettings,
     passivity: PassivityController,
     safety: ForceSafety,
-    /// Ticks left of a glide after a topology change ([`TOPOLOGY_GLIDE_TICKS`]), and the last
-    /// force rendered (scene frame, N).
+    /// Ticks left of a glide after a topology change ([`TOPOLOGY_GLIDE_TICKS`]), from the last
+    /// force rendered (the passivity controller's, [`PassivityController::last_rendered`]).
     glide: u32,
-    last_force: [f64; 3],
     /// Nanoseconds each stage took in the last tick, by [`Stage`] order (filled by `tick`).
     stage_ns: [u64; Stage::ALL.len()],
 }
@@ -244,7 +243,6 @@ impl HapticPipeline {
                 ),
             settings,
             glide: 0,
-            last_force: [0.0; 3],
             stage_ns: [0; Stage::ALL.len()],
         }
     }
@@ -340,7 +338,7 @@ impl HapticPipeline {
         }
         if self.glide > 0 {
             let n = f64::from(self.glide);
-            for (d, l) in desired.iter_mut().zip(self.last_force) {
+            for (d, l) in desired.iter_mut().zip(self.passivity.last_rendered()) {
                 *d = l + (*d - l) / n;
             }
             self.glide -= 1;
@@ -361,7 +359,6 @@ impl HapticPipeline {
         let k = stiffness.max(s.tool.stiffness);
         let force = self.safety.condition_moving(desired, healthy, tip, k);
         self.passivity.rendered(force);
-        self.last_force = force;
         let device_force = s.workspace.scene_dir_to_device(force);
         let t6 = clock();
 

@@ -255,54 +255,12 @@ impl Pieces {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::path::PathBuf;
+    use crate::vec3::{cross, norm, sub};
 
-    /// A bar of `n` unit cubes along x, each cut into 6 tetrahedra (Kuhn), nodes fixed at
-    /// x = 0 if `fixed`.
+    /// A bar of `n` unit cubes along x, each cut into 6 tetrahedra (`box_mesh`: cube `i`'s
+    /// are tetrahedra `6i..6i + 6`), nodes fixed at x = 0 if `fixed`.
     fn bar(n: usize, fixed: bool) -> TetMesh {
-        let mut nodes = Vec::new();
-        for i in 0..=n {
-            for j in 0..2 {
-                for k in 0..2 {
-                    nodes.push([i as f64, j as f64, k as f64]);
-                }
-            }
-        }
-        let id = |i: usize, j: usize, k: usize| (4 * i + 2 * j + k) as u32;
-        let mut tets = Vec::new();
-        for i in 0..n {
-            let c = |dx: usize, dy: usize, dz: usize| id(i + dx, dy, dz);
-            let (v0, v7) = (c(0, 0, 0), c(1, 1, 1));
-            for path in [
-                [c(1, 0, 0), c(1, 1, 0)],
-                [c(1, 0, 0), c(1, 0, 1)],
-                [c(0, 1, 0), c(1, 1, 0)],
-                [c(0, 1, 0), c(0, 1, 1)],
-                [c(0, 0, 1), c(1, 0, 1)],
-                [c(0, 0, 1), c(0, 1, 1)],
-            ] {
-                // Half of Kuhn's six are negatively oriented: swap two corners.
-                let t = [v0, path[0], path[1], v7];
-                let [a, b, c, d] = t.map(|k| {
-                    let k = k as usize;
-                    [(k / 4) as f64, ((k / 2) % 2) as f64, (k % 2) as f64]
-                });
-                let (u, v, w) = (
-                    [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
-                    [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
-                    [d[0] - a[0], d[1] - a[1], d[2] - a[2]],
-                );
-                let det = u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
-                    + u[2] * (v[0] * w[1] - v[1] * w[0]);
-                tets.push(if det > 0.0 {
-                    t
-                } else {
-                    [t[0], t[2], t[1], t[3]]
-                });
-            }
-        }
-        let fixed = if fixed { vec![0, 1, 2, 3] } else { vec![] };
-        TetMesh::from_parts(nodes, tets, fixed, PathBuf::from("bar")).expect("a valid bar")
+        crate::fem::box_mesh([n as f64, 1.0, 1.0], [n, 1, 1], |p| fixed && p[0] < 1e-9)
     }
 
     fn cube(mesh: &TetMesh, i: usize) -> Vec<bool> {
@@ -329,16 +287,7 @@ mod tests {
             .iter()
             .map(|t| {
                 let [a, b, c] = t.map(|k| cut.mesh.nodes[k as usize]);
-                let (u, v) = (
-                    [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
-                    [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
-                );
-                let n = [
-                    u[1] * v[2] - u[2] * v[1],
-                    u[2] * v[0] - u[0] * v[2],
-                    u[0] * v[1] - u[1] * v[0],
-                ];
-                0.5 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()
+                0.5 * norm(cross(sub(b, a), sub(c, a)))
             })
             .sum();
         assert!((area - (2.0 + 4.0 * 2.0)).abs() < 1e-12, "area {area}");

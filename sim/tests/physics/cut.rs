@@ -31,15 +31,23 @@ fn fem_params() -> FemParameters {
     }
 }
 
-/// The tetrahedra of `mesh` whose centroid lies between `x0` and `x1`.
-fn slab(mesh: &TetMesh, x0: f64, x1: f64) -> Vec<bool> {
+/// The tetrahedra of `mesh` whose centroid at positions `x` passes `keep`.
+fn tets_where(mesh: &TetMesh, x: &[[f64; 3]], keep: impl Fn([f64; 3]) -> bool) -> Vec<bool> {
     mesh.tets
         .iter()
         .map(|t| {
-            let x = t.iter().map(|&k| mesh.nodes[k as usize][0]).sum::<f64>() / 4.0;
-            x > x0 && x < x1
+            let c = t.iter().fold([0.0; 3], |a, &k| {
+                let p = x[k as usize];
+                [a[0] + p[0] / 4.0, a[1] + p[1] / 4.0, a[2] + p[2] / 4.0]
+            });
+            keep(c)
         })
         .collect()
+}
+
+/// The tetrahedra of `mesh` whose rest centroid lies between `x0` and `x1`.
+fn slab(mesh: &TetMesh, x0: f64, x1: f64) -> Vec<bool> {
+    tets_where(mesh, &mesh.nodes, |c| c[0] > x0 && c[0] < x1)
 }
 
 fn fem_world(mesh: &TetMesh) -> (World, usize) {
@@ -144,17 +152,9 @@ fn a_pressed_body_cut_under_the_tool_goes_on() {
     assert!(pressed < -0.05, "pressed {pressed} N");
     // A crater under the tool: the top layer's four cells around it (1 × 1 cm, 5 mm deep),
     // wider than the 6 mm tool, which stays where it is.
-    let remove: Vec<bool> = mesh
-        .tets
-        .iter()
-        .map(|t| {
-            let c = t.iter().fold([0.0; 3], |a, &k| {
-                let p = mesh.nodes[k as usize];
-                [a[0] + p[0] / 4.0, a[1] + p[1] / 4.0, a[2] + p[2] / 4.0]
-            });
-            c[2] > 0.015 && (c[0] - 0.02).abs() < 0.005 && (c[1] - 0.02).abs() < 0.005
-        })
-        .collect();
+    let remove = tets_where(&mesh, &mesh.nodes, |c| {
+        c[2] > 0.015 && (c[0] - 0.02).abs() < 0.005 && (c[1] - 0.02).abs() < 0.005
+    });
     let report = world.cut_body(b, &remove).expect("the cut lands");
     assert_eq!((report.removed_tets, report.pieces_removed), (24, 0));
     assert!(world.bodies[b].contacts.iter().all(|c| c.depth == 0.0));
@@ -203,7 +203,9 @@ fn vaporised_tissue_is_cut_and_the_heat_carries_over() {
     heat.set_temperatures(&field).unwrap();
     world.set_heat(HeatWorld::new(vec![heat]).unwrap());
     let before = world.heat().unwrap().bodies()[b].clone();
-    let remove = vaporised(&mesh, &field, 100.0);
+    let remove = vaporised(&mesh, &field, 100.0, |_| true).expect("a node boils");
+    // Under a tip that reaches none of it, nothing goes.
+    assert_eq!(vaporised(&mesh, &field, 100.0, |_| false), None);
     // Only the corner node boils (137 °C; its neighbours 5 mm away are at 56 °C): the six
     // tetrahedra of its cell go.
     let asked = remove.iter().filter(|&&r| r).count();
@@ -464,19 +466,9 @@ fn seeded_cuts_land_or_are_refused_and_nothing_goes_non_finite() {
         } else {
             rng.range(0.001, 0.007)
         };
-        let x = body.model.positions();
-        let remove: Vec<bool> = body
-            .mesh
-            .tets
-            .iter()
-            .map(|t| {
-                let c = t.iter().fold([0.0; 3], |a, &k| {
-                    let p = x[k as usize];
-                    [a[0] + p[0] / 4.0, a[1] + p[1] / 4.0, a[2] + p[2] / 4.0]
-                });
-                (0..3).map(|j| (c[j] - centre[j]).powi(2)).sum::<f64>() < radius * radius
-            })
-            .collect();
+        let remove = tets_where(&body.mesh, body.model.positions(), |c| {
+            (0..3).map(|j| (c[j] - centre[j]).powi(2)).sum::<f64>() < radius * radius
+        });
         match world.cut_body(b, &remove) {
             Ok(r) => {
                 landed += 1;
